@@ -1,0 +1,34 @@
+"""lfjax: what a human eye sees, and where it focuses, looking at a light-field display.
+
+Wave-optics model (Miyanishi, Sahin & Gotchev) of an ideal integral-imaging light-field
+display viewed by a population of aberrated eyes, as pure, jitted, vmapped and
+differentiable JAX functions. Stage modules: :mod:`lfjax.zernike`, :mod:`lfjax.eyes`,
+:mod:`lfjax.spectral`, :mod:`lfjax.layouts`, :mod:`lfjax.optics`, :mod:`lfjax.metrics`,
+:mod:`lfjax.through_focus`, :mod:`lfjax.images`, :mod:`lfjax.planner`.
+"""
+
+from importlib.metadata import PackageNotFoundError, version
+
+from . import eyes as eyes
+from . import layouts as layouts
+from . import optics as optics
+from . import spectral as spectral
+from . import units as units
+from . import zernike as zernike
+from .eyes import Eyes as Eyes
+from .eyes import average_eye as average_eye
+from .eyes import sample_eyes as sample_eyes
+from .layouts import grid_layout as grid_layout
+from .layouts import hex_layout as hex_layout
+from .layouts import make_layout as make_layout
+from .layouts import open_pupil as open_pupil
+from .options import ModelOptions as ModelOptions
+from .optics import monochromatic_psf as monochromatic_psf
+from .optics import polychromatic_otf as polychromatic_otf
+from .sampling import Sampling as Sampling
+from .spectral import make_spectrum as make_spectrum
+
+try:
+    __version__ = version("lfjax")
+except PackageNotFoundError:  # pragma: no cover
+    __version__ = "0.0.0"

@@ -1,0 +1,516 @@
+"""Wave optics of the eye: generalised pupil functions, elemental OTFs, polychromatic OTFs.
+
+Conventions (DESIGN.md §1): pupil function ``A · exp(−i 2π W / λ)``; PSF = |forward DFT|²
+(a positive x-tilt c(1,1) moves the PSF towards −x); OTF = forward DFT of the PSF. Arrays
+are ``[y, x]``; OTFs are in FFT order (index 0 is zero frequency, ``k·df`` with k from
+``fftfreq``). The PSF is never re-centred: light-field displacements are signal.
+
+The expensive part is computed once per eye: for every wavelength λ, accommodation state
+a and subaperture n the elemental OTF on a window sized to that subaperture; every
+rendered depth is then a phase ramp and a sum (DESIGN.md §3).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import partial
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .eyes import Eyes
+from .layouts import Layout, open_pupil
+from .options import ModelOptions
+from .sampling import Sampling, blur_radius_arcmin, check_field, eye_slope_rad
+from .spectral import Spectrum, make_spectrum
+from .units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN, dioptres_to_c20_um
+from .zernike import wavefront_um, zernike_mode
+
+# ----------------------------------------------------------------------------- apertures
+
+
+def _safe_sqrt(x):
+    """sqrt with a finite (zero) gradient at 0 (double-where)."""
+    positive = x > 0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
+
+
+def disk_edge_distance(r2_mm2, radius_mm, edge_scale_mm):
+    """Signed distance (mm) inside the edge of a disc whose logistic edge keeps its area.
+
+    ``sigmoid(distance / s)`` integrates to π(R'² + π²s²/3); the shifted radius R' makes the
+    covered area exactly π·radius², so results are continuous and differentiable in centre
+    and diameter with no area bias.
+    """
+    r = _safe_sqrt(r2_mm2)
+    return _safe_sqrt(radius_mm**2 - (math.pi**2 / 3.0) * edge_scale_mm**2) - r
+
+
+def soft_disk(r2_mm2, radius_mm, edge_scale_mm):
+    """Anti-aliased disc amplitude transmission: logistic edge of scale ``edge_scale_mm``."""
+    return jax.nn.sigmoid(disk_edge_distance(r2_mm2, radius_mm, edge_scale_mm) / edge_scale_mm)
+
+
+def _sa_geometry(options: ModelOptions, pupil_diameter_mm):
+    """(scale, radius_mm) so that c(4,0)_applied = slope · a · scale on Z(4,0)(r/radius)."""
+    ref = options.sa_reference_pupil_mm
+    form = options.accommodation_sa
+    if form == "scaled":
+        return (pupil_diameter_mm / ref) ** 4, 0.5 * pupil_diameter_mm
+    if form == "wavefront_5mm":
+        return 1.0, 0.5 * ref
+    if form == "unscaled":
+        return 1.0, 0.5 * pupil_diameter_mm
+    return 0.0, 0.5 * pupil_diameter_mm
+
+
+def sa_c40_um(accommodation_D, pupil_diameter_mm, options: ModelOptions = ModelOptions()):
+    """Accommodation spherical aberration added to c(4,0), µm, on the radius of ``_sa_geometry``."""
+    scale, _ = _sa_geometry(options, pupil_diameter_mm)
+    return options.sa_slope_um_per_D * accommodation_D * scale
+
+
+# ----------------------------------------------------------------------------- core
+
+
+def _window_coordinates(centre_mm, n_fft: int, dx_mm):
+    k = jnp.arange(n_fft, dtype=dx_mm.dtype) - (n_fft // 2)
+    x = centre_mm[0] + k * dx_mm
+    y = centre_mm[1] + k * dx_mm
+    return jnp.meshgrid(x, y)  # [y, x]
+
+
+def _pupil_parts(
+    coefficients_um, measured_pupil_mm, pupil_diameter_mm, centre_mm, diameter_mm,
+    dx_mm, sce_rho, n_pupil: int, edge_width_samples: float, options: ModelOptions,
+):
+    """Amplitude, eye wavefront (µm), defocus / SA basis and transmitted energy (mm²) on one
+    subaperture window."""
+    xx, yy = _window_coordinates(centre_mm, n_pupil, dx_mm)
+    r2 = xx * xx + yy * yy
+    edge = edge_width_samples * dx_mm
+    r_pupil = 0.5 * pupil_diameter_mm
+    # Intersection of pupil and subaperture: one edge at the nearer boundary (a product of
+    # two sigmoids would double the edge where the boundaries coincide, as for the open pupil).
+    inside = jnp.minimum(
+        disk_edge_distance(r2, r_pupil, edge),
+        disk_edge_distance(
+            (xx - centre_mm[0]) ** 2 + (yy - centre_mm[1]) ** 2, 0.5 * diameter_mm, edge
+        ),
+    )
+    coverage = jax.nn.sigmoid(inside / edge)
+    sce = jnp.power(10.0, -sce_rho * r2)
+    amp = coverage * sce
+    # A partly covered sample transmits energy ∝ its coverage, not coverage²: Σ|field|²
+    # under-counts the edge by ~s·perimeter, a bias the OTF's zero-frequency term must not
+    # carry (it would lift the whole normalised MTF by ~2s/R).
+    energy = jnp.sum(coverage * sce * sce) * dx_mm * dx_mm
+    r_meas = 0.5 * measured_pupil_mm
+    w_eye = wavefront_um(coefficients_um, xx / r_meas, yy / r_meas)
+    z20 = zernike_mode(4, xx / r_pupil, yy / r_pupil)
+    _, r_sa = _sa_geometry(options, pupil_diameter_mm)
+    z40 = zernike_mode(12, xx / r_sa, yy / r_sa)
+    return amp, w_eye, z20, z40, energy
+
+
+def pupil_window_size(n_fft: int, sampling: Sampling) -> int:
+    """Pupil samples actually evaluated in a window of ``n_fft`` (the aperture and its edge).
+
+    ``n_fft`` holds twice the aperture (autocorrelation support), so the aperture plus its
+    logistic edge fits in about half of it; the rest is zero padding inside the FFT.
+    """
+    from .sampling import EDGE_EXTENT_SCALES
+
+    margin = int(math.ceil(2 * EDGE_EXTENT_SCALES * sampling.edge_width_samples)) + 2
+    size = (n_fft - 1) // 2 + margin
+    return min(n_fft, size + size % 2)
+
+
+def _elemental_otfs(
+    coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
+    centres_mm, diameters_mm, spectrum: Spectrum, n_fft: int, sampling: Sampling,
+    options: ModelOptions,
+):
+    """Spectrally weighted elemental OTFs of one eye.
+
+    Returns complex (n_acc, n_sub, n_fft, n_fft//2+1), the half plane f_x ≥ 0 of
+    Σ_λ w_λ OTF_{λ,n,a}, each OTF carrying the energy its pupil transmits
+    (OTF(0) = ∫|P|² dA in mm²).
+    """
+    df_rad = sampling.freq_step_cpd * DEGREES_PER_RADIAN
+    real = jnp.result_type(float)
+    n_pupil = pupil_window_size(n_fft, sampling)
+    c40 = sa_c40_um(accommodation_D, pupil_diameter_mm, options)
+
+    def one_wavelength(total, xs):
+        wl_nm, weight, lca_D, rho = xs
+        wl_mm = wl_nm * 1e-6
+        dx = (wl_mm * df_rad).astype(real)
+        parts = jax.vmap(
+            lambda c, d: _pupil_parts(
+                coefficients_um, measured_pupil_mm, pupil_diameter_mm, c, d, dx, rho,
+                n_pupil, sampling.edge_width_samples, options,
+            )
+        )(centres_mm, diameters_mm)
+        amp, w_eye, z20, z40, energy = parts  # (n_sub, n_pupil, n_pupil) and (n_sub,)
+        c20 = dioptres_to_c20_um(accommodation_D - cdp_D + lca_D, pupil_diameter_mm)
+        w = (
+            w_eye[None]
+            + c20[:, None, None, None] * z20[None]
+            + c40[:, None, None, None] * z40[None]
+        )
+        phase = (-2.0 * jnp.pi / (wl_nm * 1e-3)) * w
+        field = jax.lax.complex(amp[None] * jnp.cos(phase), amp[None] * jnp.sin(phase))
+        # The aperture fills only the central n_pupil samples; an explicit pad then one
+        # fft2 is faster on CPU than two padded 1-D passes (measured).
+        pad = n_fft - n_pupil
+        field = jnp.pad(field, ((0, 0), (0, 0), (0, pad), (0, pad)))
+        spectrum_2d = jnp.fft.fft2(field)
+        psf = jnp.real(spectrum_2d) ** 2 + jnp.imag(spectrum_2d) ** 2
+        # The PSF is real: its OTF is Hermitian and the half plane (rfft2) holds it all.
+        otf = jnp.fft.rfft2(psf) * (dx * dx / (n_fft * n_fft))
+        otf = otf.at[..., 0, 0].set(jnp.broadcast_to(energy, otf.shape[:-2]))
+        return total + weight * otf, None
+
+    complex_dtype = jnp.result_type(real, 1j)
+    init = jnp.zeros(
+        (accommodation_D.shape[0], centres_mm.shape[0], n_fft, n_fft // 2 + 1), complex_dtype
+    )
+    xs = (spectrum.wavelengths_nm, spectrum.weights, spectrum.lca_D, spectrum.sce_rho_per_mm2)
+    total, _ = jax.lax.scan(one_wavelength, init, xs)
+    return total
+
+
+def frequencies_cpd(n_fft: int, freq_step_cpd: float):
+    """Frequencies (cpd) of an FFT-order axis of ``n_fft`` samples."""
+    return jnp.asarray(np.fft.fftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd)
+
+
+def half_frequencies_cpd(n_fft: int, freq_step_cpd: float):
+    """Frequencies (cpd) of the non-negative half axis (rfft layout, n_fft//2 + 1 samples)."""
+    return jnp.asarray(np.fft.rfftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd)
+
+
+def _render(elemental, centres_mm, cdp_D, depths_D, n_fft: int, freq_step_cpd: float):
+    """Displace each subaperture's OTF for each rendered depth and sum; OTF(0) = 1.
+
+    elemental (n_acc, n_sub, L, L//2+1) → (n_depth, n_acc, L, L//2+1), half planes. The
+    displacement of view n is Δθ_n = (D_r − D_CDP) · (p_n, q_n) (rad, D in 1/m, p in m),
+    applied as exp(−2πi f·Δθ).
+    """
+    fy_rad = frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
+    fx_rad = half_frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
+    shift_rad = (depths_D - cdp_D)[:, None, None] * centres_mm[None] * 1e-3  # (nd, n_sub, 2)
+    ramp_x = jnp.exp(-2j * jnp.pi * shift_rad[..., 0:1] * fx_rad)  # (nd, n_sub, Lx)
+    ramp_y = jnp.exp(-2j * jnp.pi * shift_rad[..., 1:2] * fy_rad)  # (nd, n_sub, L)
+
+    def add_view(total, view):
+        elem_n, ry_n, rx_n = view  # (n_acc, L, Lx), (nd, L), (nd, Lx)
+        ramp = ry_n[:, :, None] * rx_n[:, None, :]
+        return total + ramp[:, None] * elem_n[None], None
+
+    # A scan over views keeps memory at one (n_depth, n_acc, L, Lx) block; an einsum over
+    # the view axis lowers to tiny per-pixel matmuls, slow on CPU.
+    init = jnp.zeros((depths_D.shape[0],) + elemental.shape[:1] + elemental.shape[2:], elemental.dtype)
+    otf, _ = jax.lax.scan(
+        add_view, init,
+        (jnp.moveaxis(elemental, 1, 0), jnp.moveaxis(ramp_y, 1, 0), jnp.moveaxis(ramp_x, 1, 0)),
+    )
+    energy = jnp.real(jnp.sum(elemental[:, :, 0, 0], axis=1))  # (n_acc,)
+    return otf / energy[None, :, None, None]
+
+
+@partial(
+    jax.jit,
+    static_argnames=("measured_pupil_mm", "n_fft", "sampling", "options", "eye_chunk"),
+)
+def _otf_stack(
+    zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
+    centres_mm, diameters_mm, spectrum, n_fft, sampling, options, eye_chunk,
+):
+    def one_eye(coefficients):
+        elemental = _elemental_otfs(
+            coefficients, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
+            centres_mm, diameters_mm, spectrum, n_fft, sampling, options,
+        )
+        return _render(elemental, centres_mm, cdp_D, depths_D, n_fft, sampling.freq_step_cpd)
+
+    return jax.lax.map(one_eye, zernike_um, batch_size=eye_chunk)
+
+
+# ----------------------------------------------------------------------------- validation
+
+
+def _is_concrete(*xs) -> bool:
+    return not any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(xs))
+
+
+def validate_pupil(pupil_diameter_mm, measured_pupil_mm: float) -> None:
+    """Calculation pupil must be > 0 and no larger than the measured pupil."""
+    if not _is_concrete(pupil_diameter_mm):
+        return
+    d = float(pupil_diameter_mm)
+    if not (d > 0 and math.isfinite(d)):
+        raise ValueError(f"pupil_diameter_mm must be > 0 mm, got {d}")
+    if d > measured_pupil_mm + 1e-9:
+        raise ValueError(
+            f"pupil_diameter_mm={d:g} exceeds the measured pupil of the eyes "
+            f"({measured_pupil_mm:g} mm): allowed range (0, {measured_pupil_mm:g}] mm; "
+            "use eye statistics measured on a larger pupil"
+        )
+
+
+def _validate_coefficients(zernike_um) -> None:
+    if _is_concrete(zernike_um) and not bool(jnp.all(jnp.isfinite(zernike_um))):
+        raise ValueError("zernike_um contains non-finite values (NaN or inf)")
+
+
+def _field_check(
+    eyes_zernike, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
+    layout: Layout, spectrum: Spectrum, sampling: Sampling, pairs=None,
+    wrap_tolerance: float = 1e-3,
+) -> None:
+    """Raise if the PSF field cannot hold the blur (host check on concrete inputs).
+
+    Wavelengths carrying in total less than ``wrap_tolerance`` of the spectral weight, the
+    most blurred first, may wrap: their error in the OTF is bounded by their weight.
+    ``pairs`` = (accommodation, depth) arrays restricts the check to the pairs computed.
+    """
+    if not _is_concrete(
+        eyes_zernike, pupil_diameter_mm, cdp_D, accommodation_D, depths_D, layout, spectrum
+    ):
+        return  # under tracing the caller has checked the concrete sampling already
+    acc = np.asarray(accommodation_D, float).reshape(-1)
+    depth = np.asarray(depths_D, float).reshape(-1)
+    if pairs is None:
+        pair_acc = np.repeat(acc, depth.size)
+        pair_depth = np.tile(depth, acc.size)
+    else:
+        pair_acc = np.asarray(pairs[0], float).reshape(-1)
+        pair_depth = np.asarray(pairs[1], float).reshape(-1)
+    lca_all = np.asarray(spectrum.lca_D, float)
+    weights = np.asarray(spectrum.weights, float)
+    order = np.argsort(-np.abs(lca_all))  # most chromatic defocus first
+    excluded = np.cumsum(weights[order]) < wrap_tolerance * weights.sum()
+    lca = lca_all[order[~excluded]]
+    cdp = float(cdp_D)
+    defocus = (acc[:, None] - cdp + lca[None, :]).ravel()
+    mismatch = (pair_acc[:, None] - pair_depth[:, None] + lca[None, :]).ravel()
+    slope = eye_slope_rad(np.asarray(eyes_zernike), measured_pupil_mm, float(pupil_diameter_mm))
+    radius = blur_radius_arcmin(
+        float(pupil_diameter_mm), np.asarray(layout.centres_mm), np.asarray(layout.diameters_mm),
+        defocus, mismatch, float(np.max(np.asarray(spectrum.wavelengths_nm))), slope,
+    )
+    check_field(sampling, radius, "the blur of the requested defocus, LCA and display shifts")
+
+
+# ----------------------------------------------------------------------------- public
+
+
+class OTFStack(eqx.Module):
+    """Polychromatic OTFs on a common frequency grid, with their axes.
+
+    Attributes
+    ----------
+    otf : complex array (n_eyes, n_depth, n_acc, L, L//2+1), OTF(0) = 1.
+        Half plane f_x ≥ 0 (``rfft2`` layout: axis −2 in FFT order over f_y, axis −1 over
+        f_x = 0 … L/2 · df); the OTF is Hermitian, ``full_plane`` restores the rest.
+    accommodation_D : (n_acc,) absolute accommodation states, D.
+    depths_D : (n_depth,) rendered depths, D.
+    freq_step_cpd : float (static) frequency step, cpd.
+    """
+
+    otf: jnp.ndarray
+    accommodation_D: jnp.ndarray
+    depths_D: jnp.ndarray
+    freq_step_cpd: float = eqx.field(static=True)
+
+    @property
+    def n_fft(self) -> int:
+        return int(self.otf.shape[-2])
+
+    def full_plane(self):
+        """OTFs on the full L × L FFT-order plane."""
+        return full_plane(self.otf, self.n_fft)
+
+    @property
+    def pixel_arcmin(self) -> float:
+        return 60.0 / self.freq_step_cpd / self.n_fft
+
+
+def polychromatic_otf(
+    eyes: Eyes,
+    accommodation_D,
+    pupil_diameter_mm: float = 3.0,
+    cdp_D: float = 2.0,
+    spectrum: Spectrum | None = None,
+    sampling: Sampling = Sampling(),
+    options: ModelOptions = ModelOptions(),
+    layout: Layout | None = None,
+    depths_D=None,
+    eye_chunk: int | None = None,
+    check_aliasing: bool = True,
+) -> OTFStack:
+    """Polychromatic OTFs for eyes × rendered depths × accommodation states.
+
+    One jitted call, vmapped over accommodation and subapertures, scanned over wavelength
+    (reduced inside) and mapped over eyes in chunks of ``eye_chunk`` (memory bound).
+
+    Parameters
+    ----------
+    eyes : Eyes
+        Batch of eyes (coefficients in µm on ``eyes.measured_pupil_mm``).
+    accommodation_D : array (n_acc,), D
+        Absolute accommodation states 1/z_acc.
+    pupil_diameter_mm : float, mm
+        Calculation pupil, 0 < d ≤ eyes.measured_pupil_mm.
+    cdp_D : float, D
+        Depth of the display's central depth plane (where it forms its image points).
+    spectrum : Spectrum
+        Wavelengths, weights, LCA and SCE (default: 400–700 nm / 10 nm, V(λ)).
+    sampling : Sampling
+        Frequency step and window sizes.
+    options : ModelOptions
+    layout : Layout
+        Subapertures; default the open pupil (natural viewing).
+    depths_D : array (n_depth,), D
+        Rendered depths; default ``[cdp_D]`` (a point on the display plane).
+    check_aliasing : bool
+        Raise if the field 60/df arcmin cannot hold the blur (default True).
+
+    Returns
+    -------
+    OTFStack with ``otf`` of shape (n_eyes, n_depth, n_acc, L, L), OTF(0) = 1.
+    """
+    spectrum = make_spectrum(options=options) if spectrum is None else spectrum
+    layout = open_pupil(float(pupil_diameter_mm)) if layout is None else layout
+    depths_D = jnp.atleast_1d(jnp.asarray(cdp_D if depths_D is None else depths_D, float))
+    accommodation_D = jnp.atleast_1d(jnp.asarray(accommodation_D, float))
+    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
+    _validate_coefficients(eyes.zernike_um)
+    if check_aliasing:
+        _field_check(
+            eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
+            accommodation_D, depths_D, layout, spectrum, sampling,
+        )
+    zernike = eyes.zernike_um
+    if options.zero_piston_tilt:
+        zernike = zernike.at[:, :3].set(0.0)
+    n_fft = sampling.window_size(
+        layout.window_diameter_mm, float(np.min(np.asarray(spectrum.wavelengths_nm))),
+        float(pupil_diameter_mm),
+    )
+    real = jnp.result_type(float)
+    otf = _otf_stack(
+        zernike.astype(real), eyes.measured_pupil_mm, jnp.asarray(pupil_diameter_mm, real),
+        jnp.asarray(cdp_D, real), accommodation_D.astype(real), depths_D.astype(real),
+        layout.centres_mm.astype(real), layout.diameters_mm.astype(real), spectrum,
+        n_fft, sampling, options, eye_chunk,
+    )
+    return OTFStack(otf, accommodation_D, depths_D, sampling.freq_step_cpd)
+
+
+def full_plane(otf_half, n_fft: int):
+    """Full FFT-order (…, L, L) OTF from its half plane (…, L, L//2+1) by Hermitian symmetry.
+
+    OTF(−f) = conj(OTF(f)): column −k_x is the conjugate of column k_x with rows reflected.
+    """
+    n_negative = n_fft - otf_half.shape[-1]
+    cols = otf_half[..., 1 : 1 + n_negative][..., ::-1]
+    reflected = jnp.roll(jnp.flip(cols, axis=-2), 1, axis=-2)
+    return jnp.concatenate([otf_half, jnp.conj(reflected)], axis=-1)
+
+
+def psf_from_otf(otf_half, n_fft: int, freq_step_cpd: float):
+    """PSF density (per arcmin²) from a half-plane OTF, centred (zero angle at index L//2).
+
+    Integrates to OTF(0) over the field 60/df arcmin; pixel 60/(df·L) arcmin.
+    """
+    psf = jnp.fft.irfft2(otf_half, s=(n_fft, n_fft)) * (n_fft * n_fft) * (freq_step_cpd / 60.0) ** 2
+    return jnp.fft.fftshift(psf, axes=(-2, -1))
+
+
+def monochromatic_psf(
+    coefficients_um,
+    measured_pupil_mm: float,
+    pupil_diameter_mm: float,
+    wavelength_nm: float,
+    pixel_arcmin: float,
+    n_pixels: int,
+    defocus_D: float = 0.0,
+    sce_rho_per_mm2: float = 0.0,
+    pupil_samples: int = 128,
+):
+    """Monochromatic PSF by a matrix Fourier transform, normalised to unit sum.
+
+    Parameters
+    ----------
+    coefficients_um : (n_modes,) µm, OSA/ANSI on ``measured_pupil_mm``
+    measured_pupil_mm, pupil_diameter_mm : mm (calculation pupil ≤ measured)
+    wavelength_nm : nm
+    pixel_arcmin : float, arcmin per PSF pixel
+    n_pixels : int, PSF is n_pixels × n_pixels; zero angle at index n_pixels // 2
+    defocus_D : added defocus, D (positive = myopic)
+    sce_rho_per_mm2 : Stiles–Crawford ρ applied as amplitude 10^(−ρ r²)
+    pupil_samples : samples across the pupil
+
+    Returns
+    -------
+    (n_pixels, n_pixels) array ``[y, x]`` summing to 1 (point samples of the PSF).
+    """
+    validate_pupil(pupil_diameter_mm, measured_pupil_mm)
+    if not (pixel_arcmin > 0):
+        raise ValueError(f"pixel_arcmin must be > 0, got {pixel_arcmin}")
+    if int(n_pixels) != n_pixels or n_pixels < 2:
+        raise ValueError(f"n_pixels must be an integer >= 2, got {n_pixels}")
+    coefficients_um = jnp.asarray(coefficients_um, float)
+    _validate_coefficients(coefficients_um)
+    if not (380.0 <= float(wavelength_nm) <= 830.0):
+        raise ValueError(f"wavelength_nm must be in 380–830 nm, got {wavelength_nm}")
+    return _monochromatic_psf(
+        coefficients_um, float(measured_pupil_mm), jnp.asarray(pupil_diameter_mm, float),
+        jnp.asarray(wavelength_nm, float), jnp.asarray(pixel_arcmin, float), int(n_pixels),
+        jnp.asarray(defocus_D, float), jnp.asarray(sce_rho_per_mm2, float), int(pupil_samples),
+    )
+
+
+@partial(jax.jit, static_argnames=("measured_pupil_mm", "n_pixels", "pupil_samples"))
+def _monochromatic_psf(
+    coefficients_um, measured_pupil_mm, pupil_diameter_mm, wavelength_nm, pixel_arcmin,
+    n_pixels, defocus_D, sce_rho, pupil_samples,
+):
+    dx = pupil_diameter_mm / pupil_samples
+    k = jnp.arange(pupil_samples) - (pupil_samples - 1) / 2.0
+    x = k * dx
+    xx, yy = jnp.meshgrid(x, x)
+    r2 = xx * xx + yy * yy
+    r_pupil = 0.5 * pupil_diameter_mm
+    amp = soft_disk(r2, r_pupil, 0.5 * dx) * jnp.power(10.0, -sce_rho * r2)
+    r_meas = 0.5 * measured_pupil_mm
+    w = wavefront_um(coefficients_um, xx / r_meas, yy / r_meas)
+    w = w + dioptres_to_c20_um(defocus_D, pupil_diameter_mm) * zernike_mode(
+        4, xx / r_pupil, yy / r_pupil
+    )
+    field = amp * jnp.exp((-2j * jnp.pi / (wavelength_nm * 1e-3)) * w)
+    theta_rad = (jnp.arange(n_pixels) - n_pixels // 2) * pixel_arcmin / ARCMIN_PER_RADIAN
+    kernel = jnp.exp((-2j * jnp.pi / (wavelength_nm * 1e-6)) * theta_rad[:, None] * x[None, :])
+    g = kernel @ field @ kernel.T  # rows: θ_y, columns: θ_x
+    psf = jnp.abs(g) ** 2
+    return psf / jnp.sum(psf)
+
+
+__all__ = [
+    "soft_disk",
+    "disk_edge_distance",
+    "sa_c40_um",
+    "frequencies_cpd",
+    "half_frequencies_cpd",
+    "full_plane",
+    "OTFStack",
+    "polychromatic_otf",
+    "psf_from_otf",
+    "monochromatic_psf",
+    "validate_pupil",
+]

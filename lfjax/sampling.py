@@ -1,0 +1,173 @@
+"""Numerical sampling: one common frequency grid for every wavelength, and its guards.
+
+The OTF of every (wavelength, subaperture, accommodation) is sampled on the same grid
+``f = k · df`` (cpd, k an integer in FFT order). Per wavelength the pupil is sampled at
+``dx(λ) = λ · df`` (mm, with df in cycles/radian), so the FFT of the pupil lands every
+wavelength on that grid without interpolation. The PSF implied by the grid is periodic
+with period (field) ``1/df`` = 60/df arcmin: the whole blur must fit inside it or it wraps.
+
+A window holding a subaperture of diameter d at the shortest wavelength needs
+``L ≥ 2 d / (λ_min df)`` samples (the autocorrelation support) plus the soft edges; an
+n×n layout therefore needs windows about n times smaller than the open pupil.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
+
+EDGE_EXTENT_SCALES = 6.0
+"""Logistic edge profile is taken to extend this many scale lengths (e^-6 ≈ 0.25 %)."""
+
+
+def next_fast_size(n: int) -> int:
+    """Smallest even 2^a·3^b·5^c ≥ n (fast FFT sizes)."""
+    n = max(int(n), 2)
+    best = None
+    p2 = 1
+    while p2 < 2 * n:
+        p3 = p2
+        while p3 < 2 * n:
+            p5 = p3
+            while p5 < 2 * n:
+                if p5 >= n and p5 % 2 == 0 and (best is None or p5 < best):
+                    best = p5
+                p5 *= 5
+            p3 *= 3
+        p2 *= 2
+    return best
+
+
+@dataclass(frozen=True)
+class Sampling:
+    """Frequency-grid sampling shared by all wavelengths (static under ``jit``).
+
+    Attributes
+    ----------
+    freq_step_cpd : float, cpd
+        Frequency step df. The PSF field (period) is 60/df arcmin.
+    n_fft : int or None
+        FFT size of the open-pupil window. ``None`` (default): the smallest fast size that
+        holds the OTF support at the shortest wavelength. Subaperture windows scale with
+        their diameter.
+    edge_width_samples : float
+        Scale of the logistic aperture edge, in pupil samples (anti-aliasing; keeps apertures
+        differentiable in centre and diameter).
+    """
+
+    freq_step_cpd: float = 1.0
+    n_fft: int | None = None
+    edge_width_samples: float = 0.5
+
+    def __post_init__(self):
+        if not (self.freq_step_cpd > 0 and math.isfinite(self.freq_step_cpd)):
+            raise ValueError(f"freq_step_cpd must be > 0 cpd, got {self.freq_step_cpd}")
+        if self.n_fft is not None and (int(self.n_fft) != self.n_fft or self.n_fft < 8):
+            raise ValueError(f"n_fft must be an integer >= 8, got {self.n_fft}")
+        if not (0.05 <= self.edge_width_samples <= 4.0):
+            raise ValueError(
+                f"edge_width_samples must be in 0.05–4 pupil samples, got {self.edge_width_samples}"
+            )
+
+    @property
+    def field_arcmin(self) -> float:
+        """Period of the PSF, arcmin."""
+        return 60.0 / self.freq_step_cpd
+
+    def freq_step_cycles_per_radian(self) -> float:
+        return self.freq_step_cpd * DEGREES_PER_RADIAN
+
+    def window_size(
+        self, window_diameter_mm: float, min_wavelength_nm: float, pupil_diameter_mm: float
+    ) -> int:
+        """FFT size for a window holding ``window_diameter_mm`` at the shortest wavelength."""
+        samples = window_diameter_mm / (min_wavelength_nm * 1e-6 * self.freq_step_cycles_per_radian())
+        needed = 2.0 * (samples + 2.0 * EDGE_EXTENT_SCALES * self.edge_width_samples) + 1.0
+        if self.n_fft is None:
+            return next_fast_size(int(math.ceil(needed)))
+        if window_diameter_mm >= pupil_diameter_mm - 1e-12:
+            size = int(self.n_fft)
+        else:  # subapertures scale the user's open-pupil size by their diameter
+            size = next_fast_size(int(math.ceil(self.n_fft * window_diameter_mm / pupil_diameter_mm)))
+        if size < needed - 4.0 * EDGE_EXTENT_SCALES * self.edge_width_samples:
+            raise ValueError(
+                f"n_fft={self.n_fft} cannot hold the OTF of a {window_diameter_mm:g} mm aperture at "
+                f"{min_wavelength_nm:g} nm with freq_step_cpd={self.freq_step_cpd:g}: need n_fft >= "
+                f"{int(math.ceil(needed))} (or a larger freq_step_cpd)"
+            )
+        return size
+
+    def pixel_arcmin(self, n_fft: int) -> float:
+        """Angular pixel of the PSF on a window of ``n_fft`` samples, arcmin."""
+        return self.field_arcmin / n_fft
+
+
+def blur_radius_arcmin(
+    pupil_diameter_mm: float,
+    centres_mm: np.ndarray,
+    diameters_mm: np.ndarray,
+    relative_defocus_D: np.ndarray,
+    lf_mismatch_D: np.ndarray,
+    max_wavelength_nm: float,
+    aberration_slope_rad: float = 0.0,
+) -> float:
+    """Largest distance (arcmin) from the origin that the rendered PSF reaches.
+
+    Geometric optics plus diffraction: subaperture n at defocus D (eye relative to the
+    CDP, incl. LCA) images to a disc of radius |D| d_n/2 centred at −(D − D_lf) p_n, where
+    D_lf = (depth − CDP) is the display's shift; three Airy radii of the smallest
+    subaperture are added, and the eye's largest aberration ray angle.
+    """
+    centres = np.asarray(centres_mm, float).reshape(-1, 2)
+    diam = np.minimum(np.asarray(diameters_mm, float).reshape(-1), pupil_diameter_mm)
+    dist = np.minimum(np.hypot(centres[:, 0], centres[:, 1]), 0.5 * pupil_diameter_mm)
+    d = np.abs(np.asarray(relative_defocus_D, float)).max(initial=0.0)
+    mism = np.abs(np.asarray(lf_mismatch_D, float)).max(initial=0.0)
+    geometric = (mism * dist + d * 0.5 * diam).max() * 1e-3  # rad (D in 1/m, mm → m)
+    airy = 3.0 * 1.22 * max_wavelength_nm * 1e-6 / diam.min()
+    return (geometric + airy + aberration_slope_rad) * ARCMIN_PER_RADIAN
+
+
+def check_field(sampling: Sampling, radius_arcmin: float, what: str) -> None:
+    """Raise if the PSF of radius ``radius_arcmin`` would wrap in the periodic field."""
+    half = 0.5 * sampling.field_arcmin
+    if radius_arcmin > half:
+        max_df = 30.0 / radius_arcmin
+        raise ValueError(
+            f"sampling too coarse for the requested defocus (aliasing): freq_step_cpd="
+            f"{sampling.freq_step_cpd:g} gives a PSF field of ±{half:.1f} arcmin but {what} "
+            f"reaches {radius_arcmin:.1f} arcmin; use freq_step_cpd <= {max_df:.3g}"
+        )
+
+
+def eye_slope_rad(zernike_um: np.ndarray, measured_pupil_mm: float, pupil_diameter_mm: float) -> float:
+    """Largest wavefront slope (ray angle, rad) of eyes inside the calculation pupil (host)."""
+    from .zernike import zernike_basis
+
+    z = np.asarray(zernike_um, float).reshape(-1, np.shape(zernike_um)[-1]).copy()
+    z[:, :3] = 0.0  # tilt is a uniform shift, accounted by the user's choice of eye data
+    n = 48
+    r_cal = 0.5 * pupil_diameter_mm
+    r_meas = 0.5 * measured_pupil_mm
+    t = np.linspace(-r_cal, r_cal, n)
+    xx, yy = np.meshgrid(t, t)
+    inside = xx**2 + yy**2 <= r_cal**2
+    basis = np.asarray(zernike_basis(z.shape[1], xx / r_meas, yy / r_meas))
+    w = np.tensordot(z, basis, axes=([1], [0]))  # µm
+    h = t[1] - t[0]
+    gy, gx = np.gradient(w, h, axis=(1, 2))
+    slope = np.hypot(gx, gy)[:, inside].max(initial=0.0)  # µm/mm = 1e-3 rad
+    return float(slope) * 1e-3
+
+
+__all__ = [
+    "Sampling",
+    "next_fast_size",
+    "blur_radius_arcmin",
+    "check_field",
+    "eye_slope_rad",
+]
