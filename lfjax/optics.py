@@ -23,7 +23,7 @@ import numpy as np
 from .eyes import Eyes
 from .layouts import Layout, open_pupil
 from .options import ModelOptions
-from .sampling import Sampling, blur_radius_arcmin, check_field, eye_slope_rad
+from .sampling import Sampling, blur_radius_arcmin, check_field, eye_slope_rad, wavelength_bands
 from .spectral import Spectrum, make_spectrum
 from .units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN, dioptres_to_c20_um
 from .zernike import wavefront_um, zernike_mode
@@ -128,17 +128,51 @@ def pupil_window_size(n_fft: int, sampling: Sampling) -> int:
     return min(n_fft, size + size % 2)
 
 
+def _embed_half_plane(otf_half, n_fft: int):
+    """Zero-pad a band-limited half-plane OTF (…, Lg, Lg//2+1) onto a larger (…, L, L//2+1)."""
+    n_small = otf_half.shape[-2]
+    if n_small == n_fft:
+        return otf_half
+    h = n_small // 2
+    top, bottom = otf_half[..., :h, :], otf_half[..., h:, :]
+    zeros = jnp.zeros(otf_half.shape[:-2] + (n_fft - n_small, otf_half.shape[-1]), otf_half.dtype)
+    rows = jnp.concatenate([top, zeros, bottom], axis=-2)
+    pad = [(0, 0)] * (rows.ndim - 1) + [(0, n_fft // 2 + 1 - otf_half.shape[-1])]
+    return jnp.pad(rows, pad)
+
+
 def _elemental_otfs(
     coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
-    centres_mm, diameters_mm, spectrum: Spectrum, n_fft: int, sampling: Sampling,
+    centres_mm, diameters_mm, spectrum: Spectrum, bands, sampling: Sampling,
     options: ModelOptions,
 ):
     """Spectrally weighted elemental OTFs of one eye.
 
-    Returns complex (n_acc, n_sub, n_fft, n_fft//2+1), the half plane f_x ≥ 0 of
+    ``bands`` = ((start, stop, n_fft), …) from :func:`lfjax.sampling.wavelength_bands`: each
+    band of wavelengths is transformed on its own window and embedded in the largest.
+    Returns complex (n_acc, n_sub, L, L//2+1), the half plane f_x ≥ 0 of
     Σ_λ w_λ OTF_{λ,n,a}, each OTF carrying the energy its pupil transmits
     (OTF(0) = ∫|P|² dA in mm²).
     """
+    n_fft = max(b[2] for b in bands)
+    total = None
+    for start, stop, band_fft in bands:
+        part = _elemental_otfs_band(
+            coefficients_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
+            centres_mm, diameters_mm,
+            jax.tree_util.tree_map(lambda x: x[start:stop], spectrum),
+            band_fft, sampling, options,
+        )
+        part = _embed_half_plane(part, n_fft)
+        total = part if total is None else total + part
+    return total
+
+
+def _elemental_otfs_band(
+    coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
+    centres_mm, diameters_mm, spectrum: Spectrum, n_fft: int, sampling: Sampling,
+    options: ModelOptions,
+):
     df_rad = sampling.freq_step_cpd * DEGREES_PER_RADIAN
     real = jnp.result_type(float)
     n_pupil = pupil_window_size(n_fft, sampling)
@@ -224,16 +258,18 @@ def _render(elemental, centres_mm, cdp_D, depths_D, n_fft: int, freq_step_cpd: f
 
 @partial(
     jax.jit,
-    static_argnames=("measured_pupil_mm", "n_fft", "sampling", "options", "eye_chunk"),
+    static_argnames=("measured_pupil_mm", "bands", "sampling", "options", "eye_chunk"),
 )
 def _otf_stack(
     zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
-    centres_mm, diameters_mm, spectrum, n_fft, sampling, options, eye_chunk,
+    centres_mm, diameters_mm, spectrum, bands, sampling, options, eye_chunk,
 ):
+    n_fft = max(b[2] for b in bands)
+
     def one_eye(coefficients):
         elemental = _elemental_otfs(
             coefficients, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
-            centres_mm, diameters_mm, spectrum, n_fft, sampling, options,
+            centres_mm, diameters_mm, spectrum, bands, sampling, options,
         )
         return _render(elemental, centres_mm, cdp_D, depths_D, n_fft, sampling.freq_step_cpd)
 
@@ -398,16 +434,16 @@ def polychromatic_otf(
     zernike = eyes.zernike_um
     if options.zero_piston_tilt:
         zernike = zernike.at[:, :3].set(0.0)
-    n_fft = sampling.window_size(
-        layout.window_diameter_mm, float(np.min(np.asarray(spectrum.wavelengths_nm))),
-        float(pupil_diameter_mm),
+    bands = wavelength_bands(
+        np.asarray(spectrum.wavelengths_nm), layout.window_diameter_mm,
+        float(pupil_diameter_mm), sampling,
     )
     real = jnp.result_type(float)
     otf = _otf_stack(
         zernike.astype(real), eyes.measured_pupil_mm, jnp.asarray(pupil_diameter_mm, real),
         jnp.asarray(cdp_D, real), accommodation_D.astype(real), depths_D.astype(real),
         layout.centres_mm.astype(real), layout.diameters_mm.astype(real), spectrum,
-        n_fft, sampling, options, eye_chunk,
+        bands, sampling, options, eye_chunk,
     )
     return OTFStack(otf, accommodation_D, depths_D, sampling.freq_step_cpd)
 

@@ -106,6 +106,38 @@ class Sampling:
         return self.field_arcmin / n_fft
 
 
+def wavelength_bands(
+    wavelengths_nm, window_diameter_mm: float, pupil_diameter_mm: float, sampling: Sampling,
+    max_bands: int = 3,
+) -> tuple[tuple[int, int, int], ...]:
+    """Split increasing wavelengths into ≤ ``max_bands`` contiguous bands with their FFT size.
+
+    The OTF support shrinks as 1/λ, so long wavelengths need smaller windows. Returns
+    ``((start, stop, n_fft), ...)`` (slices of the wavelength axis) minimising Σ n_λ·n_fft²;
+    each band's OTF is embedded exactly (zero padding in frequency) into the largest.
+    A user-fixed ``sampling.n_fft`` gives one band.
+    """
+    wl = np.asarray(wavelengths_nm, float).reshape(-1)
+    sizes = [sampling.window_size(window_diameter_mm, w, pupil_diameter_mm) for w in wl]
+    n = wl.size
+    if sampling.n_fft is not None or n == 1 or max_bands <= 1:
+        return ((0, n, max(sizes)),)
+    best, best_cost = None, None
+    # wavelengths increase, so each band's size is that of its first (shortest) wavelength
+    cuts_options = [()]
+    if max_bands >= 2:
+        cuts_options += [(i,) for i in range(1, n)]
+    if max_bands >= 3:
+        cuts_options += [(i, j) for i in range(1, n) for j in range(i + 1, n)]
+    for cuts in cuts_options:
+        edges = (0,) + cuts + (n,)
+        bands = tuple((a, b, max(sizes[a:b])) for a, b in zip(edges[:-1], edges[1:]))
+        cost = sum((b - a) * size**2 * math.log2(size) for a, b, size in bands)
+        if best_cost is None or cost < best_cost * (1 - 1e-9):
+            best, best_cost = bands, cost
+    return best
+
+
 def blur_radius_arcmin(
     pupil_diameter_mm: float,
     centres_mm: np.ndarray,
@@ -167,6 +199,7 @@ def eye_slope_rad(zernike_um: np.ndarray, measured_pupil_mm: float, pupil_diamet
 __all__ = [
     "Sampling",
     "next_fast_size",
+    "wavelength_bands",
     "blur_radius_arcmin",
     "check_field",
     "eye_slope_rad",

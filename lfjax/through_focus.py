@@ -26,7 +26,7 @@ from .optics import (
     validate_pupil,
 )
 from .options import ModelOptions
-from .sampling import Sampling
+from .sampling import Sampling, wavelength_bands
 from .spectral import Spectrum, make_spectrum
 
 
@@ -133,18 +133,20 @@ def relative_accommodation_grid(depths_D, offsets_D, hyperopic_limit: bool = Tru
 
 @partial(
     jax.jit,
-    static_argnames=("measured_pupil_mm", "n_fft", "ref_n_fft", "sampling", "options", "eye_chunk"),
+    static_argnames=("measured_pupil_mm", "bands", "ref_bands", "sampling", "options", "eye_chunk"),
 )
 def _through_focus_core(
     zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
-    pair_index, centres_mm, diameters_mm, ref_centres_mm, ref_diameters_mm, spectrum, n_fft, ref_n_fft,
-    sampling, options, eye_chunk,
+    pair_index, centres_mm, diameters_mm, ref_centres_mm, ref_diameters_mm, spectrum, bands,
+    ref_bands, sampling, options, eye_chunk,
 ):
     df = sampling.freq_step_cpd
+    n_fft = max(b[2] for b in bands)
+    ref_n_fft = max(b[2] for b in ref_bands)
     cdp = jnp.reshape(cdp_D, (1,))
     ref_elemental = _elemental_otfs(
         jnp.zeros_like(zernike_um[0]), measured_pupil_mm, pupil_diameter_mm, cdp_D, cdp,
-        ref_centres_mm, ref_diameters_mm, spectrum, ref_n_fft, sampling, options,
+        ref_centres_mm, ref_diameters_mm, spectrum, ref_bands, sampling, options,
     )
     ref_otf = _render(ref_elemental, ref_centres_mm, cdp_D, cdp, ref_n_fft, df)[0, 0]
     ref_vs = vsotf_numerator(ref_otf, ncsf_half_plane(ref_n_fft, df, options.ncsf))
@@ -154,7 +156,7 @@ def _through_focus_core(
     def one_eye(coefficients):
         elemental = _elemental_otfs(
             coefficients, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
-            centres_mm, diameters_mm, spectrum, n_fft, sampling, options,
+            centres_mm, diameters_mm, spectrum, bands, sampling, options,
         )
         otf = _render(elemental, centres_mm, cdp_D, depths_D, n_fft, df)
         # keep only the (depth, state) pairs asked for: (n_depth, n_k, L, L//2+1)
@@ -234,6 +236,12 @@ def through_focus(
         allowed = index >= 0
         index = np.where(allowed, index, 0)
     absolute = grid[index]
+    # Compute each absolute state once, and only the states some depth uses.
+    used = np.zeros(grid.size, bool)
+    used[index[allowed]] = True
+    remap = np.cumsum(used) - 1
+    grid = grid[used]
+    index = np.where(allowed, remap[index], 0)
     validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
     _validate_coefficients(eyes.zernike_um)
     if check_aliasing:
@@ -242,9 +250,12 @@ def through_focus(
             layout, spectrum, sampling, pairs=(absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed]),
         )
     reference = layout if options.vsotf_reference == "paper" else open_pupil(float(pupil_diameter_mm))
-    wl_min = float(np.min(np.asarray(spectrum.wavelengths_nm)))
-    n_fft = sampling.window_size(layout.window_diameter_mm, wl_min, float(pupil_diameter_mm))
-    ref_n_fft = sampling.window_size(reference.window_diameter_mm, wl_min, float(pupil_diameter_mm))
+    wl = np.asarray(spectrum.wavelengths_nm)
+    bands = wavelength_bands(wl, layout.window_diameter_mm, float(pupil_diameter_mm), sampling)
+    ref_bands = wavelength_bands(
+        wl, reference.window_diameter_mm, float(pupil_diameter_mm), sampling
+    )
+    n_fft = max(b[2] for b in bands)
     zernike = eyes.zernike_um
     if options.zero_piston_tilt:
         zernike = zernike.at[:, :3].set(0.0)
@@ -255,7 +266,7 @@ def through_focus(
         jnp.asarray(index, jnp.int32),
         layout.centres_mm.astype(real), layout.diameters_mm.astype(real),
         reference.centres_mm.astype(real), reference.diameters_mm.astype(real), spectrum,
-        n_fft, ref_n_fft, sampling, options, eye_chunk,
+        bands, ref_bands, sampling, options, eye_chunk,
     )
     mask = jnp.asarray(allowed)
     vs = jnp.where(mask[None], vs, jnp.nan)
