@@ -175,13 +175,25 @@ def _elemental_otfs_band(
 ):
     df_rad = sampling.freq_step_cpd * DEGREES_PER_RADIAN
     real = jnp.result_type(float)
-    n_pupil = pupil_window_size(n_fft, sampling)
+    use_mft = sampling.transform == "mft"
+    if use_mft:
+        from .sampling import EDGE_EXTENT_SCALES
+
+        n_pupil = int(sampling.mft_pupil_samples)
+        # one λ-independent pupil grid holding the largest subaperture and its edge
+        span = jnp.max(jnp.minimum(diameters_mm, pupil_diameter_mm))
+        dx_mft = (span / (n_pupil - 2.0 * EDGE_EXTENT_SCALES * sampling.edge_width_samples - 2.0)).astype(real)
+        k_theta = np.fft.fftfreq(n_fft, 1.0 / n_fft)
+        pixel_rad = 1.0 / (n_fft * df_rad)
+        local = (jnp.arange(n_pupil, dtype=real) - n_pupil // 2) * dx_mft
+    else:
+        n_pupil = pupil_window_size(n_fft, sampling)
     c40 = sa_c40_um(accommodation_D, pupil_diameter_mm, options)
 
     def one_wavelength(total, xs):
         wl_nm, weight, lca_D, rho = xs
         wl_mm = wl_nm * 1e-6
-        dx = (wl_mm * df_rad).astype(real)
+        dx = dx_mft if use_mft else (wl_mm * df_rad).astype(real)
         parts = jax.vmap(
             lambda c, d: _pupil_parts(
                 coefficients_um, measured_pupil_mm, pupil_diameter_mm, c, d, dx, rho,
@@ -197,14 +209,23 @@ def _elemental_otfs_band(
         )
         phase = (-2.0 * jnp.pi / (wl_nm * 1e-3)) * w
         field = jax.lax.complex(amp[None] * jnp.cos(phase), amp[None] * jnp.sin(phase))
-        # The aperture fills only the central n_pupil samples; an explicit pad then one
-        # fft2 is faster on CPU than two padded 1-D passes (measured).
-        pad = n_fft - n_pupil
-        field = jnp.pad(field, ((0, 0), (0, 0), (0, pad), (0, pad)))
-        spectrum_2d = jnp.fft.fft2(field)
-        psf = jnp.real(spectrum_2d) ** 2 + jnp.imag(spectrum_2d) ** 2
-        # The PSF is real: its OTF is Hermitian and the half plane (rfft2) holds it all.
-        otf = jnp.fft.rfft2(psf) * (dx * dx / (n_fft * n_fft))
+        if use_mft:
+            # Matrix Fourier transform onto the common angular grid (FFT order): point
+            # samples of the PSF, truncated (not wrapped) at the field edge.
+            theta = jnp.asarray(k_theta, real) * pixel_rad
+            kernel = jnp.exp((-2j * jnp.pi / wl_mm) * theta[:, None] * local[None, :])
+            spectrum_2d = jnp.einsum("jy,...yx,mx->...jm", kernel, field, kernel)
+            psf = jnp.real(spectrum_2d) ** 2 + jnp.imag(spectrum_2d) ** 2
+            otf = jnp.fft.rfft2(psf) * (dx**4 * pixel_rad**2 / wl_mm**2)
+        else:
+            # The aperture fills only the central n_pupil samples; an explicit pad then one
+            # fft2 is faster on CPU than two padded 1-D passes (measured).
+            pad = n_fft - n_pupil
+            field = jnp.pad(field, ((0, 0), (0, 0), (0, pad), (0, pad)))
+            spectrum_2d = jnp.fft.fft2(field)
+            psf = jnp.real(spectrum_2d) ** 2 + jnp.imag(spectrum_2d) ** 2
+            # The PSF is real: its OTF is Hermitian and the half plane (rfft2) holds it all.
+            otf = jnp.fft.rfft2(psf) * (dx * dx / (n_fft * n_fft))
         otf = otf.at[..., 0, 0].set(jnp.broadcast_to(energy, otf.shape[:-2]))
         return total + weight * otf, None
 

@@ -57,17 +57,30 @@ class Sampling:
     edge_width_samples : float
         Scale of the logistic aperture edge, in pupil samples (anti-aliasing; keeps apertures
         differentiable in centre and diameter).
+    transform : "fft" or "mft"
+        ``"fft"`` (default): pupil sampled at λ·df per wavelength, zero-padded FFT; the
+        PSF is exactly periodic (wraps). ``"mft"``: one pupil grid of ``mft_pupil_samples``
+        across the largest subaperture for every wavelength, matrix Fourier transform onto
+        the common angular grid; the PSF is truncated at the field edge instead of wrapped.
+    mft_pupil_samples : int
+        Pupil samples across the MFT window (phase and edge resolution).
     """
 
     freq_step_cpd: float = 1.0
     n_fft: int | None = None
     edge_width_samples: float = 0.5
+    transform: str = "fft"
+    mft_pupil_samples: int = 64
 
     def __post_init__(self):
         if not (self.freq_step_cpd > 0 and math.isfinite(self.freq_step_cpd)):
             raise ValueError(f"freq_step_cpd must be > 0 cpd, got {self.freq_step_cpd}")
         if self.n_fft is not None and (int(self.n_fft) != self.n_fft or self.n_fft < 8):
             raise ValueError(f"n_fft must be an integer >= 8, got {self.n_fft}")
+        if self.transform not in ("fft", "mft"):
+            raise ValueError(f"transform must be 'fft' or 'mft', got {self.transform!r}")
+        if int(self.mft_pupil_samples) != self.mft_pupil_samples or self.mft_pupil_samples < 16:
+            raise ValueError(f"mft_pupil_samples must be an integer >= 16, got {self.mft_pupil_samples}")
         if not (0.05 <= self.edge_width_samples <= 4.0):
             raise ValueError(
                 f"edge_width_samples must be in 0.05–4 pupil samples, got {self.edge_width_samples}"
