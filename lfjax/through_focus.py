@@ -279,3 +279,114 @@ def through_focus(
 
 
 __all__ = ["ThroughFocus", "through_focus", "relative_accommodation_grid"]
+
+
+@partial(
+    jax.jit,
+    static_argnames=("measured_pupil_mm", "bands", "ref_bands", "sampling", "options"),
+)
+def _metrics_at_core(
+    zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
+    centres_mm, diameters_mm, ref_centres_mm, ref_diameters_mm, spectrum, bands, ref_bands,
+    sampling, options,
+):
+    df = sampling.freq_step_cpd
+    n_fft = max(b[2] for b in bands)
+    ref_n_fft = max(b[2] for b in ref_bands)
+    cdp = jnp.reshape(cdp_D, (1,))
+    ref_elemental = _elemental_otfs(
+        jnp.zeros_like(zernike_um[0]), measured_pupil_mm, pupil_diameter_mm, cdp_D, cdp,
+        ref_centres_mm, ref_diameters_mm, spectrum, ref_bands, sampling, options,
+    )
+    ref_otf = _render(ref_elemental, ref_centres_mm, cdp_D, cdp, ref_n_fft, df)[0, 0]
+    ref_vs = vsotf_numerator(ref_otf, ncsf_half_plane(ref_n_fft, df, options.ncsf))
+    ref_peak = psf_peak(ref_otf, ref_n_fft, df)
+    weighted_ncsf = ncsf_half_plane(n_fft, df, options.ncsf)
+
+    def one_depth(coefficients, depth, states):
+        elemental = _elemental_otfs(
+            coefficients, measured_pupil_mm, pupil_diameter_mm, cdp_D, states,
+            centres_mm, diameters_mm, spectrum, bands, sampling, options,
+        )
+        otf = _render(elemental, centres_mm, cdp_D, depth[None], n_fft, df)[0]
+        return (
+            vsotf_numerator(otf, weighted_ncsf) / ref_vs,
+            psf_peak(otf, n_fft, df) / ref_peak,
+        )
+
+    per_eye = jax.vmap(one_depth, in_axes=(None, 0, 0))
+    return jax.lax.map(lambda c: per_eye(c, depths_D, accommodation_D), zernike_um)
+
+
+def metrics_at(
+    eyes: Eyes,
+    layout: Layout,
+    depths_D,
+    accommodation_D,
+    pupil_diameter_mm=3.0,
+    cdp_D=2.0,
+    spectrum: Spectrum | None = None,
+    sampling: Sampling = Sampling(),
+    options: ModelOptions = ModelOptions(),
+):
+    """VSOTF and Strehl at given (depth, accommodation) pairs — differentiable in everything.
+
+    Unlike :func:`through_focus` (a host-side grid with the hyperopic limit and aliasing
+    checks), this is a pure function of arrays, so ``jax.grad`` flows to the eyes' Zernike
+    coefficients, ``depths_D``, ``accommodation_D``, ``pupil_diameter_mm``, ``cdp_D`` and
+    the layout's centres and diameters: the building block of peak finders and layout
+    optimisers. Window sizes are static: they come from ``layout.window_diameter_mm`` and,
+    when ``pupil_diameter_mm`` is traced, the eyes' measured pupil.
+
+    Parameters
+    ----------
+    depths_D : (n_depth,) rendered depths, D
+    accommodation_D : (n_depth, n_acc) absolute accommodation states for each depth, D
+
+    Returns
+    -------
+    (vsotf, strehl), each (n_eyes, n_depth, n_acc).
+    """
+    spectrum = make_spectrum(options=options) if spectrum is None else spectrum
+    concrete = not any(
+        isinstance(x, jax.core.Tracer)
+        for x in jax.tree_util.tree_leaves((pupil_diameter_mm, cdp_D, depths_D, accommodation_D))
+    )
+    if concrete:
+        validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
+        acc = np.asarray(accommodation_D, float)
+        if acc.ndim != 2 or acc.shape[0] != np.size(depths_D):
+            raise ValueError(
+                f"accommodation_D must have shape (n_depth, n_acc) = ({np.size(depths_D)}, n), "
+                f"got {acc.shape}"
+            )
+        depth = np.asarray(depths_D, float)
+        _field_check(
+            eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D, acc.ravel(),
+            depth, layout, spectrum, sampling,
+            pairs=(acc.ravel(), np.broadcast_to(depth[:, None], acc.shape).ravel()),
+        )
+    pupil_static = float(pupil_diameter_mm) if concrete else float(eyes.measured_pupil_mm)
+    reference = layout
+    if options.vsotf_reference == "open_pupil":
+        reference = Layout(
+            jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
+            pupil_static, "natural",
+        )
+    wl = np.asarray(spectrum.wavelengths_nm)
+    bands = wavelength_bands(wl, layout.window_diameter_mm, pupil_static, sampling)
+    ref_bands = wavelength_bands(wl, reference.window_diameter_mm, pupil_static, sampling)
+    zernike = eyes.zernike_um
+    if options.zero_piston_tilt:
+        zernike = zernike.at[:, :3].set(0.0)
+    real = jnp.result_type(float)
+    return _metrics_at_core(
+        zernike.astype(real), eyes.measured_pupil_mm, jnp.asarray(pupil_diameter_mm, real),
+        jnp.asarray(cdp_D, real), jnp.asarray(accommodation_D, real),
+        jnp.asarray(depths_D, real), layout.centres_mm.astype(real),
+        layout.diameters_mm.astype(real), reference.centres_mm.astype(real),
+        reference.diameters_mm.astype(real), spectrum, bands, ref_bands, sampling, options,
+    )
+
+
+__all__ += ["metrics_at"]
