@@ -499,6 +499,7 @@ def monochromatic_psf(
     defocus_D: float = 0.0,
     sce_rho_per_mm2: float = 0.0,
     pupil_samples: int = 128,
+    edge_width_samples: float = 0.25,
 ):
     """Monochromatic PSF by a matrix Fourier transform, normalised to unit sum.
 
@@ -511,7 +512,9 @@ def monochromatic_psf(
     n_pixels : int, PSF is n_pixels × n_pixels; zero angle at index n_pixels // 2
     defocus_D : added defocus, D (positive = myopic)
     sce_rho_per_mm2 : Stiles–Crawford ρ applied as amplitude 10^(−ρ r²)
-    pupil_samples : samples across the pupil
+    pupil_samples : samples across the pupil diameter (the grid extends past the edge so
+        the anti-aliased edge is evaluated in full)
+    edge_width_samples : logistic edge scale, in pupil samples
 
     Returns
     -------
@@ -530,21 +533,28 @@ def monochromatic_psf(
         coefficients_um, float(measured_pupil_mm), jnp.asarray(pupil_diameter_mm, float),
         jnp.asarray(wavelength_nm, float), jnp.asarray(pixel_arcmin, float), int(n_pixels),
         jnp.asarray(defocus_D, float), jnp.asarray(sce_rho_per_mm2, float), int(pupil_samples),
+        float(edge_width_samples),
     )
 
 
-@partial(jax.jit, static_argnames=("measured_pupil_mm", "n_pixels", "pupil_samples"))
+@partial(
+    jax.jit,
+    static_argnames=("measured_pupil_mm", "n_pixels", "pupil_samples", "edge_width_samples"),
+)
 def _monochromatic_psf(
     coefficients_um, measured_pupil_mm, pupil_diameter_mm, wavelength_nm, pixel_arcmin,
-    n_pixels, defocus_D, sce_rho, pupil_samples,
+    n_pixels, defocus_D, sce_rho, pupil_samples, edge_width_samples,
 ):
+    from .sampling import EDGE_EXTENT_SCALES
+
     dx = pupil_diameter_mm / pupil_samples
-    k = jnp.arange(pupil_samples) - (pupil_samples - 1) / 2.0
+    n_grid = pupil_samples + 2 * int(math.ceil(EDGE_EXTENT_SCALES * edge_width_samples + 1))
+    k = jnp.arange(n_grid) - (n_grid - 1) / 2.0
     x = k * dx
     xx, yy = jnp.meshgrid(x, x)
     r2 = xx * xx + yy * yy
     r_pupil = 0.5 * pupil_diameter_mm
-    amp = soft_disk(r2, r_pupil, 0.5 * dx) * jnp.power(10.0, -sce_rho * r2)
+    amp = soft_disk(r2, r_pupil, edge_width_samples * dx) * jnp.power(10.0, -sce_rho * r2)
     r_meas = 0.5 * measured_pupil_mm
     w = wavefront_um(coefficients_um, xx / r_meas, yy / r_meas)
     w = w + dioptres_to_c20_um(defocus_D, pupil_diameter_mm) * zernike_mode(
