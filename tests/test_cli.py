@@ -1,0 +1,289 @@
+"""`lfjax reproduce`: end-to-end quick run, outputs complete and finite, bad input, notebook."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lfjax import cli
+from lfjax import reproduce as rep
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOK = ROOT / "notebooks" / "reproduce_paper.ipynb"
+NOTEBOOK_TWIN = ROOT / "notebooks" / "reproduce_paper.py"
+
+
+def run_cli(*args, cwd=None, timeout=600):
+    """Run the command line in a fresh interpreter (as the console script does)."""
+    return subprocess.run(
+        [sys.executable, "-m", "lfjax.cli", *args], capture_output=True, text=True,
+        cwd=cwd, timeout=timeout, env={**os.environ, "PYTHONWARNINGS": "ignore"},
+    )
+
+
+def run_main(capsys, *args):
+    code = cli.main(list(args))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+# ------------------------------------------------------------------ end to end
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    parent = tmp_path_factory.mktemp("cli")
+    out = parent / "results"
+    proc = run_cli("reproduce", "--quick", "--out", str(out))
+    return proc, out, parent
+
+
+def test_quick_run_succeeds_and_says_where(quick_run):
+    proc, out, parent = quick_run
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    last = proc.stdout.strip().splitlines()[-1]
+    assert str(out) in last and last.rstrip().endswith(" s")
+    assert "stages" in proc.stderr  # the progress bar
+    # written through a temporary folder, nothing left beside the result
+    assert sorted(p.name for p in parent.iterdir()) == ["results"]
+
+
+def test_quick_run_writes_every_file(quick_run):
+    _, out, _ = quick_run
+    expected = {rep.RESULTS_FILE, rep.EXAMPLES_FILE, "REPORT.md", rep.MARKER_FILE}
+    expected |= set(rep.FIGURES.values())
+    expected |= {name for key, name in rep.TABLES.items() if key != "alternatives"}
+    assert expected <= {p.name for p in out.iterdir()}
+    for name in rep.FIGURES.values():
+        data = (out / name).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000, name
+
+
+def test_quick_run_tables_are_complete_and_finite(quick_run):
+    import pandas as pd
+
+    _, out, _ = quick_run
+    config = rep.StudyConfig.quick()
+    n_eye = config.n_eyes + 1
+    n_cells = 1 + 3 * len(config.depth_offsets_D)  # natural: the CDP only
+    pred = pd.read_csv(out / rep.TABLES["predictions"])
+    assert len(pred) == n_eye * n_cells * 2
+    assert set(pred.metric) == {"vsotf", "strehl"}
+    assert set(pred.layout) == {"natural", "2x2", "3x3", "4x4"}
+    assert pred.eye.nunique() == n_eye and pred.is_average.sum() == n_cells * 2
+    summary = pd.read_csv(out / rep.TABLES["summary"])
+    assert len(summary) == n_cells * 2
+    cutoff = pd.read_csv(out / rep.TABLES["cutoff"])
+    assert len(cutoff) == n_cells
+    for table in (pred, summary, cutoff):
+        numeric = table.select_dtypes("number").to_numpy(float)
+        assert np.all(np.isfinite(numeric))
+    # predictions lie on the accommodation grid, inside the evaluated window
+    grid = config.accommodation_D
+    assert np.all(np.min(np.abs(pred.predicted_accommodation_D.to_numpy()[:, None] - grid),
+                         axis=1) < 1e-6)
+    assert np.all(np.abs(pred.accommodation_error_D) <= config.window_D + 1e-9)
+    assert np.all((cutoff.mean_cutoff_cpd > 0) & (cutoff.mean_cutoff_cpd < 150))
+    claims = pd.read_csv(out / rep.TABLES["claims"])
+    assert list(claims.id.astype(str)) == [str(i) for i in range(1, 8)]
+    assert set(claims.verdict) <= {"holds", "fails"}
+
+
+def test_quick_run_results_file_is_labelled(quick_run):
+    import xarray as xr
+
+    _, out, _ = quick_run
+    with xr.open_dataset(out / rep.RESULTS_FILE, engine="h5netcdf") as ds:
+        assert {"eye", "layout", "depth", "accommodation", "frequency", "metric"} <= set(ds.dims)
+        assert ds.vsotf.dims == ("layout", "eye", "depth", "accommodation")
+        assert ds.depth.attrs["units"] == "D" and ds.frequency.attrs["units"] == "cpd"
+        assert ds.cutoff_frequency.attrs["units"] == "cpd"
+        assert ds.attrs["option_sce"] == "amplitude"
+        assert "model_options_json" in ds.attrs
+        assert int(ds.is_average.sum()) == 1
+        # VSOTF of the average eye, natural view, at its peak is close to 1 (near DL)
+        nat = ds.vsotf.sel(layout="natural", eye="average", depth=2.0)
+        assert 0.8 < float(nat.max()) <= 1.01
+    with xr.open_dataset(out / rep.EXAMPLES_FILE, engine="h5netcdf") as ex:
+        assert "fig9_retinal_image" in ex and "fig5_psf" in ex
+
+
+def test_quick_run_report_states_every_claim(quick_run):
+    _, out, _ = quick_run
+    text = (out / "REPORT.md").read_text()
+    for i in range(1, 8):
+        assert f"\n| {i} | " in text
+    assert "--quick" in text and "Modelling choices" in text
+
+
+# ------------------------------------------------------------------ bad input
+
+
+def test_help_explains_every_option_with_units(capsys):
+    code, out, _ = run_main(capsys, "reproduce", "--help")
+    assert code == 0
+    for option in ("--out", "--eyes", "--seed", "--quick", "--force"):
+        assert option in out
+    for unit in (" D", "cpd", "nm", "mm"):
+        assert unit in out
+
+
+@pytest.mark.parametrize("args, message", [
+    (["reproduce", "--eyes", "0"], "--eyes"),
+    (["reproduce", "--eyes", "-3"], "--eyes"),
+    (["reproduce", "--eyes", "many"], "--eyes"),
+    (["reproduce", "--seed", "-1"], "--seed"),
+    (["reproduce", "--bogus"], "unrecognized arguments"),
+    (["frobnicate"], "invalid choice"),
+])
+def test_bad_arguments_one_line_exit_2(capsys, tmp_path, args, message):
+    out = tmp_path / "never"
+    code, stdout, stderr = run_main(capsys, *args, "--out", str(out)) if args[0] == "reproduce" \
+        else run_main(capsys, *args)
+    assert code == 2
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "error" in lines[0]
+    assert not out.exists()
+
+
+def test_non_empty_out_without_force_is_refused(capsys, tmp_path):
+    out = tmp_path / "busy"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    code, _, stderr = run_main(capsys, "reproduce", "--quick", "--out", str(out))
+    assert code == 2 and len(stderr.strip().splitlines()) == 1 and "--force" in stderr
+    # --force never replaces a folder that lfjax did not write
+    code, _, stderr = run_main(capsys, "reproduce", "--quick", "--force", "--out", str(out))
+    assert code == 2 and "not written by lfjax" in stderr
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+
+
+def test_unwritable_out_is_refused(capsys, tmp_path):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("x")
+    code, _, stderr = run_main(capsys, "reproduce", "--out", str(blocker / "sub"))
+    assert code == 2 and len(stderr.strip().splitlines()) == 1
+    code, _, stderr = run_main(capsys, "reproduce", "--out", str(blocker))
+    assert code == 2 and "not a folder" in stderr
+    if os.geteuid() != 0:  # root ignores permissions
+        locked = tmp_path / "locked"
+        locked.mkdir()
+        locked.chmod(0o555)
+        try:
+            code, _, stderr = run_main(capsys, "reproduce", "--out", str(locked / "new"))
+            assert code == 2 and "not writable" in stderr
+        finally:
+            locked.chmod(0o755)
+
+
+def test_failure_mid_run_leaves_nothing(capsys, tmp_path, monkeypatch):
+    def boom(*args, **kwargs):
+        raise RuntimeError("simulated failure\nover two lines")
+
+    monkeypatch.setattr(rep, "compute_examples", boom)
+    monkeypatch.setattr(rep, "run_study", lambda config, options=None, stage=None: None)
+    monkeypatch.setattr(cli, "enable_compilation_cache", lambda folder=None: None)
+    out = tmp_path / "new" / "deeper"
+    code, _, stderr = run_main(capsys, "reproduce", "--quick", "--no-progress", "--out", str(out))
+    assert code == 1
+    assert len(stderr.strip().splitlines()) == 1 and "simulated failure over two lines" in stderr
+    assert list(tmp_path.iterdir()) == []  # no output, no temporary folder
+
+
+def test_force_replaces_an_earlier_output(tmp_path):
+    out = tmp_path / "res"
+    out.mkdir()
+    (out / rep.MARKER_FILE).write_text("")
+    (out / "old.txt").write_text("old")
+    assert rep.check_output_dir(out, force=True) == out
+    new = tmp_path / ".lfjax-reproduce-x"
+    new.mkdir()
+    (new / "new.txt").write_text("new")
+    rep._move_into_place(new, out)
+    assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["res"]
+
+
+def test_config_validation():
+    with pytest.raises(ValueError, match="n_eyes"):
+        rep.StudyConfig(n_eyes=0)
+    with pytest.raises(ValueError, match="CDP"):
+        rep.StudyConfig(depth_offsets_D=(-1.0, 1.0))
+    with pytest.raises(ValueError, match=">= 0 D"):
+        rep.StudyConfig(depth_offsets_D=(-3.0, 0.0))
+    reduced = rep.StudyConfig().reduced()
+    assert reduced.depth_offsets_D == (-2.0, -1.0, 0.0, 1.0, 2.0)
+    assert reduced.wavelengths_nm[2] == 20.0 and not reduced.alternatives
+
+
+def test_dof_definition():
+    rel = [-2, -1, 0, 1, 2]
+    assert rep.dof_D(rel, [10, 10, 10, 10, 10], 0.8) == (4.0, True)
+    d, censored = rep.dof_D(rel, [0, 5, 10, 5, 0], 0.8)
+    assert not censored and d == pytest.approx(0.8)  # crossings at ±0.4 D
+
+
+# ------------------------------------------------------------------ notebook
+
+
+def percent_cells(text):
+    """(cell_type, source) pairs of a jupytext percent-format script."""
+    cells, kind, lines = [], None, []
+    body = text.split("# ---\n", 2)[-1] if text.startswith("# ---") else text
+
+    def flush():
+        if kind is not None:
+            src = "\n".join(lines).strip("\n")
+            if kind == "markdown":
+                src = "\n".join(ln[2:] if ln.startswith("# ") else ln.lstrip("#")
+                                for ln in src.splitlines())
+            cells.append((kind, src))
+
+    for line in body.splitlines():
+        if line.startswith("# %%"):
+            flush()
+            kind, lines = ("markdown" if "[markdown]" in line else "code"), []
+        else:
+            lines.append(line)
+    flush()
+    return cells
+
+
+def build_notebook():
+    """The .ipynb generated from the .py twin (kernel python3)."""
+    import nbformat
+
+    nb = nbformat.v4.new_notebook()
+    nb.metadata["kernelspec"] = {"display_name": "Python 3 (ipykernel)", "language": "python",
+                                 "name": "python3"}
+    nb.metadata["language_info"] = {"name": "python"}
+    for kind, src in percent_cells(NOTEBOOK_TWIN.read_text()):
+        nb.cells.append(nbformat.v4.new_markdown_cell(src) if kind == "markdown"
+                        else nbformat.v4.new_code_cell(src))
+    return nb
+
+
+def test_notebook_matches_its_script_twin():
+    import nbformat
+
+    nb = nbformat.read(NOTEBOOK, as_version=4)
+    assert [(c.cell_type, c.source) for c in nb.cells] == percent_cells(NOTEBOOK_TWIN.read_text())
+
+
+def test_notebook_executes(tmp_path):
+    import nbformat
+    from nbclient import NotebookClient
+
+    nb = nbformat.read(NOTEBOOK, as_version=4)
+    client = NotebookClient(nb, timeout=600, kernel_name="python3",
+                            resources={"metadata": {"path": str(tmp_path)}})
+    client.execute()
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    assert not [o for o in outputs if o.output_type == "error"]
+    images = [o for o in outputs if "image/png" in o.get("data", {})]
+    assert len(images) >= 10  # Figs. 3–11 and the retinal images
+    text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
+    assert "(1)" in text and "(7)" in text
