@@ -72,6 +72,18 @@ def sa_c40_um(accommodation_D, pupil_diameter_mm, options: ModelOptions = ModelO
     return options.sa_slope_um_per_D * accommodation_D * scale
 
 
+def sa_parameters(options: ModelOptions, pupil_diameter_mm):
+    """(µm of c(4,0) per dioptre of accommodation, radius in mm of that Z(4,0)) as an array.
+
+    Passed to the jitted pipeline as data, so switching the accommodation-SA reading does
+    not recompile.
+    """
+    scale, radius = _sa_geometry(options, pupil_diameter_mm)
+    return jnp.stack(
+        [jnp.asarray(options.sa_slope_um_per_D * scale, float), jnp.asarray(radius, float)]
+    )
+
+
 # ----------------------------------------------------------------------------- core
 
 
@@ -84,7 +96,7 @@ def _window_coordinates(centre_mm, n_fft: int, dx_mm):
 
 def _pupil_parts(
     coefficients_um, measured_pupil_mm, pupil_diameter_mm, centre_mm, diameter_mm,
-    dx_mm, sce_rho, n_pupil: int, edge_width_samples: float, options: ModelOptions,
+    dx_mm, sce_rho, n_pupil: int, edge_width_samples: float, sa_params,
 ):
     """Amplitude, eye wavefront (µm), defocus / SA basis and transmitted energy (mm²) on one
     subaperture window."""
@@ -110,7 +122,7 @@ def _pupil_parts(
     r_meas = 0.5 * measured_pupil_mm
     w_eye = wavefront_um(coefficients_um, xx / r_meas, yy / r_meas)
     z20 = zernike_mode(4, xx / r_pupil, yy / r_pupil)
-    _, r_sa = _sa_geometry(options, pupil_diameter_mm)
+    r_sa = sa_params[1]
     z40 = zernike_mode(12, xx / r_sa, yy / r_sa)
     return amp, w_eye, z20, z40, energy
 
@@ -143,8 +155,7 @@ def _embed_half_plane(otf_half, n_fft: int):
 
 def _elemental_otfs(
     coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
-    centres_mm, diameters_mm, spectrum: Spectrum, bands, sampling: Sampling,
-    options: ModelOptions,
+    centres_mm, diameters_mm, spectrum: Spectrum, bands, sampling: Sampling, sa_params,
 ):
     """Spectrally weighted elemental OTFs of one eye.
 
@@ -161,7 +172,7 @@ def _elemental_otfs(
             coefficients_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
             centres_mm, diameters_mm,
             jax.tree_util.tree_map(lambda x: x[start:stop], spectrum),
-            band_fft, sampling, options,
+            band_fft, sampling, sa_params,
         )
         part = _embed_half_plane(part, n_fft)
         total = part if total is None else total + part
@@ -170,8 +181,7 @@ def _elemental_otfs(
 
 def _elemental_otfs_band(
     coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
-    centres_mm, diameters_mm, spectrum: Spectrum, n_fft: int, sampling: Sampling,
-    options: ModelOptions,
+    centres_mm, diameters_mm, spectrum: Spectrum, n_fft: int, sampling: Sampling, sa_params,
 ):
     df_rad = sampling.freq_step_cpd * DEGREES_PER_RADIAN
     real = jnp.result_type(float)
@@ -188,7 +198,7 @@ def _elemental_otfs_band(
         local = (jnp.arange(n_pupil, dtype=real) - n_pupil // 2) * dx_mft
     else:
         n_pupil = pupil_window_size(n_fft, sampling)
-    c40 = sa_c40_um(accommodation_D, pupil_diameter_mm, options)
+    c40 = (sa_params[0] * accommodation_D).astype(real)
 
     def one_wavelength(total, xs):
         wl_nm, weight, lca_D, rho = xs
@@ -197,7 +207,7 @@ def _elemental_otfs_band(
         parts = jax.vmap(
             lambda c, d: _pupil_parts(
                 coefficients_um, measured_pupil_mm, pupil_diameter_mm, c, d, dx, rho,
-                n_pupil, sampling.edge_width_samples, options,
+                n_pupil, sampling.edge_width_samples, sa_params,
             )
         )(centres_mm, diameters_mm)
         amp, w_eye, z20, z40, energy = parts  # (n_sub, n_pupil, n_pupil) and (n_sub,)
@@ -279,18 +289,18 @@ def _render(elemental, centres_mm, cdp_D, depths_D, n_fft: int, freq_step_cpd: f
 
 @partial(
     jax.jit,
-    static_argnames=("measured_pupil_mm", "bands", "sampling", "options", "eye_chunk"),
+    static_argnames=("measured_pupil_mm", "bands", "sampling", "eye_chunk"),
 )
 def _otf_stack(
     zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
-    centres_mm, diameters_mm, spectrum, bands, sampling, options, eye_chunk,
+    centres_mm, diameters_mm, spectrum, bands, sampling, sa_params, eye_chunk,
 ):
     n_fft = max(b[2] for b in bands)
 
     def one_eye(coefficients):
         elemental = _elemental_otfs(
             coefficients, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
-            centres_mm, diameters_mm, spectrum, bands, sampling, options,
+            centres_mm, diameters_mm, spectrum, bands, sampling, sa_params,
         )
         return _render(elemental, centres_mm, cdp_D, depths_D, n_fft, sampling.freq_step_cpd)
 
@@ -442,7 +452,15 @@ def polychromatic_otf(
     OTFStack with ``otf`` of shape (n_eyes, n_depth, n_acc, L, L), OTF(0) = 1.
     """
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
-    layout = open_pupil(float(pupil_diameter_mm)) if layout is None else layout
+    # A traced pupil (under jax.grad) cannot size windows: use the measured pupil as bound.
+    pupil_static = (
+        float(pupil_diameter_mm) if _is_concrete(pupil_diameter_mm) else eyes.measured_pupil_mm
+    )
+    if layout is None:
+        layout = Layout(
+            jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
+            pupil_static, "natural",
+        )
     depths_D = jnp.atleast_1d(jnp.asarray(cdp_D if depths_D is None else depths_D, float))
     accommodation_D = jnp.atleast_1d(jnp.asarray(accommodation_D, float))
     validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
@@ -456,15 +474,15 @@ def polychromatic_otf(
     if options.zero_piston_tilt:
         zernike = zernike.at[:, :3].set(0.0)
     bands = wavelength_bands(
-        np.asarray(spectrum.wavelengths_nm), layout.window_diameter_mm,
-        float(pupil_diameter_mm), sampling,
+        np.asarray(spectrum.wavelengths_nm), layout.window_diameter_mm, pupil_static, sampling,
     )
     real = jnp.result_type(float)
     otf = _otf_stack(
         zernike.astype(real), eyes.measured_pupil_mm, jnp.asarray(pupil_diameter_mm, real),
         jnp.asarray(cdp_D, real), accommodation_D.astype(real), depths_D.astype(real),
         layout.centres_mm.astype(real), layout.diameters_mm.astype(real), spectrum,
-        bands, sampling, options, eye_chunk,
+        bands, sampling, sa_parameters(options, jnp.asarray(pupil_diameter_mm, real)).astype(real),
+        eye_chunk,
     )
     return OTFStack(otf, accommodation_D, depths_D, sampling.freq_step_cpd)
 

@@ -19,6 +19,7 @@ from .eyes import Eyes
 from .layouts import Layout, open_pupil
 from .metrics import ncsf_half_plane, psf_peak, radial_mtf, vsotf_numerator, cutoff_frequency
 from .optics import (
+    sa_parameters,
     _elemental_otfs,
     _field_check,
     _render,
@@ -133,12 +134,12 @@ def relative_accommodation_grid(depths_D, offsets_D, hyperopic_limit: bool = Tru
 
 @partial(
     jax.jit,
-    static_argnames=("measured_pupil_mm", "bands", "ref_bands", "sampling", "options", "eye_chunk"),
+    static_argnames=("measured_pupil_mm", "bands", "ref_bands", "sampling", "ncsf_model", "eye_chunk"),
 )
 def _through_focus_core(
     zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
     pair_index, centres_mm, diameters_mm, ref_centres_mm, ref_diameters_mm, spectrum, bands,
-    ref_bands, sampling, options, eye_chunk,
+    ref_bands, sampling, sa_params, ncsf_model, eye_chunk,
 ):
     df = sampling.freq_step_cpd
     n_fft = max(b[2] for b in bands)
@@ -146,17 +147,17 @@ def _through_focus_core(
     cdp = jnp.reshape(cdp_D, (1,))
     ref_elemental = _elemental_otfs(
         jnp.zeros_like(zernike_um[0]), measured_pupil_mm, pupil_diameter_mm, cdp_D, cdp,
-        ref_centres_mm, ref_diameters_mm, spectrum, ref_bands, sampling, options,
+        ref_centres_mm, ref_diameters_mm, spectrum, ref_bands, sampling, sa_params,
     )
     ref_otf = _render(ref_elemental, ref_centres_mm, cdp_D, cdp, ref_n_fft, df)[0, 0]
-    ref_vs = vsotf_numerator(ref_otf, ncsf_half_plane(ref_n_fft, df, options.ncsf))
+    ref_vs = vsotf_numerator(ref_otf, ncsf_half_plane(ref_n_fft, df, ncsf_model))
     ref_peak = psf_peak(ref_otf, ref_n_fft, df)
-    weighted_ncsf = ncsf_half_plane(n_fft, df, options.ncsf)
+    weighted_ncsf = ncsf_half_plane(n_fft, df, ncsf_model)
 
     def one_eye(coefficients):
         elemental = _elemental_otfs(
             coefficients, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
-            centres_mm, diameters_mm, spectrum, bands, sampling, options,
+            centres_mm, diameters_mm, spectrum, bands, sampling, sa_params,
         )
         otf = _render(elemental, centres_mm, cdp_D, depths_D, n_fft, df)
         # keep only the (depth, state) pairs asked for: (n_depth, n_k, L, L//2+1)
@@ -266,7 +267,9 @@ def through_focus(
         jnp.asarray(index, jnp.int32),
         layout.centres_mm.astype(real), layout.diameters_mm.astype(real),
         reference.centres_mm.astype(real), reference.diameters_mm.astype(real), spectrum,
-        bands, ref_bands, sampling, options, eye_chunk,
+        bands, ref_bands, sampling,
+        sa_parameters(options, jnp.asarray(pupil_diameter_mm, real)).astype(real), options.ncsf,
+        eye_chunk,
     )
     mask = jnp.asarray(allowed)
     vs = jnp.where(mask[None], vs, jnp.nan)
@@ -283,12 +286,12 @@ __all__ = ["ThroughFocus", "through_focus", "relative_accommodation_grid"]
 
 @partial(
     jax.jit,
-    static_argnames=("measured_pupil_mm", "bands", "ref_bands", "sampling", "options"),
+    static_argnames=("measured_pupil_mm", "bands", "ref_bands", "sampling", "ncsf_model"),
 )
 def _metrics_at_core(
     zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
     centres_mm, diameters_mm, ref_centres_mm, ref_diameters_mm, spectrum, bands, ref_bands,
-    sampling, options,
+    sampling, sa_params, ncsf_model,
 ):
     df = sampling.freq_step_cpd
     n_fft = max(b[2] for b in bands)
@@ -296,17 +299,17 @@ def _metrics_at_core(
     cdp = jnp.reshape(cdp_D, (1,))
     ref_elemental = _elemental_otfs(
         jnp.zeros_like(zernike_um[0]), measured_pupil_mm, pupil_diameter_mm, cdp_D, cdp,
-        ref_centres_mm, ref_diameters_mm, spectrum, ref_bands, sampling, options,
+        ref_centres_mm, ref_diameters_mm, spectrum, ref_bands, sampling, sa_params,
     )
     ref_otf = _render(ref_elemental, ref_centres_mm, cdp_D, cdp, ref_n_fft, df)[0, 0]
-    ref_vs = vsotf_numerator(ref_otf, ncsf_half_plane(ref_n_fft, df, options.ncsf))
+    ref_vs = vsotf_numerator(ref_otf, ncsf_half_plane(ref_n_fft, df, ncsf_model))
     ref_peak = psf_peak(ref_otf, ref_n_fft, df)
-    weighted_ncsf = ncsf_half_plane(n_fft, df, options.ncsf)
+    weighted_ncsf = ncsf_half_plane(n_fft, df, ncsf_model)
 
     def one_depth(coefficients, depth, states):
         elemental = _elemental_otfs(
             coefficients, measured_pupil_mm, pupil_diameter_mm, cdp_D, states,
-            centres_mm, diameters_mm, spectrum, bands, sampling, options,
+            centres_mm, diameters_mm, spectrum, bands, sampling, sa_params,
         )
         otf = _render(elemental, centres_mm, cdp_D, depth[None], n_fft, df)[0]
         return (
@@ -385,7 +388,8 @@ def metrics_at(
         jnp.asarray(cdp_D, real), jnp.asarray(accommodation_D, real),
         jnp.asarray(depths_D, real), layout.centres_mm.astype(real),
         layout.diameters_mm.astype(real), reference.centres_mm.astype(real),
-        reference.diameters_mm.astype(real), spectrum, bands, ref_bands, sampling, options,
+        reference.diameters_mm.astype(real), spectrum, bands, ref_bands, sampling,
+        sa_parameters(options, jnp.asarray(pupil_diameter_mm, real)).astype(real), options.ncsf,
     )
 
 
