@@ -64,14 +64,16 @@ class ThroughFocus(eqx.Module):
 
     def peak_index(self, metric: str = "vsotf"):
         """Index of the grid peak along accommodation among allowed states, (n_eyes, n_depth)."""
-        values = jnp.where(self.allowed[None], self.metric(metric), -jnp.inf)
-        return jnp.argmax(values, axis=-1)
+        values = np.where(np.asarray(self.allowed)[None], np.asarray(self.metric(metric)), -np.inf)
+        return np.argmax(values, axis=-1)
 
     def predicted_accommodation_D(self, metric: str = "vsotf"):
-        """Grid peak: the allowed accommodation state (D, absolute) maximising the metric."""
+        """Grid peak: the allowed accommodation state (D, absolute, exact grid value)."""
         idx = self.peak_index(metric)
-        acc = jnp.broadcast_to(self.accommodation_D[None], idx.shape + self.accommodation_D.shape[-1:])
-        return jnp.take_along_axis(acc, idx[..., None], axis=-1)[..., 0]
+        acc = np.broadcast_to(
+            np.asarray(self.accommodation_D, float)[None], idx.shape + self.accommodation_D.shape[-1:]
+        )
+        return np.take_along_axis(acc, idx[..., None], axis=-1)[..., 0]
 
     @property
     def relative_accommodation_D(self):
@@ -80,11 +82,11 @@ class ThroughFocus(eqx.Module):
 
     def accommodation_error_D(self, metric: str = "vsotf"):
         """Predicted accommodation minus rendered depth, D (negative: focused farther)."""
-        return self.predicted_accommodation_D(metric) - self.depths_D[None, :]
+        return self.predicted_accommodation_D(metric) - np.asarray(self.depths_D, float)[None, :]
 
     def mtf_at_peak(self, metric: str = "vsotf"):
         """Radial MTF at the predicted accommodation, (n_eyes, n_depth, n_freq)."""
-        idx = self.peak_index(metric)
+        idx = jnp.asarray(self.peak_index(metric))
         return jnp.take_along_axis(self.radial_mtf, idx[..., None, None], axis=2)[:, :, 0]
 
     def cutoff_cpd(self, metric: str = "vsotf", threshold: float = 0.05):
@@ -272,11 +274,13 @@ def through_focus(
         eye_chunk,
     )
     mask = jnp.asarray(allowed)
+    # NaN marks states beyond the hyperopic limit (never computed); `allowed` says which.
     vs = jnp.where(mask[None], vs, jnp.nan)
     sr = jnp.where(mask[None], sr, jnp.nan)
     freq = jnp.arange(n_fft // 2 + 1) * sampling.freq_step_cpd
     return ThroughFocus(
-        vs, sr, mtf, freq, jnp.asarray(absolute), mask, jnp.asarray(depths), float(cdp_D),
+        vs, sr, mtf, freq, np.asarray(absolute, float), np.asarray(allowed), np.asarray(depths, float),
+        float(cdp_D),
         layout.name,
     )
 
