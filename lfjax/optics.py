@@ -329,6 +329,26 @@ def validate_pupil(pupil_diameter_mm, measured_pupil_mm: float) -> None:
         )
 
 
+def validate_states(accommodation_D=None, depths_D=None, cdp_D=None) -> None:
+    """Accommodation, rendered depths and CDP must be finite and ≥ 0 D (0 D = infinity).
+
+    Checked on the host for concrete values; traced values pass through (differentiable
+    paths such as :func:`lfjax.through_focus.metrics_at`).
+    """
+    for name, value, what in (
+        ("accommodation_D", accommodation_D, "an eye cannot focus beyond infinity"),
+        ("depths_D", depths_D, "a rendered point cannot lie beyond infinity"),
+        ("cdp_D", cdp_D, "the display's image plane cannot lie beyond infinity"),
+    ):
+        if value is None or not _is_concrete(value):
+            continue
+        v = np.asarray(value, float)
+        if not np.all(np.isfinite(v)):
+            raise ValueError(f"{name} must be finite, got {v.ravel().tolist()}")
+        if np.any(v < 0):
+            raise ValueError(f"{name} must be >= 0 D ({what}); got {v[v < 0].tolist()}")
+
+
 def _validate_coefficients(zernike_um) -> None:
     if _is_concrete(zernike_um) and not bool(jnp.all(jnp.isfinite(zernike_um))):
         raise ValueError("zernike_um contains non-finite values (NaN or inf)")
@@ -451,6 +471,8 @@ def polychromatic_otf(
     -------
     OTFStack with ``otf`` of shape (n_eyes, n_depth, n_acc, L, L), OTF(0) = 1.
     """
+    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
+    validate_states(accommodation_D, depths_D, cdp_D)
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
     # A traced pupil (under jax.grad) cannot size windows: use the measured pupil as bound.
     pupil_static = (

@@ -20,6 +20,7 @@ from .layouts import Layout, open_pupil
 from .metrics import ncsf_half_plane, psf_peak, radial_mtf, vsotf_numerator, cutoff_frequency
 from .optics import (
     sa_parameters,
+    validate_states,
     _elemental_otfs,
     _field_check,
     _render,
@@ -210,11 +211,11 @@ def through_focus(
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
     aberration-free, focused and rendered at the CDP, accommodation SA and LCA kept).
     """
+    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
+    validate_states(None, depths_D, cdp_D)
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
     layout = open_pupil(float(pupil_diameter_mm)) if layout is None else layout
     depths = np.atleast_1d(np.asarray(cdp_D if depths_D is None else depths_D, float))
-    if not (float(cdp_D) >= 0):
-        raise ValueError(f"cdp_D must be >= 0 D, got {cdp_D}")
     if accommodation_D is not None and accommodation_offsets_D is not None:
         raise ValueError("give accommodation_D or accommodation_offsets_D, not both")
     if accommodation_D is not None:
@@ -238,7 +239,9 @@ def through_focus(
         grid, index = relative_accommodation_grid(depths, offsets, hyperopic_limit=True)
         allowed = index >= 0
         index = np.where(allowed, index, 0)
-    absolute = grid[index]
+    # true state of every entry, also those beyond the hyperopic limit (not computed)
+    absolute = np.where(allowed, grid[index], depths[:, None] + (
+        0.0 if accommodation_D is not None else offsets[None, :]))
     # Compute each absolute state once, and only the states some depth uses.
     used = np.zeros(grid.size, bool)
     used[index[allowed]] = True
@@ -359,6 +362,8 @@ def metrics_at(
         isinstance(x, jax.core.Tracer)
         for x in jax.tree_util.tree_leaves((pupil_diameter_mm, cdp_D, depths_D, accommodation_D))
     )
+    validate_states(accommodation_D, depths_D, cdp_D)
+    _validate_coefficients(eyes.zernike_um)
     if concrete:
         validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
         acc = np.asarray(accommodation_D, float)

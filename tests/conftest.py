@@ -1,0 +1,97 @@
+"""Session set-up for the lfjax test suite.
+
+* float64 everywhere (``jax_enable_x64``): the physics checks and the finite-difference
+  gradient checks need it. lfjax follows ``jnp.result_type(float)``, so it computes in
+  float64 here; the float32 accuracy statement (test_optics.py) runs inside
+  ``jax.enable_x64(False)``.
+* XLA's CPU backend optimisation level 0: this suite is dominated by compiling many small
+  programs (each distinct shape or static option recompiles); level 0 compiles them 2-3x
+  faster and changes no result beyond round-off. Set ``XLA_FLAGS`` yourself to override.
+* Expensive results shared by several test files are session fixtures here (each costs
+  one XLA compile); cheap module-level inputs live in ``helpers.py``.
+"""
+
+from __future__ import annotations
+
+import os
+
+if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0"
+    ).strip()
+
+import jax  # noqa: E402
+
+jax.config.update("jax_enable_x64", True)
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import lfjax  # noqa: E402
+from lfjax.through_focus import through_focus  # noqa: E402
+
+import helpers as H  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def dl_convergence():
+    """OTFs at 550 nm (no SCE/SA/LCA) of the eyes of ``helpers.marechal_eyes`` (row 0
+    aberration-free, then single Zernike modes) through 3, 1.5 and 0.75 mm pupils, all on
+    ONE grid (Sampling(1 cpd, n_fft=200, edge 0.25 samples)) so one compile serves all;
+    pupil samples across N_p = d / (λ df) = 95.2, 47.6, 23.8.
+
+    Returns {pupil_mm: (row-0 full-plane OTF (L, L), N_p, max axis error of row 0 vs the
+    analytic MTF)} and "stacks": {pupil_mm: half-plane OTFs (n_eyes, 1, 1, L, L//2+1)}.
+    """
+    sampling = lfjax.Sampling(1.0, n_fft=200, edge_width_samples=0.25)
+    out = {"stacks": {}}
+    for d in (3.0, 1.5, 0.75):
+        stack = lfjax.polychromatic_otf(
+            H.marechal_eyes(), [2.0], d, 2.0, H.spectrum_550_plain(), sampling, H.PLAIN,
+        )
+        otf = np.asarray(stack.full_plane())[0, 0, 0]
+        out["stacks"][d] = np.asarray(stack.otf)
+        out[d] = (otf, H.pupil_samples(d, 550.0, 1.0), H.dl_axis_error(otf, 1.0, d, 550.0))
+    return out
+
+
+@pytest.fixture(scope="session")
+def natural_tf():
+    """Natural-view through focus at 550 nm (LCA = 0 there), accommodation SA off, SCE on.
+
+    Eyes: [aberration-free, myopic +1 D (c(2,0) = +0.3248 µm), hyperopic −1 D]; depths
+    [0, 2] D (CDP 2 D); offsets −1.2 … +1.2 D in 0.2 D steps relative to each depth (the
+    hyperopic limit masks the negative states of depth 0).
+    """
+    options = lfjax.ModelOptions(accommodation_sa="off")
+    spectrum = lfjax.make_spectrum([550.0], options)
+    offsets = np.round(np.arange(-6, 7) * 0.2, 9)
+    return through_focus(
+        H.defocus_eyes(), None, [0.0, 2.0], pupil_diameter_mm=3.0, cdp_D=2.0,
+        spectrum=spectrum, sampling=lfjax.Sampling(1.5), options=options,
+        accommodation_offsets_D=offsets,
+    )
+
+
+def _physics_tf(n):
+    """Aberration-free eye, n×n viewpoints in a 3 mm pupil, CDP 2 D, rendered 0, 2, 4 D,
+    absolute accommodation 0 … 4.2 D (0.2 D) within ±2.2 D of each depth, 550 nm, paper
+    options (SCE amplitude, accommodation SA scaled, paper VSOTF reference)."""
+    options = lfjax.ModelOptions()
+    grid = np.round(np.arange(0, 22) * 0.2, 9)
+    return through_focus(
+        lfjax.eyes.aberration_free_eye(), lfjax.grid_layout(n, 3.0), [0.0, 2.0, 4.0],
+        accommodation_D=grid, window_D=2.2, pupil_diameter_mm=3.0, cdp_D=2.0,
+        spectrum=lfjax.make_spectrum([550.0], options), sampling=lfjax.Sampling(1.25),
+        options=options,
+    )
+
+
+@pytest.fixture(scope="session")
+def tf_2x2():
+    return _physics_tf(2)
+
+
+@pytest.fixture(scope="session")
+def tf_4x4():
+    return _physics_tf(4)
