@@ -240,8 +240,10 @@ def through_focus(
         allowed = index >= 0
         index = np.where(allowed, index, 0)
     # true state of every entry, also those beyond the hyperopic limit (not computed)
-    absolute = np.where(allowed, grid[index], depths[:, None] + (
-        0.0 if accommodation_D is not None else offsets[None, :]))
+    if accommodation_D is not None:
+        absolute = grid[index]
+    else:
+        absolute = np.where(allowed, grid[index], depths[:, None] + offsets[None, :])
     # Compute each absolute state once, and only the states some depth uses.
     used = np.zeros(grid.size, bool)
     used[index[allowed]] = True

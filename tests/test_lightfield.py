@@ -12,7 +12,7 @@ import pytest
 import helpers as H
 import lfjax
 import reference as R
-from lfjax.through_focus import relative_accommodation_grid
+from lfjax.through_focus import relative_accommodation_grid, through_focus
 
 CDP = 2.0
 
@@ -307,3 +307,16 @@ def test_lightfield_fast_path_matches_reference(name, dl_convergence):
         b_fast = c_fast / H.pupil_samples(d, 650.0, df)
         bound = max(bound, kappa * (b_fast + b_ref))
     assert diff <= bound, (diff, bound)
+
+
+def test_states_beyond_hyperopic_limit_keep_their_true_values():
+    """With relative offsets, entries below 0 D are marked not allowed, hold NaN metrics and
+    keep their true (negative) accommodation, so relative_accommodation_D equals the offsets."""
+    offsets = np.array([-0.4, -0.2, 0.0, 0.2])
+    tf = through_focus(H.dl_eye(), None, [0.2, 2.0], accommodation_offsets_D=offsets,
+                       spectrum=lfjax.make_spectrum([550.0]), sampling=lfjax.Sampling(2.0))
+    np.testing.assert_allclose(tf.relative_accommodation_D, np.broadcast_to(offsets, (2, 4)),
+                               atol=1e-12)
+    np.testing.assert_array_equal(np.asarray(tf.allowed), [[False, True, True, True]] + [[True] * 4])
+    assert np.isnan(np.asarray(tf.vsotf)[0, 0, 0])
+    assert np.all(np.asarray(tf.predicted_accommodation_D()) >= 0)
