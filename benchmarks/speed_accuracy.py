@@ -2,7 +2,8 @@
 
 Configuration: 2 virtual eyes + average eye, 2x2 viewpoints in a 3 mm pupil, CDP 2 D,
 rendered depths 1, 2, 3 D, accommodation 0-4 D in 0.2 D steps within +-1 D of each depth.
-Reference: float64, frequency step half the planner's, 5 nm wavelength steps.
+Reference: float64, frequency step half the planner's, 5 nm wavelength steps, the planner's
+aperture edge. Each other case changes one knob from the planner's choice.
 Knobs: frequency step (field), wavelength step (5/10/20/50 nm), float32 vs float64,
 aperture edge width. Error = max |VSOTF - VSOTF_ref| over allowed states, and the largest
 change of predicted accommodation (D). Time = warm wall time of one through_focus call.
@@ -80,18 +81,19 @@ def main():
     df0 = plan.sampling.freq_step_cpd
     print(plan.summary())
     # (name, df, wavelength step, x64, edge, transform, mft samples, Zernike order)
-    cases = [("reference", df0 / 2, 5.0, True, 0.5, "fft", 64, 4)]
+    e0 = plan.sampling.edge_width_samples
+    cases = [("reference", df0 / 2, 5.0, True, e0, "fft", 64, 4)]
     for f in (0.5, 0.75, 1.0, 1.25, 1.6):
-        cases.append((f"df x{f}", df0 * f, 10.0, False, 0.5, "fft", 64, 4))
+        cases.append((f"df x{f}", df0 * f, 10.0, False, e0, "fft", 64, 4))
     for step in (5.0, 20.0, 50.0):
-        cases.append((f"{step:g} nm", df0, step, False, 0.5, "fft", 64, 4))
-    cases.append(("float64", df0, 10.0, True, 0.5, "fft", 64, 4))
-    cases.append(("edge 0.25", df0, 10.0, False, 0.25, "fft", 64, 4))
+        cases.append((f"{step:g} nm", df0, step, False, e0, "fft", 64, 4))
+    cases.append(("float64", df0, 10.0, True, e0, "fft", 64, 4))
+    cases.append(("edge 0.5", df0, 10.0, False, 0.5, "fft", 64, 4))
     cases.append(("edge 1.0", df0, 10.0, False, 1.0, "fft", 64, 4))
     for n in (32, 64, 128):
-        cases.append((f"MFT {n}", df0, 10.0, False, 0.5, "mft", n, 4))
+        cases.append((f"MFT {n}", df0, 10.0, False, e0, "mft", n, 4))
     for order in (2, 3):
-        cases.append((f"Zernike n<={order}", df0, 10.0, False, 0.5, "fft", 64, order))
+        cases.append((f"Zernike n<={order}", df0, 10.0, False, e0, "fft", 64, order))
     results = {}
     for name, df, step, x64, edge, transform, mft_n, order in cases:
         out = HERE / f"_sa_{len(results)}.npz"

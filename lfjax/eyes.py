@@ -158,7 +158,8 @@ def sample_eyes(
         Zero j = 0, 1, 2 after sampling (they do not change image quality).
 
     The draw is ``mean + L z`` with ``L`` the Cholesky factor of the covariance (computed
-    in float64 on the host) and ``z`` standard normal from ``key``: same key, same eyes.
+    in float64 on the host) and ``z`` standard normal from ``key`` (drawn in float32): same
+    key, same eyes, in float32 and float64 alike.
     """
     if int(n_eyes) != n_eyes or n_eyes < 1:
         raise ValueError(f"n_eyes must be an integer >= 1, got {n_eyes}")
@@ -166,7 +167,10 @@ def sample_eyes(
         key = jax.random.key(key)
     mean, cov, _ = thibos_statistics(measured_pupil_mm)
     chol = np.linalg.cholesky(cov)
-    z = jax.random.normal(key, (int(n_eyes), mean.size), dtype=jnp.result_type(float))
+    # Draw in float32 whatever the precision, so a seed gives the same eyes with and without
+    # jax_enable_x64 (float64 draws would be different random numbers).
+    z = jax.random.normal(key, (int(n_eyes), mean.size), dtype=jnp.float32)
+    z = z.astype(jnp.result_type(float))
     coeffs = jnp.asarray(mean) + z @ jnp.asarray(chol).T
     eyes = Eyes(coeffs, float(measured_pupil_mm))
     if zero_piston_tilt:

@@ -66,7 +66,7 @@ def plan_sampling(
     margin: float = 1.05,
     min_samples_per_subaperture: int = 16,
     wrap_tolerance: float = 1e-3,
-    edge_width_samples: float = 0.5,
+    edge_width_samples: float = 0.25,
     freq_step_cpd: float | None = None,
 ) -> Plan:
     """Choose the frequency step for a scene (and say why).

@@ -135,6 +135,24 @@ def relative_accommodation_grid(depths_D, offsets_D, hyperopic_limit: bool = Tru
     return grid, index
 
 
+def _reference_normalisers(
+    n_modes, measured_pupil_mm, pupil_diameter_mm, cdp_D, ref_centres_mm, ref_diameters_mm,
+    spectrum, ref_bands, sampling, sa_params, ncsf_model,
+):
+    """VSOTF denominator and PSF peak of the reference: aberration-free, accommodated and
+    rendered on the CDP, accommodation SA and LCA kept."""
+    df = sampling.freq_step_cpd
+    ref_n_fft = max(b[2] for b in ref_bands)
+    cdp = jnp.reshape(cdp_D, (1,))
+    ref_elemental = _elemental_otfs(
+        jnp.zeros((n_modes,), pupil_diameter_mm.dtype), measured_pupil_mm, pupil_diameter_mm,
+        cdp_D, cdp, ref_centres_mm, ref_diameters_mm, spectrum, ref_bands, sampling, sa_params,
+    )
+    ref_otf = _render(ref_elemental, ref_centres_mm, cdp_D, cdp, ref_n_fft, df)[0, 0]
+    ref_vs = vsotf_numerator(ref_otf, ncsf_half_plane(ref_n_fft, df, ncsf_model))
+    return ref_vs, psf_peak(ref_otf, ref_n_fft, df)
+
+
 @partial(
     jax.jit,
     static_argnames=("measured_pupil_mm", "bands", "ref_bands", "sampling", "ncsf_model", "eye_chunk"),
@@ -146,15 +164,10 @@ def _through_focus_core(
 ):
     df = sampling.freq_step_cpd
     n_fft = max(b[2] for b in bands)
-    ref_n_fft = max(b[2] for b in ref_bands)
-    cdp = jnp.reshape(cdp_D, (1,))
-    ref_elemental = _elemental_otfs(
-        jnp.zeros_like(zernike_um[0]), measured_pupil_mm, pupil_diameter_mm, cdp_D, cdp,
-        ref_centres_mm, ref_diameters_mm, spectrum, ref_bands, sampling, sa_params,
+    ref_vs, ref_peak = _reference_normalisers(
+        zernike_um.shape[-1], measured_pupil_mm, pupil_diameter_mm, cdp_D, ref_centres_mm,
+        ref_diameters_mm, spectrum, ref_bands, sampling, sa_params, ncsf_model,
     )
-    ref_otf = _render(ref_elemental, ref_centres_mm, cdp_D, cdp, ref_n_fft, df)[0, 0]
-    ref_vs = vsotf_numerator(ref_otf, ncsf_half_plane(ref_n_fft, df, ncsf_model))
-    ref_peak = psf_peak(ref_otf, ref_n_fft, df)
     weighted_ncsf = ncsf_half_plane(n_fft, df, ncsf_model)
 
     def one_eye(coefficients):
@@ -304,15 +317,10 @@ def _metrics_at_core(
 ):
     df = sampling.freq_step_cpd
     n_fft = max(b[2] for b in bands)
-    ref_n_fft = max(b[2] for b in ref_bands)
-    cdp = jnp.reshape(cdp_D, (1,))
-    ref_elemental = _elemental_otfs(
-        jnp.zeros_like(zernike_um[0]), measured_pupil_mm, pupil_diameter_mm, cdp_D, cdp,
-        ref_centres_mm, ref_diameters_mm, spectrum, ref_bands, sampling, sa_params,
+    ref_vs, ref_peak = _reference_normalisers(
+        zernike_um.shape[-1], measured_pupil_mm, pupil_diameter_mm, cdp_D, ref_centres_mm,
+        ref_diameters_mm, spectrum, ref_bands, sampling, sa_params, ncsf_model,
     )
-    ref_otf = _render(ref_elemental, ref_centres_mm, cdp_D, cdp, ref_n_fft, df)[0, 0]
-    ref_vs = vsotf_numerator(ref_otf, ncsf_half_plane(ref_n_fft, df, ncsf_model))
-    ref_peak = psf_peak(ref_otf, ref_n_fft, df)
     weighted_ncsf = ncsf_half_plane(n_fft, df, ncsf_model)
 
     def one_depth(coefficients, depth, states):
