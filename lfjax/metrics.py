@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from functools import lru_cache
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -209,4 +208,3 @@ __all__ = [
     "diffraction_limited_mtf",
 ]
 
-_ = jax

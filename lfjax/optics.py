@@ -87,8 +87,9 @@ def sa_parameters(options: ModelOptions, pupil_diameter_mm):
 # ----------------------------------------------------------------------------- core
 
 
-def _window_coordinates(centre_mm, n_fft: int, dx_mm):
-    k = jnp.arange(n_fft, dtype=dx_mm.dtype) - (n_fft // 2)
+def _window_coordinates(centre_mm, n_samples: int, dx_mm):
+    """Pupil coordinates (mm) of an n_samples² window centred on ``centre_mm``, [y, x]."""
+    k = jnp.arange(n_samples, dtype=dx_mm.dtype) - (n_samples // 2)
     x = centre_mm[0] + k * dx_mm
     y = centre_mm[1] + k * dx_mm
     return jnp.meshgrid(x, y)  # [y, x]

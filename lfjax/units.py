@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import math
 
-import jax.numpy as jnp
-
 ARCMIN_PER_RADIAN: float = 180.0 * 60.0 / math.pi
 """Visual angle: arcmin in one radian."""
 
@@ -84,4 +82,3 @@ __all__ = [
     "field_arcmin_from_freq_step",
 ]
 
-_ = jnp  # jnp arrays pass through these functions unchanged
