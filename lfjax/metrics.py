@@ -18,6 +18,13 @@ from .optics import frequencies_cpd, half_frequencies_cpd
 # ----------------------------------------------------------------------------- NCSF
 
 
+def _array_module(*arrays):
+    """numpy when every input is a NumPy array or scalar (no dispatch or compiles), else jax."""
+    if all(isinstance(a, (np.ndarray, float, int, np.floating)) for a in arrays):
+        return np
+    return jnp
+
+
 def ncsf_watson_ahumada_2005(fx_cpd, fy_cpd):
     """ModelFest CSF of Watson & Ahumada (2005) with the oblique effect (unitless sensitivity).
 
@@ -27,7 +34,9 @@ def ncsf_watson_ahumada_2005(fx_cpd, fy_cpd):
     times O(f, θ) = 1 for f ≤ 3.481 cpd, else 1 − (1 − e^{−(f−3.481)/13.57149}) sin²(2θ).
     It was measured through the observers' own optics, so it is not purely neural; the paper
     uses it as the NCSF (Watson & Ahumada 2005, J Vis 5:717; 2012).
+    NumPy arrays in give NumPy out (host planning); anything else is evaluated with jax.
     """
+    jnp = _array_module(fx_cpd, fy_cpd)
     f2 = fx_cpd * fx_cpd + fy_cpd * fy_cpd
     positive = f2 > 0
     f = jnp.where(positive, jnp.sqrt(jnp.where(positive, f2, 1.0)), 0.0)
@@ -48,6 +57,7 @@ def ncsf_campbell_green_2004(fx_cpd, fy_cpd):
     log10 S = 2.8876e-8 f⁵ − 5.2957e-6 f⁴ + 3.5818e-4 f³ − 1.1241e-2 f² + 0.12704 f + 1.8636,
     zero above 64 cpd.
     """
+    jnp = _array_module(fx_cpd, fy_cpd)
     f = jnp.sqrt(fx_cpd * fx_cpd + fy_cpd * fy_cpd)
     log_s = (
         ((((2.8876e-8 * f - 5.2957e-6) * f + 3.5818e-4) * f - 1.1241e-2) * f + 0.12704) * f

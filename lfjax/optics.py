@@ -355,6 +355,39 @@ def _validate_coefficients(zernike_um) -> None:
         raise ValueError("zernike_um contains non-finite values (NaN or inf)")
 
 
+def field_radius_arcmin(
+    eyes_zernike_um, measured_pupil_mm: float, pupil_diameter_mm: float, cdp_D: float,
+    accommodation_D, pair_accommodation_D, pair_depths_D, layout: Layout, spectrum: Spectrum,
+    wrap_tolerance: float = 1e-3,
+) -> float:
+    """Largest PSF radius (arcmin) the field must hold for these states (host, numpy).
+
+    Geometric blur of every accommodation state (incl. LCA) and display shift of every
+    (accommodation, depth) pair, plus diffraction and the eyes' largest ray angle
+    (:func:`lfjax.sampling.blur_radius_arcmin`). Wavelengths carrying in total less than
+    ``wrap_tolerance`` of the spectral weight, the most blurred first, are left out: their
+    error in the OTF is bounded by their weight. The pipeline's aliasing guard and
+    :func:`lfjax.planner.plan_sampling` both use this function.
+    """
+    acc = np.asarray(accommodation_D, float).reshape(-1)
+    pair_acc = np.asarray(pair_accommodation_D, float).reshape(-1)
+    pair_depth = np.asarray(pair_depths_D, float).reshape(-1)
+    lca_all = np.asarray(spectrum.lca_D, float)
+    weights = np.asarray(spectrum.weights, float)
+    order = np.argsort(-np.abs(lca_all))  # most chromatic defocus first
+    excluded = np.cumsum(weights[order]) < wrap_tolerance * weights.sum()
+    lca = lca_all[order[~excluded]]
+    defocus = (acc[:, None] - float(cdp_D) + lca[None, :]).ravel()
+    mismatch = (pair_acc[:, None] - pair_depth[:, None] + lca[None, :]).ravel()
+    slope = 0.0
+    if eyes_zernike_um is not None:
+        slope = eye_slope_rad(np.asarray(eyes_zernike_um), measured_pupil_mm, float(pupil_diameter_mm))
+    return blur_radius_arcmin(
+        float(pupil_diameter_mm), np.asarray(layout.centres_mm), np.asarray(layout.diameters_mm),
+        defocus, mismatch, float(np.max(np.asarray(spectrum.wavelengths_nm))), slope,
+    )
+
+
 def _field_check(
     eyes_zernike, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
     layout: Layout, spectrum: Spectrum, sampling: Sampling, pairs=None,
@@ -362,8 +395,6 @@ def _field_check(
 ) -> None:
     """Raise if the PSF field cannot hold the blur (host check on concrete inputs).
 
-    Wavelengths carrying in total less than ``wrap_tolerance`` of the spectral weight, the
-    most blurred first, may wrap: their error in the OTF is bounded by their weight.
     ``pairs`` = (accommodation, depth) arrays restricts the check to the pairs computed.
     """
     if not _is_concrete(
@@ -373,23 +404,10 @@ def _field_check(
     acc = np.asarray(accommodation_D, float).reshape(-1)
     depth = np.asarray(depths_D, float).reshape(-1)
     if pairs is None:
-        pair_acc = np.repeat(acc, depth.size)
-        pair_depth = np.tile(depth, acc.size)
-    else:
-        pair_acc = np.asarray(pairs[0], float).reshape(-1)
-        pair_depth = np.asarray(pairs[1], float).reshape(-1)
-    lca_all = np.asarray(spectrum.lca_D, float)
-    weights = np.asarray(spectrum.weights, float)
-    order = np.argsort(-np.abs(lca_all))  # most chromatic defocus first
-    excluded = np.cumsum(weights[order]) < wrap_tolerance * weights.sum()
-    lca = lca_all[order[~excluded]]
-    cdp = float(cdp_D)
-    defocus = (acc[:, None] - cdp + lca[None, :]).ravel()
-    mismatch = (pair_acc[:, None] - pair_depth[:, None] + lca[None, :]).ravel()
-    slope = eye_slope_rad(np.asarray(eyes_zernike), measured_pupil_mm, float(pupil_diameter_mm))
-    radius = blur_radius_arcmin(
-        float(pupil_diameter_mm), np.asarray(layout.centres_mm), np.asarray(layout.diameters_mm),
-        defocus, mismatch, float(np.max(np.asarray(spectrum.wavelengths_nm))), slope,
+        pairs = (np.repeat(acc, depth.size), np.tile(depth, acc.size))
+    radius = field_radius_arcmin(
+        eyes_zernike, measured_pupil_mm, pupil_diameter_mm, cdp_D, acc, pairs[0], pairs[1],
+        layout, spectrum, wrap_tolerance,
     )
     check_field(sampling, radius, "the blur of the requested defocus, LCA and display shifts")
 
@@ -621,4 +639,5 @@ __all__ = [
     "psf_from_otf",
     "monochromatic_psf",
     "validate_pupil",
+    "field_radius_arcmin",
 ]

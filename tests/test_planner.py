@@ -1,58 +1,227 @@
-"""The sampling planner: its choice passes the aliasing guard, a coarser one does not, and
-its accuracy target holds against a finer sampling on small scenes."""
+"""The sampling planner against the pipeline it plans for.
+
+For a set of small scenes the planner's sampling meets its VSOTF target when measured
+against a converged run (Richardson-extrapolated from half and quarter frequency steps),
+its error estimates bound those measurements within 1.5×, every cheaper neighbour it
+rejects is worse by measurement (pupil) or refused by the aliasing guard (field), and
+aliasing overrides are refused.
+"""
+
+import math
 
 import numpy as np
 import pytest
 
 import lfjax
+from lfjax import planner
+from lfjax.optics import polychromatic_otf, psf_from_otf
 from lfjax.planner import plan_sampling
 from lfjax.through_focus import through_focus
 
 WAVELENGTHS = [450.0, 550.0, 650.0]
+ACCOMMODATION = np.round(np.arange(0.0, 4.01, 0.2), 9)
+TOLERANCE = 2e-3
+
+# name: (layout, rendered depths D, pupil mm, accommodation window D)
+SCENES = {
+    "natural": (lfjax.open_pupil(3.0), [2.0], 3.0, 1.0),
+    "2x2": (lfjax.grid_layout(2, 3.0), [1.0, 2.0, 3.0], 3.0, 1.0),
+    "3x3, 4 mm": (lfjax.grid_layout(3, 4.0), [1.0, 3.0], 4.0, 0.6),
+}
 
 
-@pytest.mark.parametrize("n_views", [1, 2, 4])
-def test_plan_passes_guard_and_coarser_step_aliases(n_views):
-    layout = lfjax.grid_layout(n_views, 3.0)
+def _vsotf(scene, sampling, check=False):
+    layout, depths, pupil, window = scene
+    eye = lfjax.eyes.aberration_free_eye(measured_pupil_mm=max(pupil, 3.0))
+    tf = through_focus(eye, layout, depths, ACCOMMODATION, window_D=window, pupil_diameter_mm=pupil,
+                       spectrum=lfjax.make_spectrum(WAVELENGTHS), sampling=sampling,
+                       check_aliasing=check)
+    return np.asarray(tf.vsotf), np.asarray(tf.allowed)
+
+
+def _measured_error(scene, sampling, df_reference):
+    """max |VSOTF − converged| over the allowed states; converged = Richardson (order 2)
+    from frequency steps df_reference/2 and df_reference/4 (their own edge errors ∝ step²)."""
+    half, allowed = _vsotf(scene, lfjax.Sampling(df_reference / 2))
+    quarter, _ = _vsotf(scene, lfjax.Sampling(df_reference / 4))
+    converged = quarter + (quarter - half) / 3.0
+    value, _ = _vsotf(scene, sampling)
+    mask = np.broadcast_to(allowed[None], value.shape)
+    return float(np.max(np.abs(value - converged)[mask]))
+
+
+def _measured_wrap(scene, df):
+    """Largest PSF intensity a field of 60/df arcmin wraps back, relative to the PSF peak,
+    from the pipeline's PSFs on twice that field (aberration-free eye)."""
+    layout, depths, pupil, window = scene
+    eye = lfjax.eyes.aberration_free_eye(measured_pupil_mm=max(pupil, 3.0))
+    worst = 0.0
+    for depth in depths:
+        acc = [a for a in ACCOMMODATION if abs(a - depth) <= window + 1e-9]
+        stack = polychromatic_otf(eye, acc, pupil, 2.0, lfjax.make_spectrum(WAVELENGTHS),
+                                  lfjax.Sampling(df / 2), layout=layout, depths_D=[depth],
+                                  check_aliasing=False)
+        psf = np.asarray(psf_from_otf(stack.otf, stack.n_fft, df / 2))[0, 0]
+        h = psf.shape[-1] // 2
+        folded = psf + np.roll(psf, h, -1) + np.roll(psf, h, -2) + np.roll(np.roll(psf, h, -1), h, -2)
+        c = slice(psf.shape[-1] // 2 - h // 2, psf.shape[-1] // 2 - h // 2 + h)
+        wrapped = (folded - psf)[:, c, c].max(axis=(-2, -1)) / psf.max(axis=(-2, -1))
+        worst = max(worst, float(wrapped.max()))
+    return worst
+
+
+@pytest.fixture(scope="module", params=list(SCENES))
+def planned(request):
+    scene = SCENES[request.param]
+    layout, depths, pupil, window = scene
+    plan = plan_sampling(layout, pupil, 2.0, depths_D=depths, accommodation_D=ACCOMMODATION,
+                         accommodation_window_D=window, wavelengths_nm=WAVELENGTHS,
+                         vsotf_tolerance=TOLERANCE, measured_pupil_mm=max(pupil, 3.0))
+    return request.param, scene, plan
+
+
+def test_plan_meets_target_and_estimate_is_faithful(planned):
+    name, scene, plan = planned
+    assert plan.sampling.transform == "fft"
+    measured = _measured_error(scene, plan.sampling, plan.sampling.freq_step_cpd)
+    assert measured <= TOLERANCE, (name, measured)
+    # the estimate (with its 1.2 margin) bounds the measurement and is at most 1.5× it
+    assert measured <= plan.errors["pupil"] <= 1.5 * measured
+    # the PSF target holds, and the planner's wrapped-PSF estimate bounds the pipeline's
+    wrap = _measured_wrap(scene, plan.sampling.freq_step_cpd)
+    assert wrap <= plan.errors["psf_wrap"] <= 2e-3
+    assert plan.summary().count("\n") >= 6
+
+
+def test_one_step_cheaper_is_rejected_for_a_measured_reason(planned):
+    """Every dimension has a cheaper neighbour the planner rejected. Field: the pipeline's
+    aliasing guard refuses it. Pupil: its measured error is larger than the plan's and the
+    planner's estimate for it exceeds the target. (Not asserted, because it does not hold:
+    that the measured error of the cheaper step exceeds the target. The estimate is
+    conservative by 15–75 %, so the plan is one ladder step finer than needed on these
+    scenes; benchmarks/RESULTS.md §6.)"""
+    name, scene, plan = planned
+    assert plan.cheaper, name
+    plan_error = _measured_error(scene, plan.sampling, plan.sampling.freq_step_cpd)
+    for dimension, (cheaper, why) in plan.cheaper.items():
+        assert cheaper.freq_step_cpd == pytest.approx(
+            plan.sampling.freq_step_cpd * 2 ** (1 / planner.STEPS_PER_OCTAVE))
+        if dimension == "pupil":
+            measured = _measured_error(scene, cheaper, cheaper.freq_step_cpd)
+            assert measured > plan_error, (name, measured, plan_error)
+            assert float(why.split("VSOTF error ")[1].split(" ")[0]) > TOLERANCE
+        elif "guard" in why:
+            with pytest.raises(ValueError, match="aliasing"):
+                _vsotf(scene, cheaper, check=True)
+        else:
+            assert _measured_wrap(scene, cheaper.freq_step_cpd) > _measured_wrap(
+                scene, plan.sampling.freq_step_cpd)
+
+
+def test_ladder():
+    for x in (0.37, 1.0, 1.2, 2.9):
+        step = planner.ladder_floor(x)
+        assert step <= x < step * 2 ** (1 / 8) * (1 + 1e-12)
+        assert planner.ladder_up(step) == pytest.approx(step * 2 ** (1 / 8))
+    assert planner.ladder_floor(1.0) == pytest.approx(1.0)
+
+
+def test_plan_passes_guard_and_aliasing_is_detected():
+    layout = lfjax.grid_layout(2, 3.0)
     depths = [1.0, 2.0, 3.0]
-    plan = plan_sampling(layout, depths_D=depths, wavelengths_nm=WAVELENGTHS)
-    assert plan.sampling.freq_step_cpd > 0
-    assert "df" in plan.summary()
+    plan = plan_sampling(layout, depths_D=depths, accommodation_D=ACCOMMODATION,
+                         accommodation_window_D=1.0, wavelengths_nm=WAVELENGTHS)
     eye = lfjax.eyes.aberration_free_eye()
-    acc = np.round(np.arange(0.0, 4.01, 0.2), 9)
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
-    # the planner's choice is accepted by the pipeline's aliasing guard ...
-    through_focus(eye, layout, depths, acc, window_D=1.0, spectrum=spectrum,
+    through_focus(eye, layout, depths, ACCOMMODATION, window_D=1.0, spectrum=spectrum,
                   sampling=plan.sampling)
-    # ... and a step 25 % coarser is refused (field too small for the blur)
-    coarse = lfjax.Sampling(plan.sampling.freq_step_cpd * 1.25)
+    coarse = lfjax.Sampling(plan.guard_freq_step_cpd * 1.06)
     with pytest.raises(ValueError, match="aliasing"):
-        through_focus(eye, layout, depths, acc, window_D=1.0, spectrum=spectrum,
+        through_focus(eye, layout, depths, ACCOMMODATION, window_D=1.0, spectrum=spectrum,
                       sampling=coarse)
 
 
 def test_override_that_aliases_is_refused():
     with pytest.raises(ValueError, match="freq_step_cpd"):
-        plan_sampling(lfjax.grid_layout(2, 3.0), depths_D=[0.0, 4.0], freq_step_cpd=5.0)
+        plan_sampling(lfjax.grid_layout(2, 3.0), depths_D=[0.0, 4.0], freq_step_cpd=5.0,
+                      wavelengths_nm=WAVELENGTHS)
 
 
-def test_planned_vsotf_matches_finer_sampling():
-    """Accuracy target: VSOTF within 1e-2 of a sampling twice as fine and the same predicted
-    accommodation (the residual is the aperture-edge bias, ∝ 1/pupil samples)."""
+def test_overrides_are_kept():
     layout = lfjax.grid_layout(2, 3.0)
-    depths = [1.0, 3.0]
-    acc = np.round(np.arange(0.0, 4.01, 0.2), 9)
-    spectrum = lfjax.make_spectrum(WAVELENGTHS)
-    eyes = lfjax.sample_eyes(3, 2)
-    plan = plan_sampling(layout, depths_D=depths, wavelengths_nm=WAVELENGTHS,
-                         eyes_zernike_um=np.asarray(eyes.zernike_um))
-    fine = lfjax.Sampling(plan.sampling.freq_step_cpd / 2)
-    a = through_focus(eyes, layout, depths, acc, window_D=1.0, spectrum=spectrum,
-                      sampling=plan.sampling)
-    b = through_focus(eyes, layout, depths, acc, window_D=1.0, spectrum=spectrum, sampling=fine)
-    mask = np.asarray(a.allowed)[None]
-    diff = np.abs(np.asarray(a.vsotf) - np.asarray(b.vsotf))[np.broadcast_to(mask, a.vsotf.shape)]
-    assert diff.max() < 1e-2
-    np.testing.assert_array_equal(
-        np.asarray(a.predicted_accommodation_D()), np.asarray(b.predicted_accommodation_D())
-    )
+    plan = plan_sampling(layout, depths_D=[2.0], wavelengths_nm=WAVELENGTHS, transform="mft",
+                         mft_pupil_samples=48)
+    assert plan.sampling.transform == "mft" and plan.sampling.mft_pupil_samples == 48
+    plan = plan_sampling(layout, depths_D=[2.0], wavelengths_nm=WAVELENGTHS, freq_step_cpd=1.0)
+    assert plan.sampling.freq_step_cpd == 1.0
+    assert "cost" not in plan.errors and set(plan.cost_s) >= {"fft"}
+
+
+def test_absolute_accommodation_range_widens_the_field():
+    layout = lfjax.grid_layout(2, 3.0)
+    narrow = plan_sampling(layout, depths_D=[2.0], accommodation_D=(1.5, 2.5),
+                           accommodation_window_D=None, wavelengths_nm=WAVELENGTHS)
+    wide = plan_sampling(layout, depths_D=[2.0], accommodation_D=(0.0, 5.0),
+                         accommodation_window_D=None, wavelengths_nm=WAVELENGTHS)
+    assert wide.blur_radius_arcmin > narrow.blur_radius_arcmin
+    assert wide.guard_freq_step_cpd < narrow.guard_freq_step_cpd
+
+
+def test_wavelength_step_choice_rejects_coarse_steps():
+    """With only a range, the planner picks the step; 50 nm is rejected (it moves the
+    through-focus peak or exceeds its share of the target)."""
+    plan = plan_sampling(lfjax.grid_layout(2, 3.0), depths_D=[2.0], accommodation_window_D=0.6,
+                         wavelength_range_nm=(400.0, 700.0), vsotf_tolerance=TOLERANCE)
+    wl = np.asarray(plan.wavelengths_nm)
+    step = wl[1] - wl[0]
+    assert step < 50.0
+    assert plan.errors["spectral"] <= 0.5 * TOLERANCE
+    assert wl[0] == 400.0 and wl[-1] == 700.0
+    assert plan.spectrum().n_wavelengths == wl.size
+
+
+def test_zernike_order_follows_the_eyes():
+    eyes = np.asarray(lfjax.sample_eyes(0, 3).zernike_um)
+    full = plan_sampling(depths_D=[2.0], wavelengths_nm=WAVELENGTHS, eyes_zernike_um=eyes)
+    assert full.max_zernike_order == 4  # the Thibos eyes' 4th order matters at 1e-3
+    tiny = eyes.copy()
+    tiny[:, 10:] *= 1e-3  # 4th order 1000× smaller: Maréchal change ≪ 10 % of the target
+    cut = plan_sampling(depths_D=[2.0], wavelengths_nm=WAVELENGTHS, eyes_zernike_um=tiny)
+    assert cut.max_zernike_order == 3
+    assert cut.truncate(tiny).shape[-1] == 10
+    assert cut.errors["zernike"] < 1e-4
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(vsotf_tolerance=0.0), "vsotf_tolerance"),
+        (dict(psf_tolerance=2.0), "psf_tolerance"),
+        (dict(margin=0.5), "margin"),
+        (dict(transform="dft"), "transform"),
+        (dict(wavelength_step_nm=-5.0), "wavelength_step_nm"),
+        (dict(pupil_diameter_mm=0.0), "pupil_diameter_mm"),
+    ],
+)
+def test_bad_input_names_the_parameter(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        plan_sampling(depths_D=[2.0], wavelengths_nm=WAVELENGTHS, **kwargs)
+
+
+def test_proxy_aperture_is_area_exact_and_matches_the_pipeline():
+    """The planner's numpy aperture transmits π r² (the area-exact edge) like the pipeline,
+    and its in-focus OTF agrees with the pipeline's to float32 round-off."""
+    from lfjax.planner import _aperture_otfs
+    from lfjax.units import DEGREES_PER_RADIAN
+
+    df = 1.5
+    dx = 550e-6 * df * DEGREES_PER_RADIAN
+    otf = _aperture_otfs((np.zeros(2), 3.0), 3.0, [0.0], [0.0], 1.5, 550.0, 0.0, dx, 160, 0.25)
+    assert otf[0, 0, 0].real == pytest.approx(math.pi * 1.5**2, rel=5e-4)
+    options = lfjax.ModelOptions(sce="off", accommodation_sa="off")
+    spectrum = lfjax.make_spectrum([550.0], options)
+    stack = polychromatic_otf(lfjax.eyes.aberration_free_eye(), [2.0 - float(spectrum.lca_D[0])],
+                              3.0, 2.0, spectrum, lfjax.Sampling(df, n_fft=160), options,
+                              check_aliasing=False)
+    ours = otf[0] / otf[0, 0, 0]
+    np.testing.assert_allclose(ours, np.asarray(stack.otf)[0, 0, 0], atol=2e-5)
