@@ -3,7 +3,7 @@
 For each scene (aberration-free eye, 450/550/650 nm, accommodation 0–4 D in 0.2 D steps
 within a window of each rendered depth) the planner's sampling and each rejected cheaper
 neighbour are run through lfjax.through_focus; the measured error is max |VSOTF − converged|
-where converged is Richardson-extrapolated from half and quarter frequency steps; "wrap" is
+where converged is Richardson-extrapolated from a quarter and an eighth of the plan's step; "wrap" is
 the pipeline's wrapped PSF / peak on the plan's field. tests/test_planner.py asserts the
 parts that hold; benchmarks/RESULTS.md §7 records a run.
 
@@ -51,9 +51,11 @@ for name,(lay,depths,pupil,win) in scenes.items():
     plan=plan_sampling(lay, pupil, 2.0, depths_D=depths, accommodation_D=acc, accommodation_window_D=win, wavelengths_nm=WL, vsotf_tolerance=tol, measured_pupil_mm=max(pupil,3.0))
     tp=time.time()-t
     s=plan.sampling
-    r4,allowed=vs(eye,lay,depths,acc,win,lfjax.Sampling(s.freq_step_cpd/4),pupil)
-    r2,_=vs(eye,lay,depths,acc,win,lfjax.Sampling(s.freq_step_cpd/2),pupil)
-    ref = r4 + (r4-r2)/3
+    # one converged reference for the plan and its neighbours: Richardson (order 2) from
+    # a quarter and an eighth of the plan's step
+    r8,allowed=vs(eye,lay,depths,acc,win,lfjax.Sampling(s.freq_step_cpd/8),pupil)
+    r4,_=vs(eye,lay,depths,acc,win,lfjax.Sampling(s.freq_step_cpd/4),pupil)
+    ref = r8 + (r8-r4)/3
     v,_=vs(eye,lay,depths,acc,win,s,pupil)
     m=allowed[None]
     e=np.abs(v-ref)[np.broadcast_to(m,v.shape)].max()

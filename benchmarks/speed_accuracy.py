@@ -2,8 +2,8 @@
 
 Configuration: 2 virtual eyes + average eye, 2x2 viewpoints in a 3 mm pupil, CDP 2 D,
 rendered depths 1, 2, 3 D, accommodation 0-4 D in 0.2 D steps within +-1 D of each depth.
-Reference: float64, frequency step half the planner's, 5 nm wavelength steps, the planner's
-aperture edge. Each other case changes one knob from the planner's choice.
+Reference: float64, frequency step a quarter of the planner's, 5 nm wavelength steps, the
+planner's aperture edge. The planner is asked for VSOTF error <= 1e-3 on this scene. Each other case changes one knob from the planner's choice.
 Knobs: frequency step (field), wavelength step (5/10/20/50 nm), float32 vs float64,
 aperture edge width. Error = max |VSOTF - VSOTF_ref| over allowed states, and the largest
 change of predicted accommodation (D). Time = warm wall time of one through_focus call.
@@ -77,12 +77,19 @@ def main():
     import lfjax
     from lfjax.planner import plan_sampling
 
-    plan = plan_sampling(lfjax.grid_layout(2, 3.0), depths_D=[1.0, 2.0, 3.0])
+    eyes = lfjax.sample_eyes(1, 2)
+    zernike = np.concatenate([np.asarray(eyes.zernike_um), np.asarray(lfjax.average_eye().zernike_um)])
+    plan = plan_sampling(
+        lfjax.grid_layout(2, 3.0), depths_D=[1.0, 2.0, 3.0],
+        accommodation_D=np.round(np.arange(0.0, 4.01, 0.2), 9), accommodation_window_D=1.0,
+        wavelengths_nm=np.arange(400.0, 700.1, 10.0), eyes_zernike_um=zernike,
+        vsotf_tolerance=1e-3,
+    )
     df0 = plan.sampling.freq_step_cpd
     print(plan.summary())
     # (name, df, wavelength step, x64, edge, transform, mft samples, Zernike order)
     e0 = plan.sampling.edge_width_samples
-    cases = [("reference", df0 / 2, 5.0, True, e0, "fft", 64, 4)]
+    cases = [("reference", df0 / 4, 5.0, True, e0, "fft", 64, 4)]
     for f in (0.5, 0.75, 1.0, 1.25, 1.6):
         cases.append((f"df x{f}", df0 * f, 10.0, False, e0, "fft", 64, 4))
     for step in (5.0, 20.0, 50.0):

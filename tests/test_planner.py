@@ -2,8 +2,8 @@
 
 For a set of small scenes the planner's sampling meets its VSOTF target when measured
 against a converged run (Richardson-extrapolated from half and quarter frequency steps),
-its error estimates bound those measurements within 1.5×, every cheaper neighbour it
-rejects is worse by measurement (pupil) or refused by the aliasing guard (field), and
+its error estimates bound those measurements within 15 %, one ladder step cheaper fails
+(pupil: measured error above the target; field: refused by the aliasing guard), and
 aliasing overrides are refused.
 """
 
@@ -39,12 +39,19 @@ def _vsotf(scene, sampling, check=False):
     return np.asarray(tf.vsotf), np.asarray(tf.allowed)
 
 
+_CONVERGED = {}
+
+
 def _measured_error(scene, sampling, df_reference):
     """max |VSOTF − converged| over the allowed states; converged = Richardson (order 2)
-    from frequency steps df_reference/2 and df_reference/4 (their own edge errors ∝ step²)."""
-    half, allowed = _vsotf(scene, lfjax.Sampling(df_reference / 2))
-    quarter, _ = _vsotf(scene, lfjax.Sampling(df_reference / 4))
-    converged = quarter + (quarter - half) / 3.0
+    from frequency steps df_reference/4 and df_reference/8 (edge errors ∝ step²), the same
+    reference for a plan and its neighbours."""
+    key = (id(scene), df_reference)
+    if key not in _CONVERGED:
+        quarter, allowed = _vsotf(scene, lfjax.Sampling(df_reference / 4))
+        eighth, _ = _vsotf(scene, lfjax.Sampling(df_reference / 8))
+        _CONVERGED[key] = (eighth + (eighth - quarter) / 3.0, allowed)
+    converged, allowed = _CONVERGED[key]
     value, _ = _vsotf(scene, sampling)
     mask = np.broadcast_to(allowed[None], value.shape)
     return float(np.max(np.abs(value - converged)[mask]))
@@ -85,37 +92,31 @@ def test_plan_meets_target_and_estimate_is_faithful(planned):
     assert plan.sampling.transform == "fft"
     measured = _measured_error(scene, plan.sampling, plan.sampling.freq_step_cpd)
     assert measured <= TOLERANCE, (name, measured)
-    # the estimate (with its 1.2 margin) bounds the measurement and is at most 1.5× it
-    assert measured <= plan.errors["pupil"] <= 1.5 * measured
+    # the estimate (with its 5 % margin) bounds the measurement and is at most 15 % above it
+    assert measured <= plan.errors["pupil"] <= 1.15 * measured
     # the PSF target holds, and the planner's wrapped-PSF estimate bounds the pipeline's
     wrap = _measured_wrap(scene, plan.sampling.freq_step_cpd)
     assert wrap <= plan.errors["psf_wrap"] <= 2e-3
     assert plan.summary().count("\n") >= 6
 
 
-def test_one_step_cheaper_is_rejected_for_a_measured_reason(planned):
-    """Every dimension has a cheaper neighbour the planner rejected. Field: the pipeline's
-    aliasing guard refuses it. Pupil: its measured error is larger than the plan's and the
-    planner's estimate for it exceeds the target. (Not asserted, because it does not hold:
-    that the measured error of the cheaper step exceeds the target. The estimate is
-    conservative by 15–75 %, so the plan is one ladder step finer than needed on these
-    scenes; benchmarks/RESULTS.md §6.)"""
+def test_one_step_cheaper_does_not_meet_the_target(planned):
+    """Every dimension has a cheaper neighbour, and it fails: in the field the pipeline's
+    aliasing guard refuses it (or its wrapped PSF exceeds the target); in the pupil its
+    measured VSOTF error exceeds the target."""
     name, scene, plan = planned
     assert plan.cheaper, name
-    plan_error = _measured_error(scene, plan.sampling, plan.sampling.freq_step_cpd)
     for dimension, (cheaper, why) in plan.cheaper.items():
         assert cheaper.freq_step_cpd == pytest.approx(
             plan.sampling.freq_step_cpd * 2 ** (1 / planner.STEPS_PER_OCTAVE))
         if dimension == "pupil":
-            measured = _measured_error(scene, cheaper, cheaper.freq_step_cpd)
-            assert measured > plan_error, (name, measured, plan_error)
-            assert float(why.split("VSOTF error ")[1].split(" ")[0]) > TOLERANCE
+            measured = _measured_error(scene, cheaper, plan.sampling.freq_step_cpd)
+            assert measured > TOLERANCE, (name, measured, why)
         elif "guard" in why:
             with pytest.raises(ValueError, match="aliasing"):
                 _vsotf(scene, cheaper, check=True)
         else:
-            assert _measured_wrap(scene, cheaper.freq_step_cpd) > _measured_wrap(
-                scene, plan.sampling.freq_step_cpd)
+            assert _measured_wrap(scene, cheaper.freq_step_cpd) > 2e-3  # psf_tolerance
 
 
 def test_ladder():
