@@ -48,7 +48,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from .layouts import Layout, open_pupil
-from .metrics import ncsf
+from .metrics import _half_plane_weights_np, ncsf
 from .optics import field_radius_arcmin, pupil_window_size, sa_parameters
 from .options import ModelOptions
 from .sampling import EDGE_EXTENT_SCALES, Sampling, next_fast_size, wavelength_bands
@@ -257,7 +257,8 @@ class _Scene:
         and the state nearest the depth (the error peaks anywhere along the curve)."""
         acc, dep = [], []
         depths = np.unique(self.pair_depth)
-        # at most three depths: the nearest and farthest from the CDP on each side
+        # at most three depths: the nearest and the farthest ones (lowest and highest D)
+        # and the one nearest the CDP
         depths = np.unique([depths[0], depths[-1], depths[np.argmin(np.abs(depths - self.cdp_D))]])
         for d in depths:
             a = np.sort(self.pair_acc[self.pair_depth == d])
@@ -351,14 +352,12 @@ def _view_ramps(shifts_rad, fx_cpr, fy_cpr):
 
 
 def _ncsf_half(n_fft: int, step_cpd: float, model: str) -> np.ndarray:
+    """NCSF on the half plane (n_fft, n_fft//2+1) at step ``step_cpd`` cpd times the
+    Hermitian multiplicity, in numpy (as metrics.ncsf_half_plane on the host)."""
     fy = np.fft.fftfreq(n_fft, 1.0 / n_fft) * step_cpd
     fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft) * step_cpd
     weights = np.asarray(ncsf(fx[None, :], fy[:, None], model), float)
-    mult = np.full(fx.size, 2.0)
-    mult[0] = 1.0
-    if n_fft % 2 == 0:
-        mult[-1] = 1.0
-    return weights * mult[None, :]
+    return weights * _half_plane_weights_np(n_fft)[None, :]
 
 
 class _Proxy:
@@ -457,6 +456,11 @@ class _Proxy:
 
 
 # ----------------------------------------------------------------------------- cost
+
+
+def _fft_work(bands, n_sub: int) -> float:
+    """Relative FFT work per eye and state: Σ n_λ·n_sub·n_fft²·log2(n_fft)."""
+    return float(sum((b - a) * n_sub * n**2 * math.log2(n) for a, b, n in bands))
 
 
 def _cost_s(bands, n_sub: int, n_states: int, n_modes: int, sampling: Sampling) -> float:
@@ -690,9 +694,9 @@ def plan_sampling(
         bands = wavelength_bands(wl, layout.window_diameter_mm, pupil_diameter_mm, sampling)
         reasons.append(f"field guard only (estimate_accuracy=False): df {df:.4g} cpd")
         errors.update(pupil=float("nan"), psf_wrap=float("nan"), total=float("nan"))
-        work = sum((b - a) * layout.n_subapertures * n**2 * math.log2(n) for a, b, n in bands)
         return Plan(sampling, tuple(float(x) for x in wl), order_kept, float(radius),
-                    float(df_guard), errors, {}, {}, bands, float(work), options, reasons)
+                    float(df_guard), errors, {}, {}, bands, _fft_work(bands, layout.n_subapertures),
+                    options, reasons)
 
     # --- frequency step (field + pupil sampling for the FFT path; field only for MFT)
     cheaper: dict = {}
@@ -798,10 +802,9 @@ def plan_sampling(
                                     f"df {up:.4g} cpd: wrapped PSF/peak {wrapped_up:.2g} > {psf_tolerance:g}")
     errors["total"] = errors["pupil"] + errors["zernike"] + (
         errors["spectral"] if np.isfinite(errors["spectral"]) else 0.0)
-    work = sum((b - a) * layout.n_subapertures * n**2 * math.log2(n) for a, b, n in bands)
     return Plan(
         sampling, tuple(float(x) for x in wl), order_kept, float(radius), float(df_guard), errors,
-        cost, cheaper, bands, float(work), options, reasons,
+        cost, cheaper, bands, _fft_work(bands, layout.n_subapertures), options, reasons,
     )
 
 

@@ -244,30 +244,22 @@ def _finer_step(message: str, current: float) -> float:
     return round(current * 0.9, 6)
 
 
-_PLAN_CACHE: dict = {}
-
-
-def _planned_sampling(eyes, layout, depths, config, options) -> Sampling | None:
+def _planned_sampling(eyes, layout, depths, config, options) -> Sampling:
     """The frequency step :func:`lfjax.planner.plan_sampling`'s field guard allows for this
-    scene (the largest ladder step whose PSF field holds the blur). The accuracy proxy is
-    skipped: on the paper's 3×3/4×4 grids it asks for ~1.4× finer steps (2× the compute)
-    and takes 25–30 s per layout to plan; the VSOTF error at the guard's steps is measured
-    in benchmarks/RESULTS.md §6. Plans are reused across the modelling alternatives."""
+    scene (the largest ladder step whose PSF field holds the blur; milliseconds). The
+    accuracy proxy is skipped: on the paper's 3×3/4×4 grids it asks for ~1.4× finer steps
+    (2× the compute) and took 25–30 s per layout to plan; the VSOTF error at the guard's
+    steps is measured in benchmarks/RESULTS.md §6."""
     from .planner import plan_sampling
 
-    key = (layout.name, float(config.pupil_diameter_mm), float(config.cdp_D),
-           tuple(np.round(np.asarray(depths, float), 9)), config.window_D,
-           tuple(np.round(np.asarray(config.accommodation_D, float), 9)),
-           tuple(np.asarray(config.wavelength_grid_nm, float)))
-    if key not in _PLAN_CACHE:
-        _PLAN_CACHE[key] = plan_sampling(
-            layout=layout, pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
-            depths_D=np.asarray(depths, float), accommodation_D=config.accommodation_D,
-            accommodation_window_D=config.window_D,
-            wavelengths_nm=config.wavelength_grid_nm, eyes_zernike_um=np.asarray(eyes.zernike_um),
-            measured_pupil_mm=eyes.measured_pupil_mm, options=options, estimate_accuracy=False,
-        )
-    return _PLAN_CACHE[key].sampling
+    plan = plan_sampling(
+        layout=layout, pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
+        depths_D=np.asarray(depths, float), accommodation_D=config.accommodation_D,
+        accommodation_window_D=config.window_D,
+        wavelengths_nm=config.wavelength_grid_nm, eyes_zernike_um=np.asarray(eyes.zernike_um),
+        measured_pupil_mm=eyes.measured_pupil_mm, options=options, estimate_accuracy=False,
+    )
+    return plan.sampling
 
 
 def layout_through_focus(
@@ -282,7 +274,7 @@ def layout_through_focus(
     """
     options = config.options if options is None else options
     spectrum = make_spectrum(config.wavelength_grid_nm, options) if spectrum is None else spectrum
-    sampling = _planned_sampling(eyes, layout, depths_D, config, options) or Sampling(1.0)
+    sampling = _planned_sampling(eyes, layout, depths_D, config, options)
     for _ in range(16):
         try:
             tf = through_focus(
