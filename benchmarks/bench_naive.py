@@ -43,8 +43,13 @@ def study_psf_count(layouts, depths, acc_grid, window, n_eyes, n_wl):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--part", choices=["reduced", "study-eye"], default="reduced",
+                    help="reduced: the small side-by-side case (default); study-eye: one eye "
+                         "through the paper's whole grid in both pipelines (~30 min)")
     args = ap.parse_args(argv)
-    header("bench_naive: lfjax vs the careful per-PSF numpy pipeline (issue #5)")
+    header(f"bench_naive --part {args.part}: lfjax vs the careful per-PSF numpy pipeline (issue #5)")
+    if args.part == "study-eye":
+        return study_eye(args)
 
     import jax.numpy as jnp
     from scipy.ndimage import map_coordinates
@@ -144,6 +149,14 @@ def main(argv=None):
     same = bool(np.allclose(pred_l, pred_naive))
     print(f"\nRESULT max |ΔVSOTF| = {dv.max():.4f} (relative to the peak {vs_l.max():.3f}: "
           f"{dv.max() / vs_l.max():.1%}); predicted accommodation equal at every depth: {same}")
+    # accuracy of each against a converged run: lfjax at a quarter of the step (its edge and
+    # field errors fall ∝ step², so the reference is ~16× closer than either pipeline)
+    ref = through_focus(eye, layout, depths_D=DEPTHS, accommodation_D=STATES, pupil_diameter_mm=3.0,
+                        cdp_D=2.0, spectrum=spec, sampling=lfjax.Sampling(DF / 4))
+    vs_ref = np.asarray(ref.vsotf[0])
+    err_l, err_n = np.abs(vs_l - vs_ref).max(), np.abs(vs_naive - vs_ref).max()
+    print(f"RESULT accuracy against lfjax at df/4 = {DF / 4} cpd: max |ΔVSOTF| lfjax {err_l:.1e}, "
+          f"naive {err_n:.1e} (naive / lfjax error = {err_n / err_l:.1f})")
 
     # --- extrapolation to the paper's full study (an extrapolation, not a measurement)
     acc_grid = np.round(np.arange(0.0, 5.01, 0.2), 9)
@@ -181,6 +194,87 @@ def main(argv=None):
           f"(bench_lightfield.py --part grid)")
     return {"lfjax_s": t_l, "naive_s": t_n, "max_dv": float(dv.max()), "same_pred": same,
             "naive_full_h": total / 3600}
+
+
+def study_eye(args):
+    """One eye through the paper's whole grid (4 layouts × 9 depths × states within ±1 D ×
+    31 λ) in both pipelines, each layout timed on its own; then lfjax's 11-eye study in the
+    same process. The naive pipeline has nothing to share between eyes (only its reference,
+    once per layout, is eye-independent), so its study time is 11 × this eye's, less 10
+    references — the only step here that is scaled rather than run."""
+    from lfjax.layouts import paper_layouts
+    from lfjax.optics import sa_c40_um
+    from lfjax.sampling import wavelength_bands
+    from lfjax.spectral import make_spectrum
+    from lfjax.through_focus import through_focus
+
+    import lfjax
+
+    depths = np.round(np.arange(0.0, 4.01, 0.5), 9)
+    acc = np.round(np.arange(0.0, 5.01, 0.2), 9)
+    window, df, n_eyes = 1.0, 0.9, 11  # df: one step the guard accepts for every layout (§2b)
+    wl = np.arange(400.0, 701.0, 10.0)
+    spec = make_spectrum(wl)
+    sampling = lfjax.Sampling(df)
+    eyes = lfjax.sample_eyes(0, n_eyes, 3.0)  # the study's eye batch; the naive run takes eye 0
+    eye0 = lfjax.sample_eyes(0, 1, 3.0)
+    assert np.allclose(np.asarray(eyes.zernike_um[0]), np.asarray(eye0.zernike_um[0]))
+    coeffs = np.asarray(eye0.zernike_um[0], float)
+    spectrum_np = (np.asarray(spec.wavelengths_nm), np.asarray(spec.weights), np.asarray(spec.lca_D),
+                   np.asarray(spec.sce_rho_per_mm2), lambda a: float(sa_c40_um(a, 3.0)))
+    field_arcmin = 60.0 / df
+    dx = 400e-6 / (1.25 * field_arcmin / (180 * 60 / math.pi))
+    n_grid = 384
+    assert n_grid * dx >= 6.0, n_grid * dx
+    print(f"config: eye 0 of lfjax.sample_eyes(0, {n_eyes}, 3.0); layouts natural/2x2/3x3/4x4; depths "
+          f"{depths.tolist()} D; states {acc[0]}–{acc[-1]} / 0.2 D within ±{window} D; {wl.size} λ; "
+          f"df = {df} cpd; naive pupil grid {n_grid}² at dx = {dx * 1e3:.2f} µm, float64\n", flush=True)
+
+    def lfjax_run(e, lay):
+        return through_focus(e, lay, depths_D=depths, accommodation_D=acc, window_D=window,
+                             pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=spec, sampling=sampling)
+
+    rows, tot_l1, tot_n1, tot_l11, tot_ref = [], 0.0, 0.0, 0.0, 0.0
+    for name, lay in paper_layouts(3.0).items():
+        n_common = max(b[2] for b in wavelength_bands(wl, lay.window_diameter_mm, 3.0, sampling))
+        cfg = NaiveConfig(dx_mm=dx, n_pupil_grid=n_grid, common_n=n_common,
+                          common_pixel_arcmin=field_arcmin / n_common)
+        lay_np = (np.asarray(lay.centres_mm), np.asarray(lay.diameters_mm))
+        t_first, t_compile, res = timed_first(lfjax_run, eye0, lay)
+        t_l1 = min(timed(lfjax_run, eye0, lay)[0] for _ in range(args.repeats))
+        t0 = time.perf_counter()
+        vs_n, pred_n = through_focus_naive(cfg, coeffs, coeffs.size, lay_np, depths, acc, spectrum_np,
+                                           window_D=window)
+        t_n1 = time.perf_counter() - t0
+        # the naive reference (eye-independent) once more, to subtract it when scaling to 11 eyes
+        cfg_ref = NaiveConfig(dx_mm=dx, n_pupil_grid=n_grid, common_n=n_common,
+                              common_pixel_arcmin=field_arcmin / n_common)
+        t0 = time.perf_counter()
+        through_focus_naive(cfg_ref, coeffs, coeffs.size, lay_np, [], acc, spectrum_np)
+        t_ref = time.perf_counter() - t0
+        t_first11, t_compile11, res11 = timed_first(lfjax_run, eyes, lay)
+        t_l11 = min(timed(lfjax_run, eyes, lay)[0] for _ in range(args.repeats))
+        t_l1 = min(t_l1, min(timed(lfjax_run, eye0, lay)[0] for _ in range(args.repeats)))
+        vs_l = np.asarray(res.vsotf[0])
+        mask = np.isfinite(vs_n)
+        dv = np.abs(vs_l - vs_n)[mask].max()
+        pred_l = np.asarray(res.predicted_accommodation_D()[0])
+        agree = int(np.sum(np.isclose(pred_l, pred_n)))
+        assert np.allclose(np.asarray(res11.vsotf[0]), vs_l, atol=1e-5)  # eye 0 inside the batch
+        tot_l1, tot_n1, tot_l11, tot_ref = tot_l1 + t_l1, tot_n1 + t_n1, tot_l11 + t_l11, tot_ref + t_ref
+        rows.append({"layout": name, "naive PSFs": f"{cfg.n_psf:,}", "naive, 1 eye": fmt_s(t_n1),
+                     "lfjax, 1 eye": fmt_s(t_l1), "ratio, 1 eye": f"{t_n1 / t_l1:.0f}×",
+                     "lfjax, 11 eyes (compile)": f"{fmt_s(t_l11)} ({fmt_s(t_compile11)})",
+                     "max |ΔVSOTF|": f"{dv:.4f}", "same prediction": f"{agree}/{len(depths)}"})
+        print(markdown_table(rows[-1:], list(rows[-1])), flush=True)
+    print("\n## one eye through the paper's grid, both pipelines measured\n")
+    print(markdown_table(rows, list(rows[0])))
+    naive11 = n_eyes * tot_n1 - (n_eyes - 1) * tot_ref
+    print(f"\nRESULT one eye, whole grid: naive {tot_n1:.0f} s, lfjax {tot_l1:.2f} s → {tot_n1 / tot_l1:.0f}×")
+    print(f"RESULT 11-eye study: lfjax measured {tot_l11:.1f} s (steady); naive = 11 × {tot_n1:.0f} s − "
+          f"10 × {tot_ref:.1f} s (its eye-independent reference) = {naive11 / 3600:.2f} h → "
+          f"{naive11 / tot_l11:.0f}× (steady)")
+    return {"naive_1eye_s": tot_n1, "lfjax_1eye_s": tot_l1, "lfjax_11_s": tot_l11, "naive_11_s": naive11}
 
 
 if __name__ == "__main__":

@@ -173,8 +173,12 @@ def otf_of(cfg: NaiveConfig, psf):
     return otf / otf[0, 0]
 
 
-def through_focus_naive(cfg, coeffs_um, n_modes, layout, depths_D, accommodation_D, spectrum):
-    """VSOTF (n_depth, n_acc) and predicted accommodation (n_depth,) — nothing reused."""
+def through_focus_naive(cfg, coeffs_um, n_modes, layout, depths_D, accommodation_D, spectrum,
+                        window_D=None):
+    """VSOTF (n_depth, n_acc) and predicted accommodation (n_depth,) — nothing reused.
+
+    ``window_D``: compute only the states within ±window_D of each rendered depth (the
+    others are NaN), as the paper's study does."""
     grid = PupilGrid(cfg, n_modes)
     ncsf = ncsf_full_plane(cfg)
     # reference: aberration-free, focused and rendered at the CDP, same layout
@@ -185,11 +189,14 @@ def through_focus_naive(cfg, coeffs_um, n_modes, layout, depths_D, accommodation
     vs = np.zeros((len(depths_D), len(accommodation_D)))
     for a, depth in enumerate(depths_D):
         for b, acc in enumerate(accommodation_D):
+            if window_D is not None and abs(acc - depth) > window_D + 1e-9:
+                vs[a, b] = np.nan
+                continue
             psf = polychromatic_psf(cfg, grid, coeffs_um, acc, depth, layout, spectrum)
             t0 = time.perf_counter()
             vs[a, b] = np.sum(ncsf * otf_of(cfg, psf).real) / ref
             cfg.timers["otf+metric"] += time.perf_counter() - t0
-    return vs, np.asarray(accommodation_D)[np.argmax(vs, axis=1)]
+    return vs, np.asarray(accommodation_D)[np.nanargmax(vs, axis=1)]
 
 
 __all__ = ["NaiveConfig", "PupilGrid", "through_focus_naive", "zernike_ansi", "elemental_psf"]

@@ -7,7 +7,7 @@ diameter d). The matrix Fourier transform path (``Sampling(transform="mft")``) s
 the two: df sets the field, ``mft_pupil_samples`` the pupil sampling. The planner also
 chooses the wavelength step and the Zernike order the eyes need.
 
-How each choice is made (all on the host, in numpy; 1–20 s per plan):
+How each choice is made (all on the host, in numpy; 1–30 s per plan):
 
 * **Field (frequency step).** Hard limit: the pipeline's aliasing guard
   (:func:`lfjax.optics.field_radius_arcmin`, geometric blur + display shifts + diffraction
@@ -15,9 +15,9 @@ How each choice is made (all on the host, in numpy; 1–20 s per plan):
   on a proxy (below): the largest ratio of wrapped intensity to the PSF's peak must stay
   within ``psf_tolerance``.
 * **Pupil sampling.** The VSOTF error of the discretised, soft-edged aperture is *measured*
-  on the proxy: the candidate's distance from one converged proxy value (Richardson, order
-  2, from a quarter and an eighth of the largest admissible step), × ``ESTIMATE_SAFETY``.
-  Against the pipeline the estimate reads 2–6 % high (benchmarks/RESULTS.md §7).
+  on the proxy, at every (depth, state) pair of the scene: the candidate's distance from
+  one converged proxy value (Richardson, order 2, from a half and a quarter of the largest
+  admissible step, or a quarter and an eighth for tight targets), × ``ESTIMATE_SAFETY``.
 * **Wavelength step** (when only a range is given): proxy through-focus curves at each
   candidate step against a 2.5 nm reference; the step must keep the VSOTF error within its
   share of the tolerance and leave every proxy peak where it was.
@@ -26,13 +26,16 @@ How each choice is made (all on the host, in numpy; 1–20 s per plan):
 * **FFT or MFT** (``transform="auto"``, opt-in): each at its own cheapest
   accuracy-meeting sampling; the cheaper by a cost model calibrated on this machine.
 
-The proxy is the scene as the paper's ideal display makes it, for an aberration-free eye:
-views are grouped by their pupil-clipped area and each group's aperture (lfjax's logistic,
-area-exact edge, Stiles–Crawford apodisation) is transformed with the local defocus of the
-accommodation state plus LCA and the accommodation spherical aberration; every view then
-enters with its own display shift as a phase ramp. The real eyes' aberrations enter through
-the field guard (their ray angles); in benchmarks/speed_accuracy.py (two Thibos eyes and
-the average eye) the measured error at the plan was 9.7e-4 against the proxy's 9.2e-4.
+The proxy is the scene as the paper's ideal display makes it, for an aberration-free eye,
+in numpy: each view's aperture (lfjax's logistic, area-exact edge, Stiles–Crawford
+apodisation) is transformed with the local defocus of the accommodation state plus LCA and
+the accommodation spherical aberration, and enters with its display shift and the tilt of
+the defocus over it as one phase ramp. Views congruent under the square's mirrors and
+quarter turns share one transform (their VSOTF terms are equal, their PSFs mapped copies).
+For the aberration-free eye the proxy's VSOTF equals the pipeline's to < 1e-6 at any step
+(tests/test_planner.py), so its error estimates are the pipeline's own; the proxy thins a
+spectrum to at most 7 wavelengths. The real eyes' aberrations enter through the field
+guard (their ray angles); see benchmarks/RESULTS.md §6–7 for plans measured with real eyes.
 
 Steps are taken from fixed ladders (df = 2^(k/8) cpd; pupil samples 16, 20, 24, 32, …), so
 "one step cheaper" is well defined: :attr:`Plan.cheaper` lists it for every dimension.
@@ -84,36 +87,48 @@ _PROXY_WAVELENGTHS = 7
 class _Estimates:
     """Proxy error estimates per candidate against one converged proxy value (cached).
 
-    The converged VSOTF is Richardson-extrapolated (order 2) from the proxy at a quarter
-    and an eighth of ``df_reference``; each candidate's error is its distance from it.
+    The converged VSOTF is Richardson-extrapolated (order 2: soft-edge errors fall ∝ step²)
+    from the proxy at a half and a quarter of ``df_reference``; if the estimated residual
+    of that extrapolation (a tenth of its correction) is not well below the tolerance, from
+    a quarter and an eighth instead. Each candidate's error is its distance from it.
     (Comparing each candidate with its own half step instead was noisy by 30–70 %: the
     soft-edge error depends on where the edge falls between samples at both steps.)
     """
 
-    def __init__(self, proxy, pairs, df_reference: float):
+    def __init__(self, proxy, pairs, df_reference: float, tolerance: float):
         self.proxy, self.pairs, self.cache = proxy, pairs, {}
-        self.df_reference = df_reference
+        self.df_reference, self.tolerance = df_reference, tolerance
         self._converged = None
 
     @property
     def converged(self) -> np.ndarray:
         if self._converged is None:
-            coarse = self.proxy.vsotf(self.df_reference / 4.0, self.pairs)
-            fine = self.proxy.vsotf(self.df_reference / 8.0, self.pairs)
-            self._converged = fine + (fine - coarse) / 3.0
+            coarse = self.proxy.vsotf(self.df_reference / 2.0, self.pairs)
+            fine = self.proxy.vsotf(self.df_reference / 4.0, self.pairs)
+            correction = (fine - coarse) / 3.0
+            if 0.1 * float(np.max(np.abs(correction))) > 0.02 * self.tolerance:
+                coarse, fine = fine, self.proxy.vsotf(self.df_reference / 8.0, self.pairs)
+                correction = (fine - coarse) / 3.0
+            self._converged = fine + correction
         return self._converged
 
     def _error(self, values) -> float:
         return ESTIMATE_SAFETY * float(np.max(np.abs(values - self.converged)))
 
-    def fft(self, df: float) -> tuple[float, float, float]:
-        """(VSOTF error of the FFT path, its wrapped PSF / peak, VSOTF error of truncating
-        the PSF instead — the MFT path's field error) at frequency step df."""
+    def vsotf(self, df: float) -> float:
+        """VSOTF error of the FFT path at frequency step df."""
         key = ("fft", round(df, 12))
         if key not in self.cache:
+            self.cache[key] = self._error(self.proxy.vsotf(df, self.pairs))
+        return self.cache[key]
+
+    def psf(self, df: float) -> tuple[float, float]:
+        """(wrapped PSF / peak of the FFT path's field 60/df arcmin, VSOTF error of
+        truncating the PSF there instead — the MFT path's field error)."""
+        key = ("psf", round(df, 12))
+        if key not in self.cache:
             _, wrapped, truncation = self.proxy.vsotf(df / 2.0, self.pairs, with_psf=True)
-            self.cache[key] = (self._error(self.proxy.vsotf(df, self.pairs)), float(wrapped.max()),
-                               ESTIMATE_SAFETY * truncation)
+            self.cache[key] = (float(wrapped.max()), ESTIMATE_SAFETY * truncation)
         return self.cache[key]
 
     def mft(self, df: float, samples: int) -> float:
@@ -213,6 +228,25 @@ class Plan:
 # ----------------------------------------------------------------------------- scene
 
 
+# The square's symmetries as maps of (x, y): identity first, then mirrors and quarter turns.
+_SQUARE_SYMMETRIES = [np.array(m, float) for m in (
+    [[1, 0], [0, 1]], [[-1, 0], [0, 1]], [[1, 0], [0, -1]], [[-1, 0], [0, -1]],
+    [[0, 1], [1, 0]], [[0, -1], [1, 0]], [[0, 1], [-1, 0]], [[0, -1], [-1, 0]],
+)]
+
+
+def _map_psf(psf: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """PSF(s) (…, n, n) [y, x] with zero angle at index n//2, mapped by the symmetry ``m``:
+    out(θ) = psf(m⁻¹θ), exactly on the grid (indices wrap like the periodic field)."""
+    n = psf.shape[-1]
+    k = np.arange(n) - n // 2
+    ky, kx = np.meshgrid(k, k, indexing="ij")
+    inv = np.rint(np.linalg.inv(m)).astype(int)
+    sx = inv[0, 0] * kx + inv[0, 1] * ky
+    sy = inv[1, 0] * kx + inv[1, 1] * ky
+    return psf[..., (sy + n // 2) % n, (sx + n // 2) % n]
+
+
 @dataclass(frozen=True)
 class _Scene:
     layout: Layout
@@ -226,20 +260,31 @@ class _Scene:
     def accommodation(self) -> np.ndarray:
         return np.unique(self.pair_acc)
 
-    def view_groups(self) -> list[tuple[tuple[np.ndarray, float], np.ndarray]]:
-        """Views grouped by the area left after the pupil clips them: [((centre mm,
-        diameter mm) of one member, member centres (k, 2) mm), …]."""
+    def view_groups(self) -> list[tuple[tuple[np.ndarray, float], list[np.ndarray]]]:
+        """Views grouped by congruence under the square's symmetries: [((centre mm,
+        diameter mm) of the group's representative, [2×2 integer matrix M per member]), …],
+        each member's centre being M·(representative's centre).
+
+        A member's whole configuration (clipped aperture, SCE, defocus, accommodation SA,
+        display shift, all radial or ∝ the centre) is the representative's mapped by M, so
+        its PSF is the representative's mapped by M, and — the NCSF being invariant under
+        these mirrors and quarter turns — its VSOTF term equals the representative's.
+        Views related only by other rotations (a hexagon's 60°) form groups of their own.
+        """
         centres = np.asarray(self.layout.centres_mm, float).reshape(-1, 2)
         diam = np.asarray(self.layout.diameters_mm, float).reshape(-1)
-        t = np.linspace(-1, 1, 301) * 0.5 * self.pupil_mm
-        xx, yy = np.meshgrid(t, t)
-        inside = xx**2 + yy**2 <= (0.5 * self.pupil_mm) ** 2
-        areas = np.array([np.sum(inside & ((xx - c[0]) ** 2 + (yy - c[1]) ** 2 <= (0.5 * d) ** 2))
-                          for c, d in zip(centres, diam)])
-        groups = []
-        for area in np.unique(areas):
-            members = np.nonzero(areas == area)[0]
-            groups.append(((centres[members[0]], float(diam[members[0]])), centres[members]))
+        tol = 1e-9 * max(self.pupil_mm, 1.0)
+        groups: list = []
+        for c, d in zip(centres, diam):
+            for (rep, rep_d), maps in groups:
+                if abs(rep_d - d) > tol:
+                    continue
+                m = next((m for m in _SQUARE_SYMMETRIES if np.allclose(m @ rep, c, atol=tol)), None)
+                if m is not None:
+                    maps.append(m)
+                    break
+            else:
+                groups.append(((c, float(d)), [_SQUARE_SYMMETRIES[0]]))
         return groups
 
     @property
@@ -251,22 +296,6 @@ class _Scene:
     def smallest_diameter_mm(self) -> float:
         d = np.minimum(np.asarray(self.layout.diameters_mm, float), self.pupil_mm)
         return float(d.min())
-
-    def proxy_pairs(self, per_depth: int = 5) -> tuple[np.ndarray, np.ndarray]:
-        """Per depth: at most ``per_depth`` of its states, evenly spread, with the extremes
-        and the state nearest the depth (the error peaks anywhere along the curve)."""
-        acc, dep = [], []
-        depths = np.unique(self.pair_depth)
-        # at most three depths: the nearest and the farthest ones (lowest and highest D)
-        # and the one nearest the CDP
-        depths = np.unique([depths[0], depths[-1], depths[np.argmin(np.abs(depths - self.cdp_D))]])
-        for d in depths:
-            a = np.sort(self.pair_acc[self.pair_depth == d])
-            spread = a[np.unique(np.round(np.linspace(0, a.size - 1, min(per_depth, a.size))).astype(int))]
-            chosen = set(spread) | {a[np.argmin(np.abs(a - d))]}
-            acc += sorted(chosen)
-            dep += [d] * len(chosen)
-        return np.asarray(acc), np.asarray(dep)
 
     def peak_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         """Per depth: the states within ±0.45 D of it (where the through-focus peak is)."""
@@ -363,9 +392,9 @@ def _ncsf_half(n_fft: int, step_cpd: float, model: str) -> np.ndarray:
 class _Proxy:
     """Aberration-free proxy of a scene on one candidate sampling (see module docstring).
 
-    Views whose pupil-clipped apertures have the same area form a group (the corner, edge
-    and inner views of a grid); each group's aperture is transformed once per wavelength
-    and state, and every member contributes it with its own display shift.
+    Views congruent under the square's symmetries form a group (the corner, edge and inner
+    views of a grid); each group's representative is transformed once per wavelength and
+    state, and its members contribute its VSOTF term and its mapped PSF (view_groups).
     """
 
     def __init__(self, scene: _Scene, spectrum: Spectrum, edge_samples: float, n_wavelengths=None):
@@ -378,8 +407,9 @@ class _Proxy:
         self.sa = tuple(float(x) for x in np.asarray(sa_parameters(scene.options, scene.pupil_mm)))
 
     def _sums(self, pairs, dx_of, n_fft: int, step_of, keep_otf: bool = False):
-        """NCSF-weighted sums of Re OTF per pair, the reference's sum, and (optionally)
-        the rendered polychromatic OTFs (n_pairs, L, L//2+1), unnormalised.
+        """NCSF-weighted sums of Re OTF per pair, the reference's sum, and (optionally) per
+        view group the representative's rendered polychromatic OTFs (n_pairs, L, L//2+1),
+        unnormalised.
 
         Per wavelength the pupil is sampled at ``dx_of(λ)`` mm, so lag k is the frequency
         k·``step_of(λ)`` cpd (the FFT path: λ·df and df, one grid for all wavelengths).
@@ -389,7 +419,8 @@ class _Proxy:
         states, state_of_pair = np.unique(acc, return_inverse=True)
         num = np.zeros(acc.size)
         den = 0.0
-        rendered = np.zeros((acc.size, n_fft, n_fft // 2 + 1), np.complex64) if keep_otf else None
+        rendered = [np.zeros((acc.size, n_fft, n_fft // 2 + 1), np.complex64) for _ in self.groups] \
+            if keep_otf else None
         for lam, w, lca, rho in zip(self.wl, self.weights, self.lca, self.rho):
             dx, step = dx_of(lam), step_of(lam)
             wts = _ncsf_half(n_fft, step, scene.options.ncsf) * step**2
@@ -397,16 +428,20 @@ class _Proxy:
             fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft) * step * DEGREES_PER_RADIAN
             # state 0: the paper's reference, the same views focused and rendered at the CDP
             all_acc = np.concatenate([[scene.cdp_D], states])
-            for view, members in self.groups:
-                otfs = _aperture_otfs(view, scene.pupil_mm, all_acc - scene.cdp_D + lca,
+            for g, ((centre, d_mm), maps) in enumerate(self.groups):
+                otfs = _aperture_otfs((centre, d_mm), scene.pupil_mm, all_acc - scene.cdp_D + lca,
                                       self.sa[0] * all_acc, self.sa[1], lam, rho, dx, n_fft, self.edge)
-                ref = otfs[0] * _view_ramps(lca * members[None] * 1e-3, fx, fy)[0]
-                den += w * float(np.sum(ref.real * wts))
-                shifts = (acc - dep + lca)[:, None, None] * members[None] * 1e-3
+                # A view at c is displaced by (depth − CDP)·c on the display and by
+                # −(accommodation − CDP + LCA)·c by the tilt of the defocus over it (the
+                # pipeline's phase −2πW/λ moves the PSF against the wavefront slope).
+                # Every member contributes the representative's term (view_groups).
+                ref = otfs[0] * _view_ramps(-lca * centre[None, None] * 1e-3, fx, fy)[0]
+                den += len(maps) * w * float(np.sum(ref.real * wts))
+                shifts = (dep - acc - lca)[:, None, None] * centre[None, None] * 1e-3
                 part = otfs[1:][state_of_pair] * _view_ramps(shifts, fx, fy)
-                num += w * np.einsum("pyx,yx->p", part.real, wts)
+                num += len(maps) * w * np.einsum("pyx,yx->p", part.real, wts)
                 if keep_otf:
-                    rendered += w * part
+                    rendered[g] += w * part
         return num, den, rendered
 
     def vsotf(self, df_cpd: float, pairs, transform: str = "fft", mft_samples: int = 64,
@@ -436,7 +471,11 @@ class _Proxy:
         vs = num / den
         if not with_psf:
             return vs
-        psf = np.fft.fftshift(sfft.irfft2(rendered, s=(n_fft, n_fft), workers=-1), axes=(-2, -1))
+        psf = 0.0
+        for (_, maps), otf_g in zip(self.groups, rendered):
+            psf_g = np.fft.fftshift(sfft.irfft2(otf_g, s=(n_fft, n_fft), workers=-1), axes=(-2, -1))
+            psf = psf + sum(_map_psf(psf_g, m) for m in maps)
+        energy = psf.sum(axis=(-2, -1))
         h = n_fft // 2
         folded = psf + np.roll(psf, h, -1) + np.roll(psf, h, -2) + np.roll(np.roll(psf, h, -1), h, -2)
         c = slice(n_fft // 2 - h // 2, n_fft // 2 - h // 2 + h)
@@ -447,7 +486,7 @@ class _Proxy:
 
         def vsotf_of(crop):
             otf = sfft.rfft2(np.fft.ifftshift(crop, axes=(-2, -1)), workers=-1)
-            otf[:, 0, 0] = rendered[:, 0, 0]
+            otf[:, 0, 0] = energy
             sums = np.einsum("pyx,yx->p", otf.real, wts)
             return sums[:-1] / sums[-1]
 
@@ -683,7 +722,7 @@ def plan_sampling(
         budget -= errors["spectral"]
     spectrum = make_spectrum(wl, options)
     proxy = _Proxy(scene, spectrum, edge_width_samples)
-    pairs = scene.proxy_pairs()
+    pairs = (scene.pair_acc, scene.pair_depth)  # all of them: the error peaks anywhere
     if not estimate_accuracy:
         df = float(freq_step_cpd) if freq_step_cpd is not None else df_top
         if df > df_guard * margin:
@@ -711,18 +750,23 @@ def plan_sampling(
         df_candidates = [df_top / 2.0 ** (k / STEPS_PER_OCTAVE) for k in range(0, 24)]
     fft_plan = None
     mft_field = None
-    estimates = _Estimates(proxy, pairs, df_candidates[0])
+    estimates = _Estimates(proxy, pairs, df_candidates[0], budget)
     found_at = None
     for i, df in enumerate(df_candidates):
-        e_pupil, wrapped, truncation = estimates.fft(df)
+        if fft_plan is not None and (mft_field is not None or transform == "fft" or i > found_at + 3):
+            break
+        e_pupil = estimates.vsotf(df)
+        want_fft = fft_plan is None and (e_pupil <= budget or freq_step_cpd is not None)
+        want_mft = transform != "fft" and mft_field is None
+        if not (want_fft or want_mft):
+            continue  # the PSF on twice the field is the costly part: only where it decides
+        wrapped, truncation = estimates.psf(df)
         psf_ok = wrapped <= psf_tolerance
         # MFT truncates the PSF at the field edge: it may need a finer step than the FFT
-        if mft_field is None and ((psf_ok and truncation <= 0.25 * budget) or freq_step_cpd is not None):
+        if want_mft and ((psf_ok and truncation <= 0.25 * budget) or freq_step_cpd is not None):
             mft_field = (df, wrapped, truncation)
-        if fft_plan is None and ((psf_ok and e_pupil <= budget) or freq_step_cpd is not None):
+        if want_fft and (psf_ok or freq_step_cpd is not None):
             fft_plan, found_at = (df, e_pupil, wrapped), i
-        if fft_plan is not None and (mft_field is not None or transform == "fft" or i >= found_at + 3):
-            break
     if fft_plan is None:
         raise ValueError(
             f"no frequency step down to {df_candidates[-1]:.3g} cpd meets vsotf_tolerance="
@@ -792,7 +836,7 @@ def plan_sampling(
             cheaper["field"] = (dataclasses.replace(sampling, freq_step_cpd=up),
                                 f"df {up:.4g} cpd: refused by the aliasing guard (needs ≤ {df_guard:.4g})")
         else:
-            e, wrapped_up, _ = estimates.fft(up)
+            e, (wrapped_up, _) = estimates.vsotf(up), estimates.psf(up)
             if not use_mft:
                 if e > budget:
                     cheaper["pupil"] = (dataclasses.replace(sampling, freq_step_cpd=up),

@@ -2,7 +2,7 @@
 
 For a set of small scenes the planner's sampling meets its VSOTF target when measured
 against a converged run (Richardson-extrapolated from half and quarter frequency steps),
-its error estimates bound those measurements within 15 %, one ladder step cheaper fails
+its error estimates bound those measurements within 10 %, one ladder step cheaper fails
 (pupil: measured error above the target; field: refused by the aliasing guard), and
 aliasing overrides are refused.
 """
@@ -44,13 +44,14 @@ _CONVERGED = {}
 
 def _measured_error(scene, sampling, df_reference):
     """max |VSOTF − converged| over the allowed states; converged = Richardson (order 2)
-    from frequency steps df_reference/4 and df_reference/8 (edge errors ∝ step²), the same
-    reference for a plan and its neighbours."""
+    from frequency steps df_reference/2 and df_reference/4 (edge errors ∝ step²; its
+    residual against /4 and /8 is < 2e-5 on these scenes, benchmarks/RESULTS.md §7), the
+    same reference for a plan and its neighbours."""
     key = (id(scene), df_reference)
     if key not in _CONVERGED:
-        quarter, allowed = _vsotf(scene, lfjax.Sampling(df_reference / 4))
-        eighth, _ = _vsotf(scene, lfjax.Sampling(df_reference / 8))
-        _CONVERGED[key] = (eighth + (eighth - quarter) / 3.0, allowed)
+        half, allowed = _vsotf(scene, lfjax.Sampling(df_reference / 2))
+        quarter, _ = _vsotf(scene, lfjax.Sampling(df_reference / 4))
+        _CONVERGED[key] = (quarter + (quarter - half) / 3.0, allowed)
     converged, allowed = _CONVERGED[key]
     value, _ = _vsotf(scene, sampling)
     mask = np.broadcast_to(allowed[None], value.shape)
@@ -92,8 +93,8 @@ def test_plan_meets_target_and_estimate_is_faithful(planned):
     assert plan.sampling.transform == "fft"
     measured = _measured_error(scene, plan.sampling, plan.sampling.freq_step_cpd)
     assert measured <= TOLERANCE, (name, measured)
-    # the estimate (with its 5 % margin) bounds the measurement and is at most 15 % above it
-    assert measured <= plan.errors["pupil"] <= 1.15 * measured
+    # the estimate (with its 5 % margin) bounds the measurement and is at most 10 % above it
+    assert measured <= plan.errors["pupil"] <= 1.10 * measured
     # the PSF target holds, and the planner's wrapped-PSF estimate bounds the pipeline's
     wrap = _measured_wrap(scene, plan.sampling.freq_step_cpd)
     assert wrap <= plan.errors["psf_wrap"] <= 2e-3
@@ -226,3 +227,25 @@ def test_proxy_aperture_is_area_exact_and_matches_the_pipeline():
                               check_aliasing=False)
     ours = otf[0] / otf[0, 0, 0]
     np.testing.assert_allclose(ours, np.asarray(stack.otf)[0, 0, 0], atol=2e-5)
+
+
+@pytest.mark.parametrize("layout, pupil", [(lfjax.grid_layout(4, 3.0), 3.0),
+                                           (lfjax.hex_layout(1.2, 3.0), 3.0)],
+                         ids=["4x4", "hex"])
+def test_proxy_vsotf_equals_the_pipeline(layout, pupil):
+    """For the aberration-free eye the planner's proxy is the pipeline: display shifts and
+    defocus tilts enter with the pipeline's signs, and views sharing one transform (mirror /
+    quarter-turn images; a hexagon's 60° neighbours are kept apart) contribute exactly their
+    own terms. So the proxy's error estimates are the pipeline's own errors."""
+    depths, states = [1.0, 3.0], np.array([0.6, 1.0, 1.4, 2.6, 3.0, 3.4])
+    spectrum = lfjax.make_spectrum(WAVELENGTHS)
+    eye = lfjax.eyes.aberration_free_eye(measured_pupil_mm=pupil)
+    df = 1.3  # coarse on purpose: sampling errors must be the same ones, not just small
+    tf = through_focus(eye, layout, depths, states, pupil_diameter_mm=pupil, spectrum=spectrum,
+                       sampling=lfjax.Sampling(df), check_aliasing=False)
+    acc, dep = np.meshgrid(states, depths)
+    scene = planner._Scene(layout, pupil, 2.0, acc.ravel(), dep.ravel(), lfjax.ModelOptions())
+    proxy = planner._Proxy(scene, spectrum, 0.25)
+    assert len(proxy.groups) < layout.n_subapertures  # views do share transforms
+    ours = proxy.vsotf(df, (acc.ravel(), dep.ravel()))
+    np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), atol=1e-5)
