@@ -92,6 +92,8 @@ def main():
     cases = [("reference", df0 / 4, 5.0, True, e0, "fft", 64, 4)]
     for f in (0.5, 0.75, 1.0, 1.25, 1.6):
         cases.append((f"df x{f}", df0 * f, 10.0, False, e0, "fft", 64, 4))
+    # the planner's own "one step cheaper" (the next rung of its 2^(1/8) ladder)
+    cases.append(("one step cheaper", df0 * 2 ** (1 / 8), 10.0, False, e0, "fft", 64, 4))
     for step in (5.0, 20.0, 50.0):
         cases.append((f"{step:g} nm", df0, step, False, e0, "fft", 64, 4))
     cases.append(("float64", df0, 10.0, True, e0, "fft", 64, 4))
