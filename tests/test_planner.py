@@ -249,3 +249,21 @@ def test_proxy_vsotf_equals_the_pipeline(layout, pupil):
     assert len(proxy.groups) < layout.n_subapertures  # views do share transforms
     ours = proxy.vsotf(df, (acc.ravel(), dep.ravel()))
     np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), atol=1e-5)
+
+
+def test_proxy_mft_equals_the_pipeline_mft():
+    """The proxy's MFT path is the pipeline's: the PSF's point samples on the band's angles,
+    truncated at the field edge, transformed at step df (so a plan's MFT error includes the
+    field truncation and the frequency quadrature)."""
+    layout, df, samples = lfjax.grid_layout(2, 3.0), 1.414, 48
+    depths, states = [1.0, 3.0], np.array([0.6, 1.4, 2.6, 3.4])
+    spectrum = lfjax.make_spectrum(WAVELENGTHS)
+    sampling = lfjax.Sampling(df, transform="mft", mft_pupil_samples=samples)
+    tf = through_focus(lfjax.eyes.aberration_free_eye(), layout, depths, states,
+                       pupil_diameter_mm=3.0, spectrum=spectrum, sampling=sampling,
+                       check_aliasing=False)
+    acc, dep = np.meshgrid(states, depths)
+    scene = planner._Scene(layout, 3.0, 2.0, acc.ravel(), dep.ravel(), lfjax.ModelOptions())
+    ours = planner._Proxy(scene, spectrum, 0.25).vsotf(
+        df, (acc.ravel(), dep.ravel()), transform="mft", mft_samples=samples)
+    np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), atol=1e-5)
