@@ -83,6 +83,9 @@ _MATMUL_FLOPS_PER_S = 92e9
 _PUPIL_S_PER_SAMPLE = 17e-9
 
 _PROXY_WAVELENGTHS = 7
+"""Most wavelengths the proxy evaluates; a longer spectrum is thinned, each kept wavelength
+taking the V(λ) weight of its nearest neighbours (a cost bound on planning; the validation
+scenes use 3 wavelengths, so this thinning is not what they test)."""
 
 
 class _Estimates:
@@ -749,8 +752,6 @@ def plan_sampling(
     if np.isfinite(errors["spectral"]):
         budget -= errors["spectral"]
     spectrum = make_spectrum(wl, options)
-    proxy = _Proxy(scene, spectrum, edge_width_samples)
-    pairs = (scene.pair_acc, scene.pair_depth)  # all of them: the error peaks anywhere
     if not estimate_accuracy:
         df = float(freq_step_cpd) if freq_step_cpd is not None else df_top
         if df > df_guard * margin:
@@ -766,6 +767,8 @@ def plan_sampling(
                     options, reasons)
 
     # --- frequency step (field + pupil sampling for the FFT path; field only for MFT)
+    proxy = _Proxy(scene, spectrum, edge_width_samples)
+    pairs = (scene.pair_acc, scene.pair_depth)  # all of them: the error peaks anywhere
     cheaper: dict = {}
     if freq_step_cpd is not None:
         if freq_step_cpd > df_guard * margin:

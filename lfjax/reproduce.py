@@ -247,9 +247,9 @@ def _finer_step(message: str, current: float) -> float:
 def _planned_sampling(eyes, layout, depths, config, options) -> Sampling:
     """The frequency step :func:`lfjax.planner.plan_sampling`'s field guard allows for this
     scene (the largest ladder step whose PSF field holds the blur; milliseconds). The
-    accuracy proxy is skipped: on the paper's 3×3/4×4 grids it asks for ~1.4× finer steps
-    (2× the compute) and took 25–30 s per layout to plan; the VSOTF error at the guard's
-    steps is measured in benchmarks/RESULTS.md §6."""
+    accuracy proxy is skipped: it takes 9–27 s per layout on the paper's grid, and for a
+    1e-3 VSOTF target it asks the 3×3/4×4 layouts for about half the guard's step (~4× the
+    compute); at the guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7)."""
     from .planner import plan_sampling
 
     plan = plan_sampling(
