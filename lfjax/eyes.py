@@ -15,6 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._types import as_real_array
 from .zernike import mirror_sign_vector, nm_from_ansi
 
 THIBOS_PUPILS_MM = (3.0, 4.5, 6.0, 7.5)
@@ -34,8 +35,8 @@ class Eyes(eqx.Module):
         ``"left"`` or ``"right"`` eye coordinates (static; x right, y up, seen from the eye).
     """
 
-    zernike_um: jnp.ndarray
-    measured_pupil_mm: float = eqx.field(static=True)
+    zernike_um: jnp.ndarray = eqx.field(converter=as_real_array)
+    measured_pupil_mm: float = eqx.field(static=True, converter=float)
     orientation: str = eqx.field(static=True, default="left")
 
     def __check_init__(self):

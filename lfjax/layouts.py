@@ -14,6 +14,8 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ._types import as_real_array
+
 
 class Layout(eqx.Module):
     """A set of circular subapertures in the pupil plane.
@@ -31,9 +33,9 @@ class Layout(eqx.Module):
         Label for tables and plots.
     """
 
-    centres_mm: jnp.ndarray
-    diameters_mm: jnp.ndarray
-    window_diameter_mm: float = eqx.field(static=True)
+    centres_mm: jnp.ndarray = eqx.field(converter=as_real_array)
+    diameters_mm: jnp.ndarray = eqx.field(converter=as_real_array)
+    window_diameter_mm: float = eqx.field(static=True, converter=float)
     name: str = eqx.field(static=True, default="custom")
 
     def __check_init__(self):

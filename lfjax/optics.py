@@ -259,55 +259,6 @@ def half_frequencies_cpd(n_fft: int, freq_step_cpd: float):
     return jnp.asarray(np.fft.rfftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd)
 
 
-def _render(elemental, centres_mm, cdp_D, depths_D, n_fft: int, freq_step_cpd: float):
-    """Displace each subaperture's OTF for each rendered depth and sum; OTF(0) = 1.
-
-    elemental (n_acc, n_sub, L, L//2+1) → (n_depth, n_acc, L, L//2+1), half planes. The
-    displacement of view n is Δθ_n = (D_r − D_CDP) · (p_n, q_n) (rad, D in 1/m, p in m),
-    applied as exp(−2πi f·Δθ).
-    """
-    fy_rad = frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
-    fx_rad = half_frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
-    shift_rad = (depths_D - cdp_D)[:, None, None] * centres_mm[None] * 1e-3  # (nd, n_sub, 2)
-    ramp_x = jnp.exp(-2j * jnp.pi * shift_rad[..., 0:1] * fx_rad)  # (nd, n_sub, Lx)
-    ramp_y = jnp.exp(-2j * jnp.pi * shift_rad[..., 1:2] * fy_rad)  # (nd, n_sub, L)
-
-    def add_view(total, view):
-        elem_n, ry_n, rx_n = view  # (n_acc, L, Lx), (nd, L), (nd, Lx)
-        ramp = ry_n[:, :, None] * rx_n[:, None, :]
-        return total + ramp[:, None] * elem_n[None], None
-
-    # A scan over views keeps memory at one (n_depth, n_acc, L, Lx) block; an einsum over
-    # the view axis lowers to tiny per-pixel matmuls, slow on CPU.
-    init = jnp.zeros((depths_D.shape[0],) + elemental.shape[:1] + elemental.shape[2:], elemental.dtype)
-    otf, _ = jax.lax.scan(
-        add_view, init,
-        (jnp.moveaxis(elemental, 1, 0), jnp.moveaxis(ramp_y, 1, 0), jnp.moveaxis(ramp_x, 1, 0)),
-    )
-    energy = jnp.real(jnp.sum(elemental[:, :, 0, 0], axis=1))  # (n_acc,)
-    return otf / energy[None, :, None, None]
-
-
-@partial(
-    jax.jit,
-    static_argnames=("measured_pupil_mm", "bands", "sampling", "eye_chunk"),
-)
-def _otf_stack(
-    zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
-    centres_mm, diameters_mm, spectrum, bands, sampling, sa_params, eye_chunk,
-):
-    n_fft = max(b[2] for b in bands)
-
-    def one_eye(coefficients):
-        elemental = _elemental_otfs(
-            coefficients, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
-            centres_mm, diameters_mm, spectrum, bands, sampling, sa_params,
-        )
-        return _render(elemental, centres_mm, cdp_D, depths_D, n_fft, sampling.freq_step_cpd)
-
-    return jax.lax.map(one_eye, zernike_um, batch_size=eye_chunk)
-
-
 # ----------------------------------------------------------------------------- validation
 
 
@@ -351,7 +302,8 @@ def validate_states(accommodation_D=None, depths_D=None, cdp_D=None) -> None:
 
 
 def _validate_coefficients(zernike_um) -> None:
-    if _is_concrete(zernike_um) and not bool(jnp.all(jnp.isfinite(zernike_um))):
+    # numpy, not jnp: under an outer jit a jnp reduction of a concrete array is a tracer
+    if _is_concrete(zernike_um) and not np.all(np.isfinite(np.asarray(zernike_um))):
         raise ValueError("zernike_um contains non-finite values (NaN or inf)")
 
 
@@ -490,8 +442,11 @@ def polychromatic_otf(
     -------
     OTFStack with ``otf`` of shape (n_eyes, n_depth, n_acc, L, L), OTF(0) = 1.
     """
+    from .pipeline import Accommodation, PipelineConfig, Scene, otf_stack_jit
+
     validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
     validate_states(accommodation_D, depths_D, cdp_D)
+    _validate_coefficients(eyes.zernike_um)
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
     # A traced pupil (under jax.grad) cannot size windows: use the measured pupil as bound.
     pupil_static = (
@@ -504,26 +459,18 @@ def polychromatic_otf(
         )
     depths_D = jnp.atleast_1d(jnp.asarray(cdp_D if depths_D is None else depths_D, float))
     accommodation_D = jnp.atleast_1d(jnp.asarray(accommodation_D, float))
-    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
-    _validate_coefficients(eyes.zernike_um)
     if check_aliasing:
         _field_check(
             eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
             accommodation_D, depths_D, layout, spectrum, sampling,
         )
-    zernike = eyes.zernike_um
-    if options.zero_piston_tilt:
-        zernike = zernike.at[:, :3].set(0.0)
-    bands = wavelength_bands(
-        np.asarray(spectrum.wavelengths_nm), layout.window_diameter_mm, pupil_static, sampling,
-    )
-    real = jnp.result_type(float)
-    otf = _otf_stack(
-        zernike.astype(real), eyes.measured_pupil_mm, jnp.asarray(pupil_diameter_mm, real),
-        jnp.asarray(cdp_D, real), accommodation_D.astype(real), depths_D.astype(real),
-        layout.centres_mm.astype(real), layout.diameters_mm.astype(real), spectrum,
-        bands, sampling, sa_parameters(options, jnp.asarray(pupil_diameter_mm, real)).astype(real),
-        eye_chunk,
+    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
+                                  pupil_static, sampling, options, eye_chunk)
+    every_pair = jnp.broadcast_to(jnp.arange(accommodation_D.shape[0], dtype=jnp.int32),
+                                  depths_D.shape + accommodation_D.shape)
+    otf = otf_stack_jit(
+        eyes, Scene.from_layout(layout, depths_D, cdp_D, pupil_diameter_mm), spectrum,
+        Accommodation.shared(accommodation_D, every_pair, options, pupil_diameter_mm), config,
     )
     return OTFStack(otf, accommodation_D, depths_D, sampling.freq_step_cpd)
 

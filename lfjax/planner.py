@@ -612,6 +612,7 @@ def plan_sampling(
     mft_pupil_samples: int | None = None,
     max_zernike_order: int | None = None,
     estimate_accuracy: bool = True,
+    pairs: tuple | None = None,
 ) -> Plan:
     """Choose the cheapest sampling that meets an accuracy target for a scene, and say why.
 
@@ -646,6 +647,8 @@ def plan_sampling(
 
     estimate_accuracy : False skips the proxy (the field guard alone picks the step, in a
         few milliseconds; errors are reported as NaN)
+    pairs : (accommodation_D, depths_D) arrays of the exact pairs to plan for, D; replaces
+        the pairs ``depths_D``/``accommodation_D``/``accommodation_window_D`` describe
 
     Guard parameters: margin (field safety factor ≥ 1), wrap_tolerance (spectral weight
     allowed to wrap), min_samples_per_subaperture (floor on pupil samples).
@@ -654,7 +657,10 @@ def plan_sampling(
     if transform not in ("auto", "fft", "mft"):
         raise ValueError(f"transform must be 'auto', 'fft' or 'mft', got {transform!r}")
     layout = open_pupil(pupil_diameter_mm) if layout is None else layout
-    pair_acc, pair_depth = _scene_pairs(depths_D, accommodation_D, accommodation_window_D)
+    if pairs is None:
+        pair_acc, pair_depth = _scene_pairs(depths_D, accommodation_D, accommodation_window_D)
+    else:
+        pair_acc, pair_depth = (np.asarray(x, float).reshape(-1) for x in pairs)
     if np.any(pair_acc < -1e-9) or np.any(pair_depth < 0):
         raise ValueError("accommodation and depths must be >= 0 D")
     scene = _Scene(layout, float(pupil_diameter_mm), float(cdp_D), pair_acc, pair_depth, options)

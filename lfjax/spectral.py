@@ -14,6 +14,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ._types import as_real_array
 from .options import ModelOptions
 
 LEF_NAME = "CIE 2008 2 Degree Physiologically Relevant LEF"
@@ -104,10 +105,19 @@ class Spectrum(eqx.Module):
     sce_rho_per_mm2 : Stiles–Crawford ρ(λ), mm⁻² (0 when SCE is off).
     """
 
-    wavelengths_nm: jnp.ndarray
-    weights: jnp.ndarray
-    lca_D: jnp.ndarray
-    sce_rho_per_mm2: jnp.ndarray
+    wavelengths_nm: jnp.ndarray = eqx.field(converter=as_real_array)
+    weights: jnp.ndarray = eqx.field(converter=as_real_array)
+    lca_D: jnp.ndarray = eqx.field(converter=as_real_array)
+    sce_rho_per_mm2: jnp.ndarray = eqx.field(converter=as_real_array)
+
+    def __check_init__(self):
+        shape = self.wavelengths_nm.shape
+        for name in ("weights", "lca_D", "sce_rho_per_mm2"):
+            if getattr(self, name).shape != shape:
+                raise ValueError(
+                    f"Spectrum.{name} must have the shape of wavelengths_nm {shape}, "
+                    f"got {getattr(self, name).shape}"
+                )
 
     @property
     def n_wavelengths(self) -> int:

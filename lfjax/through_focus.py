@@ -8,7 +8,6 @@ one eye's OTF stack (eyes are mapped in chunks).
 
 from __future__ import annotations
 
-from functools import partial
 
 import equinox as eqx
 import jax
@@ -17,18 +16,11 @@ import numpy as np
 
 from .eyes import Eyes
 from .layouts import Layout, open_pupil
-from .metrics import ncsf_half_plane, psf_peak, radial_mtf, vsotf_numerator, cutoff_frequency
-from .optics import (
-    sa_parameters,
-    validate_states,
-    _elemental_otfs,
-    _field_check,
-    _render,
-    _validate_coefficients,
-    validate_pupil,
-)
+from .metrics import cutoff_frequency
+from .optics import _field_check, _is_concrete, _validate_coefficients, validate_pupil, validate_states
 from .options import ModelOptions
-from .sampling import Sampling, wavelength_bands
+from .pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics_jit, vsotf_and_strehl
+from .sampling import Sampling
 from .spectral import Spectrum, make_spectrum
 
 
@@ -46,6 +38,7 @@ class ThroughFocus(eqx.Module):
     depths_D : (n_depth,) rendered depths, D
     cdp_D : float, D
     layout_name : str
+    sampling : the Sampling used (planned by the field guard when none was given)
     """
 
     vsotf: jnp.ndarray
@@ -57,6 +50,7 @@ class ThroughFocus(eqx.Module):
     depths_D: jnp.ndarray
     cdp_D: float = eqx.field(static=True)
     layout_name: str = eqx.field(static=True, default="custom")
+    sampling: Sampling | None = eqx.field(static=True, default=None)
 
     def metric(self, name: str):
         if name not in ("vsotf", "strehl"):
@@ -135,55 +129,19 @@ def relative_accommodation_grid(depths_D, offsets_D, hyperopic_limit: bool = Tru
     return grid, index
 
 
-def _reference_normalisers(
-    n_modes, measured_pupil_mm, pupil_diameter_mm, cdp_D, ref_centres_mm, ref_diameters_mm,
-    spectrum, ref_bands, sampling, sa_params, ncsf_model,
-):
-    """VSOTF denominator and PSF peak of the reference: aberration-free, accommodated and
-    rendered on the CDP, accommodation SA and LCA kept."""
-    df = sampling.freq_step_cpd
-    ref_n_fft = max(b[2] for b in ref_bands)
-    cdp = jnp.reshape(cdp_D, (1,))
-    ref_elemental = _elemental_otfs(
-        jnp.zeros((n_modes,), pupil_diameter_mm.dtype), measured_pupil_mm, pupil_diameter_mm,
-        cdp_D, cdp, ref_centres_mm, ref_diameters_mm, spectrum, ref_bands, sampling, sa_params,
-    )
-    ref_otf = _render(ref_elemental, ref_centres_mm, cdp_D, cdp, ref_n_fft, df)[0, 0]
-    ref_vs = vsotf_numerator(ref_otf, ncsf_half_plane(ref_n_fft, df, ncsf_model))
-    return ref_vs, psf_peak(ref_otf, ref_n_fft, df)
+def _planned_sampling(eyes: Eyes, layout: Layout, depths, pairs, pupil_diameter_mm, cdp_D,
+                      spectrum: Spectrum, options: ModelOptions) -> Sampling:
+    """The planner's field guard for this scene (milliseconds; no accuracy proxy)."""
+    from .planner import plan_sampling
 
-
-@partial(
-    jax.jit,
-    static_argnames=("measured_pupil_mm", "bands", "ref_bands", "sampling", "ncsf_model", "eye_chunk"),
-)
-def _through_focus_core(
-    zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
-    pair_index, centres_mm, diameters_mm, ref_centres_mm, ref_diameters_mm, spectrum, bands,
-    ref_bands, sampling, sa_params, ncsf_model, eye_chunk,
-):
-    df = sampling.freq_step_cpd
-    n_fft = max(b[2] for b in bands)
-    ref_vs, ref_peak = _reference_normalisers(
-        zernike_um.shape[-1], measured_pupil_mm, pupil_diameter_mm, cdp_D, ref_centres_mm,
-        ref_diameters_mm, spectrum, ref_bands, sampling, sa_params, ncsf_model,
-    )
-    weighted_ncsf = ncsf_half_plane(n_fft, df, ncsf_model)
-
-    def one_eye(coefficients):
-        elemental = _elemental_otfs(
-            coefficients, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
-            centres_mm, diameters_mm, spectrum, bands, sampling, sa_params,
-        )
-        otf = _render(elemental, centres_mm, cdp_D, depths_D, n_fft, df)
-        # keep only the (depth, state) pairs asked for: (n_depth, n_k, L, L//2+1)
-        otf = jnp.take_along_axis(otf, pair_index[:, :, None, None], axis=1)
-        vs = vsotf_numerator(otf, weighted_ncsf) / ref_vs
-        sr = psf_peak(otf, n_fft, df) / ref_peak
-        mtf, _ = radial_mtf(otf, n_fft, df)
-        return vs, sr, mtf
-
-    return jax.lax.map(one_eye, zernike_um, batch_size=eye_chunk)
+    return plan_sampling(
+        layout=layout, pupil_diameter_mm=float(pupil_diameter_mm), cdp_D=float(cdp_D),
+        depths_D=np.asarray(depths, float), accommodation_D=np.unique(np.asarray(pairs[0], float)),
+        accommodation_window_D=None, wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
+        eyes_zernike_um=np.asarray(eyes.zernike_um), measured_pupil_mm=eyes.measured_pupil_mm,
+        options=options, estimate_accuracy=False,
+        pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)),
+    ).sampling
 
 
 def through_focus(
@@ -194,7 +152,7 @@ def through_focus(
     pupil_diameter_mm: float = 3.0,
     cdp_D: float = 2.0,
     spectrum: Spectrum | None = None,
-    sampling: Sampling = Sampling(),
+    sampling: Sampling | None = None,
     options: ModelOptions = ModelOptions(),
     accommodation_offsets_D=None,
     window_D: float | None = None,
@@ -218,7 +176,12 @@ def through_focus(
         depth (others are not ``allowed``), e.g. the paper's 0–5 D grid with a ±1 D window.
     pupil_diameter_mm : calculation pupil, mm (≤ eyes.measured_pupil_mm)
     cdp_D : central depth plane of the display, D
-    spectrum, sampling, options : see :func:`lfjax.optics.polychromatic_otf`
+    spectrum, options : see :func:`lfjax.optics.polychromatic_otf`
+    sampling : Sampling, optional
+        Default: the planner's field guard for this scene (the largest frequency step whose
+        PSF field holds every blur and display shift; milliseconds,
+        :func:`lfjax.planner.plan_sampling` with ``estimate_accuracy=False``). The result's
+        ``sampling`` says what was used.
 
     Elemental OTFs are computed once per distinct absolute state and reused by every depth.
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
@@ -242,6 +205,7 @@ def through_focus(
                 raise ValueError(
                     f"window_D={window_D} leaves no accommodation state for some rendered depths"
                 )
+        absolute = grid[index]
     else:
         offsets = (
             np.round(np.arange(-5, 6) * 0.2, 9)
@@ -252,10 +216,7 @@ def through_focus(
         grid, index = relative_accommodation_grid(depths, offsets, hyperopic_limit=True)
         allowed = index >= 0
         index = np.where(allowed, index, 0)
-    # true state of every entry, also those beyond the hyperopic limit (not computed)
-    if accommodation_D is not None:
-        absolute = grid[index]
-    else:
+        # true state of every entry, also those beyond the hyperopic limit (not computed)
         absolute = np.where(allowed, grid[index], depths[:, None] + offsets[None, :])
     # Compute each absolute state once, and only the states some depth uses.
     used = np.zeros(grid.size, bool)
@@ -263,79 +224,30 @@ def through_focus(
     remap = np.cumsum(used) - 1
     grid = grid[used]
     index = np.where(allowed, remap[index], 0)
-    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
     _validate_coefficients(eyes.zernike_um)
-    if check_aliasing:
+    pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
+    if sampling is None:
+        sampling = _planned_sampling(eyes, layout, depths, pairs, pupil_diameter_mm, cdp_D,
+                                     spectrum, options)
+    elif check_aliasing:
         _field_check(
             eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D, grid, depths,
-            layout, spectrum, sampling, pairs=(absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed]),
+            layout, spectrum, sampling, pairs=pairs,
         )
-    reference = layout if options.vsotf_reference == "paper" else open_pupil(float(pupil_diameter_mm))
-    wl = np.asarray(spectrum.wavelengths_nm)
-    bands = wavelength_bands(wl, layout.window_diameter_mm, float(pupil_diameter_mm), sampling)
-    ref_bands = wavelength_bands(
-        wl, reference.window_diameter_mm, float(pupil_diameter_mm), sampling
-    )
-    n_fft = max(b[2] for b in bands)
-    zernike = eyes.zernike_um
-    if options.zero_piston_tilt:
-        zernike = zernike.at[:, :3].set(0.0)
-    real = jnp.result_type(float)
-    vs, sr, mtf = _through_focus_core(
-        zernike.astype(real), eyes.measured_pupil_mm, jnp.asarray(pupil_diameter_mm, real),
-        jnp.asarray(cdp_D, real), jnp.asarray(grid, real), jnp.asarray(depths, real),
-        jnp.asarray(index, jnp.int32),
-        layout.centres_mm.astype(real), layout.diameters_mm.astype(real),
-        reference.centres_mm.astype(real), reference.diameters_mm.astype(real), spectrum,
-        bands, ref_bands, sampling,
-        sa_parameters(options, jnp.asarray(pupil_diameter_mm, real)).astype(real), options.ncsf,
-        eye_chunk,
+    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
+                                  float(pupil_diameter_mm), sampling, options, eye_chunk)
+    metrics = retinal_metrics_jit(
+        eyes, Scene.from_layout(layout, depths, cdp_D, pupil_diameter_mm), spectrum,
+        Accommodation.shared(grid, index, options, pupil_diameter_mm), config,
     )
     mask = jnp.asarray(allowed)
     # NaN marks states beyond the hyperopic limit (never computed); `allowed` says which.
-    vs = jnp.where(mask[None], vs, jnp.nan)
-    sr = jnp.where(mask[None], sr, jnp.nan)
-    freq = jnp.arange(n_fft // 2 + 1) * sampling.freq_step_cpd
     return ThroughFocus(
-        vs, sr, mtf, freq, np.asarray(absolute, float), np.asarray(allowed), np.asarray(depths, float),
-        float(cdp_D),
-        layout.name,
+        jnp.where(mask[None], metrics.vsotf, jnp.nan), jnp.where(mask[None], metrics.strehl, jnp.nan),
+        metrics.radial_mtf, jnp.arange(config.n_fft // 2 + 1) * sampling.freq_step_cpd,
+        np.asarray(absolute, float), np.asarray(allowed), depths, float(cdp_D), layout.name,
+        sampling,
     )
-
-
-__all__ = ["ThroughFocus", "through_focus", "relative_accommodation_grid"]
-
-
-@partial(
-    jax.jit,
-    static_argnames=("measured_pupil_mm", "bands", "ref_bands", "sampling", "ncsf_model"),
-)
-def _metrics_at_core(
-    zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
-    centres_mm, diameters_mm, ref_centres_mm, ref_diameters_mm, spectrum, bands, ref_bands,
-    sampling, sa_params, ncsf_model,
-):
-    df = sampling.freq_step_cpd
-    n_fft = max(b[2] for b in bands)
-    ref_vs, ref_peak = _reference_normalisers(
-        zernike_um.shape[-1], measured_pupil_mm, pupil_diameter_mm, cdp_D, ref_centres_mm,
-        ref_diameters_mm, spectrum, ref_bands, sampling, sa_params, ncsf_model,
-    )
-    weighted_ncsf = ncsf_half_plane(n_fft, df, ncsf_model)
-
-    def one_depth(coefficients, depth, states):
-        elemental = _elemental_otfs(
-            coefficients, measured_pupil_mm, pupil_diameter_mm, cdp_D, states,
-            centres_mm, diameters_mm, spectrum, bands, sampling, sa_params,
-        )
-        otf = _render(elemental, centres_mm, cdp_D, depth[None], n_fft, df)[0]
-        return (
-            vsotf_numerator(otf, weighted_ncsf) / ref_vs,
-            psf_peak(otf, n_fft, df) / ref_peak,
-        )
-
-    per_eye = jax.vmap(one_depth, in_axes=(None, 0, 0))
-    return jax.lax.map(lambda c: per_eye(c, depths_D, accommodation_D), zernike_um)
 
 
 def metrics_at(
@@ -346,70 +258,64 @@ def metrics_at(
     pupil_diameter_mm=3.0,
     cdp_D=2.0,
     spectrum: Spectrum | None = None,
-    sampling: Sampling = Sampling(),
+    sampling: Sampling | None = None,
     options: ModelOptions = ModelOptions(),
 ):
     """VSOTF and Strehl at given (depth, accommodation) pairs — differentiable in everything.
 
-    Unlike :func:`through_focus` (a host-side grid with the hyperopic limit and aliasing
-    checks), this is a pure function of arrays, so ``jax.grad`` flows to the eyes' Zernike
-    coefficients, ``depths_D``, ``accommodation_D``, ``pupil_diameter_mm``, ``cdp_D`` and
-    the layout's centres and diameters: the building block of peak finders and layout
-    optimisers. Window sizes are static: they come from ``layout.window_diameter_mm`` and,
-    when ``pupil_diameter_mm`` is traced, the eyes' measured pupil.
+    Unlike :func:`through_focus` (a host-side grid with the hyperopic limit), this is a pure
+    function of arrays: ``jax.jit``, ``jax.vmap`` and ``jax.grad`` apply from outside, and
+    gradients flow to the eyes' Zernike coefficients, ``depths_D``, ``accommodation_D``,
+    ``pupil_diameter_mm``, ``cdp_D`` and the layout's centres and diameters — the building
+    block of peak finders and layout optimisers. Window sizes are static: they come from
+    ``layout.window_diameter_mm`` and, when ``pupil_diameter_mm`` is traced, the eyes'
+    measured pupil. Concrete inputs are checked on the host (values, aliasing); traced ones
+    inside the pipeline (``eqx.error_if``).
 
     Parameters
     ----------
     depths_D : (n_depth,) rendered depths, D
     accommodation_D : (n_depth, n_acc) absolute accommodation states for each depth, D
+    sampling : Sampling; default the planner's field guard for these pairs (needs concrete
+        depths and states — give it explicitly when they are traced)
 
     Returns
     -------
     (vsotf, strehl), each (n_eyes, n_depth, n_acc).
     """
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
-    concrete = not any(
-        isinstance(x, jax.core.Tracer)
-        for x in jax.tree_util.tree_leaves((pupil_diameter_mm, cdp_D, depths_D, accommodation_D))
-    )
     validate_states(accommodation_D, depths_D, cdp_D)
     _validate_coefficients(eyes.zernike_um)
+    concrete = _is_concrete(pupil_diameter_mm, cdp_D, depths_D, accommodation_D)
+    if np.ndim(accommodation_D) != 2 or np.shape(accommodation_D)[0] != np.size(depths_D):
+        raise ValueError(
+            f"accommodation_D must have shape (n_depth, n_acc) = ({np.size(depths_D)}, n), "
+            f"got {np.shape(accommodation_D)}"
+        )
     if concrete:
         validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
         acc = np.asarray(accommodation_D, float)
-        if acc.ndim != 2 or acc.shape[0] != np.size(depths_D):
-            raise ValueError(
-                f"accommodation_D must have shape (n_depth, n_acc) = ({np.size(depths_D)}, n), "
-                f"got {acc.shape}"
-            )
         depth = np.asarray(depths_D, float)
-        _field_check(
-            eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D, acc.ravel(),
-            depth, layout, spectrum, sampling,
-            pairs=(acc.ravel(), np.broadcast_to(depth[:, None], acc.shape).ravel()),
+        pairs = (acc.ravel(), np.broadcast_to(depth[:, None], acc.shape).ravel())
+        if sampling is None:
+            sampling = _planned_sampling(eyes, layout, depth, pairs, pupil_diameter_mm, cdp_D,
+                                         spectrum, options)
+        else:
+            _field_check(eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
+                         acc.ravel(), depth, layout, spectrum, sampling, pairs=pairs)
+    elif sampling is None:
+        raise ValueError(
+            "sampling must be given when depths_D, accommodation_D, cdp_D or pupil_diameter_mm "
+            "are traced (jax.jit / vmap / grad): plan it once on concrete values, e.g. "
+            "lfjax.planner.plan_sampling(...).sampling"
         )
-    pupil_static = float(pupil_diameter_mm) if concrete else float(eyes.measured_pupil_mm)
-    reference = layout
-    if options.vsotf_reference == "open_pupil":
-        reference = Layout(
-            jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
-            pupil_static, "natural",
-        )
-    wl = np.asarray(spectrum.wavelengths_nm)
-    bands = wavelength_bands(wl, layout.window_diameter_mm, pupil_static, sampling)
-    ref_bands = wavelength_bands(wl, reference.window_diameter_mm, pupil_static, sampling)
-    zernike = eyes.zernike_um
-    if options.zero_piston_tilt:
-        zernike = zernike.at[:, :3].set(0.0)
-    real = jnp.result_type(float)
-    return _metrics_at_core(
-        zernike.astype(real), eyes.measured_pupil_mm, jnp.asarray(pupil_diameter_mm, real),
-        jnp.asarray(cdp_D, real), jnp.asarray(accommodation_D, real),
-        jnp.asarray(depths_D, real), layout.centres_mm.astype(real),
-        layout.diameters_mm.astype(real), reference.centres_mm.astype(real),
-        reference.diameters_mm.astype(real), spectrum, bands, ref_bands, sampling,
-        sa_parameters(options, jnp.asarray(pupil_diameter_mm, real)).astype(real), options.ncsf,
-    )
+    pupil_static = (float(pupil_diameter_mm) if _is_concrete(pupil_diameter_mm)
+                    else float(eyes.measured_pupil_mm))
+    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
+                                  pupil_static, sampling, options)
+    scene = Scene.from_layout(layout, depths_D, cdp_D, pupil_diameter_mm)
+    accommodation = Accommodation.per_depth(accommodation_D, options, pupil_diameter_mm)
+    return vsotf_and_strehl(eyes, scene, spectrum, accommodation, config)
 
 
-__all__ += ["metrics_at"]
+__all__ = ["ThroughFocus", "through_focus", "relative_accommodation_grid", "metrics_at"]
