@@ -1,0 +1,352 @@
+"""Continuous accommodation peaks: bracket on a grid, refine with a solver, differentiate.
+
+The predicted accommodation is the state that maximises a through-focus metric (VSOTF by
+default). :func:`accommodation_peaks` evaluates the metric on a coarse grid (states shared
+by all rendered depths, as :func:`lfjax.through_focus.through_focus` does), brackets the
+global grid maximum and every other local grid maximum worth refining, and refines them
+with one of:
+
+``"newton"`` (default)
+    optimistix ``Newton`` root find of dV/da = 0 inside the bracket; dV/da and d²V/da² by
+    forward-mode differentiation of the pipeline in the scalar accommodation (cheap: one
+    state per step). Derivatives of the peak with respect to every other input follow from
+    the implicit function theorem (optimistix ``ImplicitAdjoint``).
+``"golden"``
+    optimistix ``GoldenSearch`` of −V inside the bracket, searched as the offset from the
+    bracket centre (optimistix 0.1.0 places its first midpoint at (upper − lower)/(φ + 1)
+    instead of lower + …, so brackets not straddling 0 diverge; upstream issue #236).
+``"bfgs"``
+    optimistix ``BFGS`` of −V from the grid peak, unconstrained; a result leaving the
+    bracket is reported as failed.
+``"parabola"``
+    the vertex of the parabola through the grid maximum and its neighbours (no solver).
+``"grid"``
+    the grid maximum itself.
+
+Every result carries a success flag and, for the optimistix methods, the solver's result
+code; the pipeline never raises inside the batch (``throw=False``).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import optimistix as optx
+from jaxtyping import Array, Bool, Float, Int
+
+from .eyes import Eyes
+from .pipeline import (
+    Accommodation,
+    PipelineConfig,
+    Scene,
+    reference_normalisers,
+    retinal_metrics,
+)
+from .spectral import Spectrum
+
+PEAK_METHODS = ("newton", "golden", "bfgs", "parabola", "grid")
+METRICS = ("vsotf", "strehl")
+
+
+def result_name(code: int) -> str:
+    """Name of an optimistix result code (``Peaks.result``); −1 means no solver ran."""
+    if int(code) < 0:
+        return "no solver"
+    for name, item in optx.RESULTS._name_to_item.items():  # noqa: SLF001 (no public lookup)
+        if int(item._value) == int(code):  # noqa: SLF001
+            return name
+    return f"unknown ({code})"
+
+
+class Peak(eqx.Module):
+    """One refined maximum of a scalar function on a bracket.
+
+    Attributes
+    ----------
+    accommodation_D : (…) location of the maximum, D
+    value : (…) function value there
+    success : (…) bool, the solver converged inside the bracket
+    result : (…) int, optimistix result code (0 successful; −1 no solver ran)
+    n_steps : (…) int, solver steps (function evaluations for golden section)
+    """
+
+    accommodation_D: Float[Array, "..."]
+    value: Float[Array, "..."]
+    success: Bool[Array, "..."]
+    result: Int[Array, "..."]
+    n_steps: Int[Array, "..."]
+
+
+def _check_method(method: str):
+    if method not in PEAK_METHODS:
+        raise ValueError(f"method must be one of {PEAK_METHODS}, got {method!r}")
+
+
+def refine_peak(value_fn, lower_D, upper_D, start_D, args, method: str = "newton",
+                atol_D: float = 1e-5, max_steps: int = 64) -> Peak:
+    """Maximise ``value_fn(a, args)`` (scalar a in D) on the bracket [lower_D, upper_D].
+
+    Scalars in, :class:`Peak` out: vmap it over brackets. Pure and differentiable: the peak
+    location's derivative with respect to ``args`` comes from the implicit function theorem
+    on the optimality condition (optimistix ``ImplicitAdjoint``); the bracket is treated as
+    a constant. Where the maximum sits on a bracket end (the hyperopic limit), the
+    location's derivative is zero (the constraint is active).
+
+    Parameters
+    ----------
+    value_fn : callable (a, args) -> scalar, smooth in a near the peak
+    lower_D, upper_D : bracket, D (lower < upper)
+    start_D : first iterate (Newton, BFGS), D
+    method : "newton", "golden" or "bfgs" (see module docstring)
+    atol_D : tolerance on the location, D
+    """
+    _check_method(method)
+    if method in ("parabola", "grid"):
+        raise ValueError(f"refine_peak needs a solver method, got {method!r}")
+    lower_D, upper_D, start_D = (jax.lax.stop_gradient(jnp.asarray(x, float))
+                                 for x in (lower_D, upper_D, start_D))
+    tolerances = dict(rtol=1e-7, atol=atol_D)
+    if method == "newton":
+        def slope(a, args):
+            return jax.jvp(lambda x: value_fn(x, args), (a,), (jnp.ones_like(a),))[1]
+
+        # A maximum on a bracket end (the hyperopic limit) has no root inside: Newton's
+        # clipped iterates would stall there until max_steps (and, under vmap, hold up the
+        # whole batch). Such an end is pinned: the root of a − end, found in one step.
+        pinned_low = slope(lower_D, args) < 0
+        pinned_high = slope(upper_D, args) > 0
+        end = jnp.where(pinned_low, lower_D, upper_D)
+        pinned = pinned_low | pinned_high
+
+        def condition(a, args):
+            return jnp.where(pinned, a - end, slope(a, args))
+
+        sol = optx.root_find(condition, optx.Newton(**tolerances),
+                             jnp.where(pinned, end, start_D), args,
+                             options=dict(lower=lower_D, upper=upper_D), throw=False,
+                             max_steps=max_steps)
+        location = sol.value
+    elif method == "golden":
+        centre = 0.5 * (lower_D + upper_D)
+        half = 0.5 * (upper_D - lower_D)
+        sol = optx.minimise(lambda off, args: -value_fn(centre + off, args),
+                            optx.GoldenSearch(**tolerances), jnp.zeros_like(centre), args,
+                            options=dict(lower=-half, upper=half), throw=False,
+                            max_steps=max_steps)
+        location = centre + sol.value
+    else:
+        sol = optx.minimise(lambda a, args: -value_fn(a[0], args), optx.BFGS(**tolerances),
+                            start_D[None], args, throw=False, max_steps=max_steps)
+        location = sol.value[0]
+    solved = sol.result == optx.RESULTS.successful
+    tol = 10 * atol_D
+    inside = (location >= lower_D - tol) & (location <= upper_D + tol)
+    on_end = (location <= lower_D + tol) | (location >= upper_D - tol)
+    location = jnp.where(on_end, jax.lax.stop_gradient(location), location)
+    value = value_fn(location, args)
+    return Peak(location, value, solved & inside, sol.result._value.astype(jnp.int32),  # noqa: SLF001
+                sol.stats["num_steps"].astype(jnp.int32))
+
+
+def parabola_vertex(states_D, values, index):
+    """Vertex of the parabola through grid points index−1, index, index+1 (D), clipped to
+    ±half a step; the grid point itself at the grid's ends or where the curve is not concave.
+
+    states_D (…, n) increasing, values (…, n), index (…) int → (…) D.
+    """
+    n = states_D.shape[-1]
+    lo, hi = jnp.clip(index - 1, 0, n - 1), jnp.clip(index + 1, 0, n - 1)
+    take = lambda x, i: jnp.take_along_axis(x, i[..., None], axis=-1)[..., 0]  # noqa: E731
+    y0, y1, y2 = take(values, lo), take(values, index), take(values, hi)
+    a0, a1, a2 = take(states_D, lo), take(states_D, index), take(states_D, hi)
+    denom = y0 - 2 * y1 + y2
+    ok = (lo != index) & (hi != index) & (denom < 0) & jnp.isfinite(y0 + y2)
+    step = 0.5 * (a2 - a0)
+    shift = jnp.where(ok, 0.5 * (y0 - y2) / jnp.where(ok, denom, -1.0), 0.0)
+    return a1 + jnp.clip(shift, -0.5, 0.5) * step
+
+
+class Peaks(eqx.Module):
+    """Predicted accommodation of every (eye, rendered depth): the global maximum and, where
+    the curve has one, a second peak.
+
+    Attributes (each (n_eyes, n_depth))
+    ----------
+    accommodation_D : continuous predicted accommodation (global maximum), D
+    value : metric at it
+    success : bool — the solver converged inside its bracket, and the peak is not on the
+        grid's far end (where the true maximum may lie beyond the grid)
+    result : optimistix result code of that refinement (0 successful, −1 no solver)
+    n_steps : solver steps
+    grid_accommodation_D, grid_value : the grid maximum, D
+    second_accommodation_D, second_value : the other local maximum (NaN where there is none)
+    at_hyperopic_limit : bool — the maximum is at 0 D (the eye cannot relax further)
+    at_grid_edge : bool — the grid maximum is the last (or first, above 0 D) state
+    """
+
+    accommodation_D: Array
+    value: Array
+    success: Array
+    result: Array
+    n_steps: Array
+    grid_accommodation_D: Array
+    grid_value: Array
+    second_accommodation_D: Array
+    second_value: Array
+    at_hyperopic_limit: Array
+    at_grid_edge: Array
+
+    @property
+    def has_second_peak(self):
+        return jnp.isfinite(self.second_accommodation_D)
+
+
+def _local_maxima(values, allowed, prominence: float):
+    """Indices of the global and of the highest other local grid maximum (…, n).
+
+    A second maximum counts when it is a strict local maximum of the allowed states, at
+    least ``prominence`` (relative) above the lowest value between it and the global one.
+    Returns (global index, second index or −1).
+    """
+    v = jnp.where(allowed, values, -jnp.inf)
+    n = v.shape[-1]
+    best = jnp.argmax(v, axis=-1)
+    left = jnp.concatenate([jnp.full(v.shape[:-1] + (1,), -jnp.inf), v[..., :-1]], axis=-1)
+    right = jnp.concatenate([v[..., 1:], jnp.full(v.shape[:-1] + (1,), -jnp.inf)], axis=-1)
+    local = (v > left) & (v >= right) & jnp.isfinite(v)
+    k = jnp.arange(n)
+    # lowest value between each candidate and the global maximum
+    lo = jnp.minimum(k, best[..., None])
+    hi = jnp.maximum(k, best[..., None])
+    inside = (k[..., None, :] >= lo[..., :, None]) & (k[..., None, :] <= hi[..., :, None])
+    valley = jnp.min(jnp.where(inside, v[..., None, :], jnp.inf), axis=-1)  # (…, n)
+    prominent = v - valley >= prominence * jnp.abs(v)
+    candidate = local & prominent & (k != best[..., None])
+    second = jnp.where(jnp.any(candidate, axis=-1),
+                       jnp.argmax(jnp.where(candidate, v, -jnp.inf), axis=-1), -1)
+    return best, second
+
+
+def _bracket(states_D, index):
+    n = states_D.shape[-1]
+    lo = jnp.take_along_axis(states_D, jnp.clip(index - 1, 0, n - 1)[..., None], -1)[..., 0]
+    hi = jnp.take_along_axis(states_D, jnp.clip(index + 1, 0, n - 1)[..., None], -1)[..., 0]
+    return lo, hi
+
+
+def accommodation_peaks(
+    eyes: Eyes, scene: Scene, spectrum: Spectrum, grid: Accommodation, config: PipelineConfig,
+    metric: str = "vsotf", method: str = "newton", allowed=None, prominence: float = 0.05,
+    atol_D: float = 1e-5, max_steps: int = 32,
+) -> Peaks:
+    """Continuous predicted accommodation of every eye and rendered depth (pure, jittable).
+
+    Parameters
+    ----------
+    eyes, scene, spectrum, config : as :func:`lfjax.pipeline.retinal_metrics`
+    grid : Accommodation whose ``pair_index`` (n_depth, n_k) lists each depth's grid states
+        in increasing accommodation (through_focus's grid)
+    metric : "vsotf" or "strehl"
+    method : see the module docstring; "newton" by default
+    allowed : (n_depth, n_k) bool, grid states to consider (default all)
+    prominence : a second local maximum is reported when it stands this fraction of its
+        value above the valley between it and the global one
+    atol_D : location tolerance, D
+
+    Both the global grid maximum and the second one are refined; the higher refined value
+    is returned as the peak (so a second peak that refines higher wins).
+    """
+    _check_method(method)
+    if metric not in METRICS:
+        raise ValueError(f"metric must be one of {METRICS}, got {metric!r}")
+    reference = reference_normalisers(scene, spectrum, grid, config)
+    on_grid = retinal_metrics(eyes, scene, spectrum, grid, config, reference)
+    values = getattr(on_grid, metric)  # (n_eyes, n_depth, n_k)
+    states = grid.states_D[grid.pair_index]  # (n_depth, n_k)
+    allowed = jnp.ones(states.shape, bool) if allowed is None else jnp.asarray(allowed, bool)
+    states_b = jnp.broadcast_to(states, values.shape)
+    allowed_b = jnp.broadcast_to(allowed, values.shape)
+    best, second = _local_maxima(values, allowed_b, prominence)
+    take = lambda x, i: jnp.take_along_axis(x, jnp.maximum(i, 0)[..., None], -1)[..., 0]  # noqa: E731
+    grid_peak, grid_value = take(states_b, best), take(values, best)
+    # Brackets: the neighbours among allowed states (disallowed ones lie below 0 D or
+    # outside the window, both ends of the usable grid).
+    usable = jnp.where(allowed_b, states_b, jnp.nan)
+    first = jnp.nanmin(usable, axis=-1)
+    last = jnp.nanmax(usable, axis=-1)
+
+    def bracket_of(index):
+        lo, hi = _bracket(states_b, jnp.maximum(index, 0))
+        lo = jnp.where(jnp.isfinite(take(usable, jnp.maximum(index - 1, 0))) & (index > 0), lo,
+                       take(states_b, index))
+        hi = jnp.where(jnp.isfinite(take(usable, jnp.minimum(index + 1, states.shape[-1] - 1)))
+                       & (index < states.shape[-1] - 1), hi, take(states_b, index))
+        return jnp.maximum(lo, 0.0), hi
+
+    def value_fn(a, args):
+        zernike_um, depth = args
+        one = Scene(scene.centres_mm, scene.diameters_mm, scene.cdp_D, depth[None],
+                    scene.pupil_diameter_mm)
+        state = Accommodation(a[None], jnp.zeros((1, 1), jnp.int32), grid.sa_c40_um_per_D,
+                              grid.sa_radius_mm)
+        m = retinal_metrics(Eyes(zernike_um[None], eyes.measured_pupil_mm), one, spectrum, state,
+                            config, reference)
+        return getattr(m, metric)[0, 0, 0]
+
+    depths_b = jnp.broadcast_to(scene.depths_D[None, :], values.shape[:2])
+    z_b = jnp.broadcast_to(eyes.zernike_um[:, None, :], values.shape[:2] + eyes.zernike_um.shape[-1:])
+
+    def refine(index):
+        lo, hi = bracket_of(index)
+        start = take(states_b, index)
+        if method == "grid":
+            return Peak(start, take(values, index), jnp.ones(start.shape, bool),
+                        jnp.full(start.shape, -1, jnp.int32), jnp.zeros(start.shape, jnp.int32))
+        if method == "parabola":
+            a = jnp.clip(parabola_vertex(states_b, jnp.where(allowed_b, values, -jnp.inf), index), lo, hi)
+            v = jax.vmap(jax.vmap(value_fn))(a, (z_b, depths_b))
+            return Peak(a, v, jnp.ones(a.shape, bool), jnp.full(a.shape, -1, jnp.int32),
+                        jnp.zeros(a.shape, jnp.int32))
+        solve = lambda lo_, hi_, s_, z_, d_: refine_peak(  # noqa: E731
+            value_fn, lo_, hi_, s_, (z_, d_), method, atol_D, max_steps)
+        return jax.vmap(jax.vmap(solve))(lo, hi, start, z_b, depths_b)
+
+    main = refine(best)
+    has_second = second >= 0
+    # Most curves have one peak: refine second candidates only when some curve has one.
+    other = jax.lax.cond(jnp.any(has_second), lambda: refine(jnp.where(has_second, second, best)),
+                         lambda: main)
+    swap = has_second & (other.value > main.value)
+    pick = lambda a, b: jnp.where(swap, b, a)  # noqa: E731
+    peak = jax.tree_util.tree_map(pick, main, other)
+    alt = jax.tree_util.tree_map(pick, other, main)
+    distinct = has_second & (jnp.abs(alt.accommodation_D - peak.accommodation_D) > 1e-3)
+    at_limit = peak.accommodation_D <= 10 * atol_D
+    edge_index = jnp.where(swap, second, best)
+    edge_state = take(states_b, edge_index)
+    at_edge = ((edge_state >= last - 1e-9) | ((edge_state <= first + 1e-9) & (first > 1e-9)))
+    return Peaks(
+        accommodation_D=peak.accommodation_D, value=peak.value,
+        success=peak.success & ~at_edge, result=peak.result, n_steps=peak.n_steps,
+        grid_accommodation_D=grid_peak, grid_value=grid_value,
+        second_accommodation_D=jnp.where(distinct, alt.accommodation_D, jnp.nan),
+        second_value=jnp.where(distinct, alt.value, jnp.nan),
+        at_hyperopic_limit=at_limit, at_grid_edge=at_edge,
+    )
+
+
+accommodation_peaks_jit = eqx.filter_jit(accommodation_peaks)
+""":func:`accommodation_peaks` compiled (``eqx.filter_jit``)."""
+
+
+__all__ = [
+    "PEAK_METHODS",
+    "Peak",
+    "Peaks",
+    "refine_peak",
+    "parabola_vertex",
+    "accommodation_peaks",
+    "accommodation_peaks_jit",
+    "result_name",
+]
