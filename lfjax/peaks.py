@@ -6,7 +6,11 @@ by all rendered depths, as :func:`lfjax.through_focus.through_focus` does), brac
 global grid maximum and every other local grid maximum worth refining, and refines them
 with one of:
 
-``"newton"`` (default)
+``"auto"`` (default)
+    ``"newton"`` for VSOTF (smooth in accommodation) and ``"golden"`` for the Strehl ratio:
+    the sampled PSF's peak is the largest of its pixels, piecewise smooth in accommodation,
+    and Newton's derivatives jump between pieces (tests/test_peaks.py pins the case).
+``"newton"``
     optimistix ``Newton`` root find of dV/da = 0 inside the bracket; dV/da and d²V/da² by
     forward-mode differentiation of the pipeline in the scalar accommodation (cheap: one
     state per step). Derivatives of the peak with respect to every other input follow from
@@ -32,10 +36,12 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float, Int
 
 from .eyes import Eyes
+from .optics import _is_concrete
 from .pipeline import (
     Accommodation,
     PipelineConfig,
@@ -45,7 +51,7 @@ from .pipeline import (
 )
 from .spectral import Spectrum
 
-PEAK_METHODS = ("newton", "golden", "bfgs", "parabola", "grid")
+PEAK_METHODS = ("auto", "newton", "golden", "bfgs", "parabola", "grid")
 METRICS = ("vsotf", "strehl")
 
 
@@ -102,10 +108,20 @@ def refine_peak(value_fn, lower_D, upper_D, start_D, args, method: str = "newton
     atol_D : tolerance on the location, D
     """
     _check_method(method)
-    if method in ("parabola", "grid"):
-        raise ValueError(f"refine_peak needs a solver method, got {method!r}")
-    lower_D, upper_D, start_D = (jax.lax.stop_gradient(jnp.asarray(x, float))
-                                 for x in (lower_D, upper_D, start_D))
+    if method in ("parabola", "grid", "auto"):
+        raise ValueError(f"refine_peak needs a solver method (newton, golden, bfgs), got {method!r}")
+    bracket = (lower_D, upper_D, start_D)
+    if _is_concrete(*bracket):
+        lo, hi, start = (np.asarray(x, float) for x in bracket)
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(np.isfinite(start))):
+            raise ValueError("the bracket (lower_D, upper_D, start_D) must be finite")
+        if np.any(lo >= hi):
+            raise ValueError(
+                f"empty or one-point bracket: need lower_D < upper_D, got [{lo}, {hi}] D"
+            )
+    lower_D, upper_D, start_D = (jax.lax.stop_gradient(jnp.asarray(x, float)) for x in bracket)
+    lower_D = eqx.error_if(lower_D, ~(lower_D < upper_D),
+                           "empty or one-point bracket: need lower_D < upper_D")
     tolerances = dict(rtol=1e-7, atol=atol_D)
     if method == "newton":
         def slope(a, args):
@@ -237,7 +253,7 @@ def _bracket(states_D, index):
 
 def accommodation_peaks(
     eyes: Eyes, scene: Scene, spectrum: Spectrum, grid: Accommodation, config: PipelineConfig,
-    metric: str = "vsotf", method: str = "newton", allowed=None, prominence: float = 0.05,
+    metric: str = "vsotf", method: str = "auto", allowed=None, prominence: float = 0.05,
     atol_D: float = 1e-5, max_steps: int = 32,
 ) -> Peaks:
     """Continuous predicted accommodation of every eye and rendered depth (pure, jittable).
@@ -248,7 +264,7 @@ def accommodation_peaks(
     grid : Accommodation whose ``pair_index`` (n_depth, n_k) lists each depth's grid states
         in increasing accommodation (through_focus's grid)
     metric : "vsotf" or "strehl"
-    method : see the module docstring; "newton" by default
+    method : see the module docstring; "auto" by default
     allowed : (n_depth, n_k) bool, grid states to consider (default all)
     prominence : a second local maximum is reported when it stands this fraction of its
         value above the valley between it and the global one
@@ -262,7 +278,26 @@ def accommodation_peaks(
         raise ValueError(f"metric must be one of {METRICS}, got {metric!r}")
     reference = reference_normalisers(scene, spectrum, grid, config)
     on_grid = retinal_metrics(eyes, scene, spectrum, grid, config, reference)
-    values = getattr(on_grid, metric)  # (n_eyes, n_depth, n_k)
+    return peaks_from_grid(getattr(on_grid, metric), eyes, scene, spectrum, grid, config,
+                           reference, metric, method, allowed, prominence, atol_D, max_steps)
+
+
+def peaks_from_grid(
+    values, eyes: Eyes, scene: Scene, spectrum: Spectrum, grid: Accommodation,
+    config: PipelineConfig, reference, metric: str = "vsotf", method: str = "auto",
+    allowed=None, prominence: float = 0.05, atol_D: float = 1e-5, max_steps: int = 32,
+) -> Peaks:
+    """:func:`accommodation_peaks` from metric values already computed on the grid,
+    ``values`` (n_eyes, n_depth, n_k); ``reference`` = the scene's
+    :func:`lfjax.pipeline.reference_normalisers`."""
+    _check_method(method)
+    if method == "auto":
+        method = "newton" if metric == "vsotf" else "golden"
+    if grid.pair_index.shape[-1] < 2:
+        raise ValueError(
+            f"a peak needs a grid of >= 2 accommodation states per depth to bracket it, got "
+            f"{grid.pair_index.shape[-1]}"
+        )
     states = grid.states_D[grid.pair_index]  # (n_depth, n_k)
     allowed = jnp.ones(states.shape, bool) if allowed is None else jnp.asarray(allowed, bool)
     states_b = jnp.broadcast_to(states, values.shape)
@@ -308,6 +343,9 @@ def accommodation_peaks(
             v = jax.vmap(jax.vmap(value_fn))(a, (z_b, depths_b))
             return Peak(a, v, jnp.ones(a.shape, bool), jnp.full(a.shape, -1, jnp.int32),
                         jnp.zeros(a.shape, jnp.int32))
+        if method == "newton":  # start from the grid parabola's vertex: fewer steps
+            start = jnp.clip(parabola_vertex(states_b, jnp.where(allowed_b, values, -jnp.inf),
+                                             index), lo, hi)
         solve = lambda lo_, hi_, s_, z_, d_: refine_peak(  # noqa: E731
             value_fn, lo_, hi_, s_, (z_, d_), method, atol_D, max_steps)
         return jax.vmap(jax.vmap(solve))(lo, hi, start, z_b, depths_b)
@@ -348,5 +386,6 @@ __all__ = [
     "parabola_vertex",
     "accommodation_peaks",
     "accommodation_peaks_jit",
+    "peaks_from_grid",
     "result_name",
 ]

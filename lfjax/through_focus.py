@@ -19,7 +19,15 @@ from .layouts import Layout, open_pupil
 from .metrics import cutoff_frequency
 from .optics import _field_check, _is_concrete, _validate_coefficients, validate_pupil, validate_states
 from .options import ModelOptions
-from .pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics_jit, vsotf_and_strehl
+from .peaks import METRICS, PEAK_METHODS, Peaks, peaks_from_grid
+from .pipeline import (
+    Accommodation,
+    PipelineConfig,
+    Scene,
+    reference_normalisers,
+    retinal_metrics,
+    vsotf_and_strehl,
+)
 from .sampling import Sampling
 from .spectral import Spectrum, make_spectrum
 
@@ -39,6 +47,8 @@ class ThroughFocus(eqx.Module):
     cdp_D : float, D
     layout_name : str
     sampling : the Sampling used (planned by the field guard when none was given)
+    peaks : {metric: :class:`lfjax.peaks.Peaks`} continuous peaks refined from the grid
+        (``through_focus(continuous_peaks=...)``)
     """
 
     vsotf: jnp.ndarray
@@ -51,6 +61,7 @@ class ThroughFocus(eqx.Module):
     cdp_D: float = eqx.field(static=True)
     layout_name: str = eqx.field(static=True, default="custom")
     sampling: Sampling | None = eqx.field(static=True, default=None)
+    peaks: dict = eqx.field(default_factory=dict)
 
     def metric(self, name: str):
         if name not in ("vsotf", "strehl"):
@@ -78,6 +89,23 @@ class ThroughFocus(eqx.Module):
     def accommodation_error_D(self, metric: str = "vsotf"):
         """Predicted accommodation minus rendered depth, D (negative: focused farther)."""
         return self.predicted_accommodation_D(metric) - np.asarray(self.depths_D, float)[None, :]
+
+    def continuous_peaks(self, metric: str = "vsotf") -> Peaks:
+        """The continuous peaks of ``metric`` (:class:`lfjax.peaks.Peaks`, (n_eyes, n_depth))."""
+        if metric not in self.peaks:
+            raise ValueError(
+                f"no continuous peaks of {metric!r} were computed (have {sorted(self.peaks)}); "
+                f"pass continuous_peaks=({metric!r},) to through_focus"
+            )
+        return self.peaks[metric]
+
+    def continuous_accommodation_D(self, metric: str = "vsotf"):
+        """Continuous predicted accommodation (global maximum), D, (n_eyes, n_depth)."""
+        return np.asarray(self.continuous_peaks(metric).accommodation_D, float)
+
+    def continuous_error_D(self, metric: str = "vsotf"):
+        """Continuous predicted accommodation minus rendered depth, D."""
+        return self.continuous_accommodation_D(metric) - np.asarray(self.depths_D, float)[None, :]
 
     def mtf_at_peak(self, metric: str = "vsotf"):
         """Radial MTF at the predicted accommodation, (n_eyes, n_depth, n_freq)."""
@@ -158,6 +186,8 @@ def through_focus(
     window_D: float | None = None,
     eye_chunk: int | None = None,
     check_aliasing: bool = True,
+    continuous_peaks: tuple = (),
+    peak_method: str = "auto",
 ) -> ThroughFocus:
     """VSOTF, Strehl and radial MTF through focus for eyes × depths × accommodation states.
 
@@ -182,6 +212,10 @@ def through_focus(
         PSF field holds every blur and display shift; milliseconds,
         :func:`lfjax.planner.plan_sampling` with ``estimate_accuracy=False``). The result's
         ``sampling`` says what was used.
+    continuous_peaks : metrics ("vsotf", "strehl") whose continuous peak is refined from
+        the grid in the same compiled call (:mod:`lfjax.peaks`; ``()`` for grid peaks only)
+    peak_method : refinement, one of :data:`lfjax.peaks.PEAK_METHODS` ("auto": Newton for
+        VSOTF, golden section for the Strehl ratio)
 
     Elemental OTFs are computed once per distinct absolute state and reused by every depth.
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
@@ -194,9 +228,17 @@ def through_focus(
     depths = np.atleast_1d(np.asarray(cdp_D if depths_D is None else depths_D, float))
     if accommodation_D is not None and accommodation_offsets_D is not None:
         raise ValueError("give accommodation_D or accommodation_offsets_D, not both")
+    continuous_peaks = tuple(continuous_peaks)
+    for name in continuous_peaks:
+        if name not in METRICS:
+            raise ValueError(f"continuous_peaks must name metrics in {METRICS}, got {name!r}")
+    if peak_method not in PEAK_METHODS:
+        raise ValueError(f"peak_method must be one of {PEAK_METHODS}, got {peak_method!r}")
     if accommodation_D is not None:
         grid = np.atleast_1d(np.asarray(accommodation_D, float))
         _check_states(grid, depths)
+        if grid.size > 1 and np.any(np.diff(grid) <= 0):
+            raise ValueError("accommodation_D must be strictly increasing")
         index = np.broadcast_to(np.arange(grid.size), (depths.size, grid.size))
         allowed = np.ones(index.shape, bool)
         if window_D is not None:
@@ -236,9 +278,10 @@ def through_focus(
         )
     config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
                                   float(pupil_diameter_mm), sampling, options, eye_chunk)
-    metrics = retinal_metrics_jit(
+    metrics, peaks = _metrics_and_peaks(
         eyes, Scene.from_layout(layout, depths, cdp_D, pupil_diameter_mm), spectrum,
-        Accommodation.shared(grid, index, options, pupil_diameter_mm), config,
+        Accommodation.shared(grid, index, options, pupil_diameter_mm), config, allowed,
+        continuous_peaks, peak_method,
     )
     mask = jnp.asarray(allowed)
     # NaN marks states beyond the hyperopic limit (never computed); `allowed` says which.
@@ -246,8 +289,22 @@ def through_focus(
         jnp.where(mask[None], metrics.vsotf, jnp.nan), jnp.where(mask[None], metrics.strehl, jnp.nan),
         metrics.radial_mtf, jnp.arange(config.n_fft // 2 + 1) * sampling.freq_step_cpd,
         np.asarray(absolute, float), np.asarray(allowed), depths, float(cdp_D), layout.name,
-        sampling,
+        sampling, peaks,
     )
+
+
+@eqx.filter_jit
+def _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed, peak_metrics,
+                       peak_method):
+    """Grid metrics and the continuous peaks refined from them, in one compiled call."""
+    reference = reference_normalisers(scene, spectrum, accommodation, config)
+    metrics = retinal_metrics(eyes, scene, spectrum, accommodation, config, reference)
+    peaks = {
+        name: peaks_from_grid(getattr(metrics, name), eyes, scene, spectrum, accommodation,
+                              config, reference, name, peak_method, allowed)
+        for name in peak_metrics
+    }
+    return metrics, peaks
 
 
 def metrics_at(

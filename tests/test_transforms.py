@@ -92,6 +92,17 @@ def psf_vs_wavelength(wl):
     return psf[10:14, 10:14].ravel()
 
 
+def _bump(a, centre):
+    return jnp.exp(-0.5 * ((a - centre) / 0.4) ** 2) * (1.0 + 0.3 * (a - centre) ** 3)
+
+
+def peak_vs_centre(centre):
+    """refine_peak (the peak finder's solver, Newton) against the curve's centre, D."""
+    from lfjax.peaks import refine_peak
+
+    return refine_peak(_bump, 1.0, 1.4, 1.2, centre).accommodation_D
+
+
 CASES = {
     # name: (f, x0, batch, finite-difference step)
     "core_accommodation": (core_vs_accommodation, 2.3, [1.9, 2.3, 2.7], 1e-4),
@@ -100,6 +111,7 @@ CASES = {
     "metrics_at_depth": (metrics_at_vs_depth, 2.4, [2.0, 2.8], 1e-4),
     "metrics": (metrics_vs_otf_width, 4.0, [3.0, 5.0], 1e-5),
     "ncsf": (ncsf_vs_frequency, 7.0, [2.0, 9.0, 20.0], 1e-5),
+    "peak_finder": (peak_vs_centre, 1.23, [1.15, 1.23, 1.31], 1e-5),
 }
 
 

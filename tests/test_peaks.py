@@ -1,0 +1,234 @@
+"""Continuous accommodation peaks (lfjax.peaks): analytic curves, implicit gradients, the
+two-peaked Strehl curve, the hyperopic limit and the grid's far end, bad input, and the
+optimistix GoldenSearch trap the golden method works around."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+import pytest
+
+import lfjax
+from lfjax.peaks import accommodation_peaks_jit, refine_peak
+from lfjax.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
+
+import helpers as H
+
+SOLVERS = ("newton", "golden", "bfgs")
+
+
+# ----------------------------------------------------------------------------- analytic
+
+
+def _skewed_peak(a, args):
+    """A smooth, asymmetric single peak at a = args[0] (D): exp(−(a−c)²/(2s²))·(1 + k(a−c)³)."""
+    centre, width = args
+    x = a - centre
+    return jnp.exp(-0.5 * (x / width) ** 2) * (1.0 + 0.3 * x**3)
+
+
+@pytest.mark.parametrize("method", SOLVERS)
+@pytest.mark.parametrize("centre", [1.2345, 3.0071])
+def test_analytic_peak_recovered_to_1e4_D(method, centre):
+    """Maximum of x·exp(−x²/2s²)-free skewed bump: the exact location solves V'(a) = 0; the
+    solvers must find it to 1e-4 D from a 0.2 D bracket that does not straddle zero."""
+    args = (jnp.asarray(centre), jnp.asarray(0.4))
+    # exact maximum: root of the derivative by bisection in float64 on the host
+    f = lambda a: float(jax.grad(_skewed_peak)(jnp.asarray(a), args))  # noqa: E731
+    lo, hi = centre - 0.2, centre + 0.2
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) > 0 else (lo, mid)
+    exact = 0.5 * (lo + hi)
+    grid_peak = round(centre / 0.2) * 0.2
+    peak = refine_peak(_skewed_peak, grid_peak - 0.2, grid_peak + 0.2, grid_peak, args, method)
+    assert bool(peak.success)
+    assert abs(float(peak.accommodation_D) - exact) < 1e-4
+    assert int(peak.result) == 0
+
+
+def test_peak_on_bracket_end_is_pinned_with_zero_gradient():
+    """A maximum at the hyperopic limit (bracket end 0 D): Newton returns the end itself in
+    one step, and the location does not move with the curve's parameters."""
+    args = (jnp.asarray(-0.3), jnp.asarray(0.5))  # true maximum beyond the limit
+    peak = refine_peak(_skewed_peak, 0.0, 0.2, 0.1, args, "newton")
+    assert float(peak.accommodation_D) == 0.0 and bool(peak.success)
+    assert int(peak.n_steps) <= 2
+    grad = jax.grad(lambda c: refine_peak(_skewed_peak, 0.0, 0.2, 0.1, (c, args[1]),
+                                          "newton").accommodation_D)(args[0])
+    assert float(grad) == 0.0
+
+
+def test_implicit_gradient_of_analytic_peak():
+    """d(peak)/d(centre) = 1 for a curve that translates with its centre."""
+    for method in SOLVERS:
+        g = jax.grad(lambda c: refine_peak(_skewed_peak, 1.0, 1.4, 1.2, (c, jnp.asarray(0.4)),
+                                           method).accommodation_D)(jnp.asarray(1.23))
+        np.testing.assert_allclose(float(g), 1.0, rtol=1e-4, err_msg=method)
+
+
+# ----------------------------------------------------------------------------- pipeline
+
+
+OPTIONS = lfjax.ModelOptions(accommodation_sa="off", sce="off")
+SPECTRUM = lfjax.make_spectrum([550.0], OPTIONS)  # LCA = 0 at 550 nm
+SAMPLING = lfjax.Sampling(1.5)
+GRID = np.round(np.arange(0, 26) * 0.2, 9)
+
+
+def _pipeline(layout, depths, grid=GRID, window=1.0, options=OPTIONS, spectrum=SPECTRUM,
+              cdp_D=2.0):
+    cfg = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm, 3.0, SAMPLING,
+                               options)
+    scene = Scene.from_layout(layout, depths, cdp_D, 3.0)
+    index = np.broadcast_to(np.arange(grid.size), (len(depths), grid.size))
+    allowed = np.abs(grid[None] - np.asarray(depths)[:, None]) <= window + 1e-9
+    return cfg, scene, Accommodation.shared(grid, index, options, 3.0), allowed
+
+
+def _defocused_eye(dioptres):
+    z = np.zeros((1, 15))
+    z[0, 4] = dioptres * H.C20_PER_D_3MM
+    return lfjax.Eyes(z, 3.0)
+
+
+def test_defocused_eye_peak_is_exact_and_its_gradient_analytic(method="newton"):
+    """A monochromatic, SA-free eye with +0.37 D of its own defocus (myopic) viewing a point
+    on the display plane (CDP 2.5 D) through its whole pupil focuses 0.37 D short of it; the
+    implicit derivative of the peak with respect to c(2,0) is −1/(0.3248 µm/D) exactly
+    (DESIGN.md §1)."""
+    layout = lfjax.open_pupil(3.0)
+    cfg, scene, grid, allowed = _pipeline(layout, [2.5], cdp_D=2.5)
+
+    def peak_of(c20):
+        eyes = lfjax.Eyes(jnp.zeros((1, 15)).at[0, 4].set(c20), 3.0)
+        return accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf", method,
+                                       allowed).accommodation_D[0, 0]
+
+    c20 = 0.37 * H.C20_PER_D_3MM
+    np.testing.assert_allclose(float(peak_of(c20)), 2.5 - 0.37, atol=2e-4)
+    np.testing.assert_allclose(float(jax.grad(peak_of)(c20)), -1.0 / H.C20_PER_D_3MM, rtol=2e-3)
+
+
+def test_implicit_gradient_matches_finite_difference_of_the_resolved_peak():
+    """Aberrated eye, 2×2 views: d(peak)/d(z) along a random direction against central
+    differences of re-solved peaks (float64)."""
+    layout = lfjax.grid_layout(2, 3.0)
+    cfg, scene, grid, allowed = _pipeline(layout, [1.5], options=lfjax.ModelOptions(),
+                                          spectrum=lfjax.make_spectrum([550.0]))
+    spectrum = lfjax.make_spectrum([550.0])
+    z0 = jnp.asarray(np.asarray(lfjax.sample_eyes(2, 1).zernike_um)[0, :10])
+
+    def peak_of(z):
+        return accommodation_peaks_jit(lfjax.Eyes(z[None], 3.0), scene, spectrum, grid, cfg,
+                                       "vsotf", "newton", allowed).accommodation_D[0, 0]
+
+    v = H.random_direction(jax.random.key(3), z0)
+    directional = H.tree_vdot(jax.grad(peak_of)(z0), v)
+    fd = H.directional_fd(peak_of, z0, v, 1e-4)
+    assert abs(fd) > 1e-2
+    np.testing.assert_allclose(directional, fd, rtol=2e-4)
+
+
+def test_two_peaked_strehl_returns_global_maximum_and_reports_the_second():
+    """2×2 views, aberration-free eye, a point rendered 2 D behind the CDP (4 D): the Strehl
+    ratio peaks at the CDP (four sharp but separated images) and again near the rendered
+    depth. The default ("auto": golden section for Strehl) returns the global maximum of a
+    0.01 D grid and reports the second peak.
+
+    The PSF pixel is 0.25 arcmin here (n_fft 160): the sampled PSF's peak is the largest of
+    its pixels, so Strehl is only piecewise smooth in accommodation (wiggles of a few % at
+    0.6 arcmin pixels can move a 0.2 D grid's argmax to the wrong neighbour), and Newton,
+    which trusts derivatives, lands on a piece's end (2.2 D here) — hence "auto"."""
+    layout = lfjax.grid_layout(2, 3.0)
+    options = lfjax.ModelOptions()
+    spectrum = lfjax.make_spectrum([550.0], options)
+    cfg = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm, 3.0,
+                               lfjax.Sampling(1.5, n_fft=160), options)
+    scene = Scene.from_layout(layout, [4.0], 2.0, 3.0)
+    index = np.arange(GRID.size)[None]
+    allowed = np.abs(GRID[None] - 4.0) <= 2.6 + 1e-9
+    grid = Accommodation.shared(GRID, index, options, 3.0)
+    eyes = lfjax.eyes.aberration_free_eye()
+    peaks = accommodation_peaks_jit(eyes, scene, spectrum, grid, cfg, "strehl", "auto", allowed)
+    main, second = float(peaks.accommodation_D[0, 0]), float(peaks.second_accommodation_D[0, 0])
+    fine = np.round(np.arange(140, 501) * 0.01, 9)
+    dense = np.asarray(retinal_metrics(
+        eyes, scene, spectrum, Accommodation.shared(fine, np.arange(fine.size)[None], options, 3.0),
+        cfg).strehl[0, 0])
+    assert abs(main - fine[np.argmax(dense)]) <= 0.02
+    assert float(peaks.value[0, 0]) >= dense.max() - 1e-3
+    assert bool(peaks.success[0, 0])
+    assert 3.5 <= second <= 4.2, f"second peak (near the rendered depth) not reported: {second}"
+    assert float(peaks.second_value[0, 0]) < float(peaks.value[0, 0])
+    newton = accommodation_peaks_jit(eyes, scene, spectrum, grid, cfg, "strehl", "newton", allowed)
+    assert abs(float(newton.accommodation_D[0, 0]) - fine[np.argmax(dense)]) > 0.05
+
+
+def test_hyperopic_limit_and_far_grid_end_are_flagged():
+    """An eye that wants to relax beyond infinity peaks at 0 D (flagged, successful); a peak
+    beyond the last grid state is flagged and not reported as successful."""
+    layout = lfjax.open_pupil(3.0)
+    eyes = lfjax.Eyes(np.concatenate([_defocused_eye(0.6).zernike_um,
+                                      _defocused_eye(-1.3).zernike_um]), 3.0)
+    result = {}
+    for depth in (0.2, 4.5):  # a point on the display plane, viewed through the whole pupil
+        cfg, scene, grid, allowed = _pipeline(layout, [depth], window=1.5, cdp_D=depth)
+        result[depth] = accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf",
+                                                "newton", allowed)
+    near, far = result[0.2], result[4.5]
+    # eye 0 (+0.6 D myopic) at 0.2 D: wants −0.4 D → held at 0 D
+    assert float(near.accommodation_D[0, 0]) == 0.0
+    assert bool(near.at_hyperopic_limit[0, 0]) and bool(near.success[0, 0])
+    # eye 1 (−1.3 D hyperopic) at 4.5 D: wants 5.8 D, beyond the 5 D grid end
+    assert bool(far.at_grid_edge[1, 0]) and not bool(far.success[1, 0])
+    # the other two are ordinary peaks
+    assert bool(near.success[1, 0]) and bool(far.success[0, 0])
+    np.testing.assert_allclose(float(near.accommodation_D[1, 0]), 0.2 + 1.3, atol=2e-4)
+    np.testing.assert_allclose(float(far.accommodation_D[0, 0]), 4.5 - 0.6, atol=2e-4)
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+def test_bad_brackets_are_refused():
+    args = (jnp.asarray(1.0), jnp.asarray(0.4))
+    with pytest.raises(ValueError, match="empty or one-point bracket"):
+        refine_peak(_skewed_peak, 1.0, 1.0, 1.0, args)
+    with pytest.raises(ValueError, match="empty or one-point bracket"):
+        refine_peak(_skewed_peak, 2.0, 1.0, 1.5, args)
+    with pytest.raises(ValueError, match="must be finite"):
+        refine_peak(_skewed_peak, float("nan"), 1.0, 0.5, args)
+    with pytest.raises(ValueError, match="method must be one of"):
+        refine_peak(_skewed_peak, 0.0, 1.0, 0.5, args, "simplex")
+    traced = jax.jit(lambda lo: refine_peak(_skewed_peak, lo, 1.0, 0.5, args).accommodation_D)
+    with pytest.raises(Exception, match="empty or one-point bracket"):
+        jax.block_until_ready(traced(jnp.asarray(1.0)))
+
+
+def test_one_state_grid_is_refused():
+    layout = lfjax.open_pupil(3.0)
+    cfg, scene, grid, _ = _pipeline(layout, [2.0], grid=np.array([2.0]))
+    with pytest.raises(ValueError, match=">= 2 accommodation states"):
+        accommodation_peaks_jit(H.dl_eye(), scene, SPECTRUM, grid, cfg)
+
+
+# ----------------------------------------------------------------------------- upstream trap
+
+
+def test_optimistix_golden_search_still_needs_the_offset_workaround():
+    """optimistix 0.1.0's GoldenSearch puts its first midpoint at (upper − lower)/(φ + 1),
+    not lower + …, so a bracket that does not straddle zero diverges (optimistix issue #236,
+    fixed upstream by PR #237). lfjax searches the offset from the bracket centre instead.
+    When this test fails, a release has fixed the bug: drop the workaround in
+    ``lfjax.peaks.refine_peak`` (golden branch) and this test."""
+    sol = optx.minimise(lambda x, _: (x - 3.0) ** 2, optx.GoldenSearch(rtol=1e-6, atol=1e-6),
+                        jnp.asarray(3.0), None, options=dict(lower=2.0, upper=4.0), throw=False,
+                        max_steps=64)
+    broken = abs(float(sol.value) - 3.0) > 0.1
+    assert broken, "optimistix GoldenSearch now honours the bracket: remove lfjax's workaround"
+    # the workaround itself finds the peak
+    peak = refine_peak(lambda a, _: -((a - 3.0) ** 2), 2.0, 4.0, 3.0, None, "golden")
+    assert abs(float(peak.accommodation_D) - 3.0) < 1e-4
