@@ -14,7 +14,10 @@ from . import eyes as eyes
 from . import layouts as layouts
 from . import metrics as metrics
 from . import optics as optics
+from . import peaks as peaks
+from . import pipeline as pipeline
 from . import planner as planner
+from . import psf as psf
 from . import spectral as spectral
 from . import through_focus as through_focus
 from . import units as units
@@ -27,7 +30,7 @@ from .layouts import hex_layout as hex_layout
 from .layouts import make_layout as make_layout
 from .layouts import open_pupil as open_pupil
 from .options import ModelOptions as ModelOptions
-from .optics import monochromatic_psf as monochromatic_psf
+from .psf import monochromatic_psf as monochromatic_psf
 from .optics import polychromatic_otf as polychromatic_otf
 from .sampling import Sampling as Sampling
 from .spectral import make_spectrum as make_spectrum

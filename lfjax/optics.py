@@ -13,7 +13,6 @@ rendered depth is then a phase ramp and a sum (DESIGN.md §3).
 from __future__ import annotations
 
 import math
-from functools import partial
 
 import equinox as eqx
 import jax
@@ -21,11 +20,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .eyes import Eyes
-from .layouts import Layout, open_pupil
+from .layouts import Layout
 from .options import ModelOptions
-from .sampling import Sampling, blur_radius_arcmin, check_field, eye_slope_rad, wavelength_bands
+from .sampling import Sampling, blur_radius_arcmin, check_field, eye_slope_rad
 from .spectral import Spectrum, make_spectrum
-from .units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN, dioptres_to_c20_um
+from .units import DEGREES_PER_RADIAN, dioptres_to_c20_um
 from .zernike import wavefront_um, zernike_mode
 
 # ----------------------------------------------------------------------------- apertures
@@ -495,85 +494,6 @@ def psf_from_otf(otf_half, n_fft: int, freq_step_cpd: float):
     return jnp.fft.fftshift(psf, axes=(-2, -1))
 
 
-def monochromatic_psf(
-    coefficients_um,
-    measured_pupil_mm: float,
-    pupil_diameter_mm: float,
-    wavelength_nm: float,
-    pixel_arcmin: float,
-    n_pixels: int,
-    defocus_D: float = 0.0,
-    sce_rho_per_mm2: float = 0.0,
-    pupil_samples: int = 128,
-    edge_width_samples: float = 0.25,
-):
-    """Monochromatic PSF by a matrix Fourier transform, normalised to unit sum.
-
-    Parameters
-    ----------
-    coefficients_um : (n_modes,) µm, OSA/ANSI on ``measured_pupil_mm``
-    measured_pupil_mm, pupil_diameter_mm : mm (calculation pupil ≤ measured)
-    wavelength_nm : nm
-    pixel_arcmin : float, arcmin per PSF pixel
-    n_pixels : int, PSF is n_pixels × n_pixels; zero angle at index n_pixels // 2
-    defocus_D : added defocus, D (positive = myopic)
-    sce_rho_per_mm2 : Stiles–Crawford ρ applied as amplitude 10^(−ρ r²)
-    pupil_samples : samples across the pupil diameter (the grid extends past the edge so
-        the anti-aliased edge is evaluated in full)
-    edge_width_samples : logistic edge scale, in pupil samples
-
-    Returns
-    -------
-    (n_pixels, n_pixels) array ``[y, x]`` summing to 1 (point samples of the PSF).
-    """
-    validate_pupil(pupil_diameter_mm, measured_pupil_mm)
-    if not (pixel_arcmin > 0):
-        raise ValueError(f"pixel_arcmin must be > 0, got {pixel_arcmin}")
-    if int(n_pixels) != n_pixels or n_pixels < 2:
-        raise ValueError(f"n_pixels must be an integer >= 2, got {n_pixels}")
-    coefficients_um = jnp.asarray(coefficients_um, float)
-    _validate_coefficients(coefficients_um)
-    if not (380.0 <= float(wavelength_nm) <= 830.0):
-        raise ValueError(f"wavelength_nm must be in 380–830 nm, got {wavelength_nm}")
-    return _monochromatic_psf(
-        coefficients_um, float(measured_pupil_mm), jnp.asarray(pupil_diameter_mm, float),
-        jnp.asarray(wavelength_nm, float), jnp.asarray(pixel_arcmin, float), int(n_pixels),
-        jnp.asarray(defocus_D, float), jnp.asarray(sce_rho_per_mm2, float), int(pupil_samples),
-        float(edge_width_samples),
-    )
-
-
-@partial(
-    jax.jit,
-    static_argnames=("measured_pupil_mm", "n_pixels", "pupil_samples", "edge_width_samples"),
-)
-def _monochromatic_psf(
-    coefficients_um, measured_pupil_mm, pupil_diameter_mm, wavelength_nm, pixel_arcmin,
-    n_pixels, defocus_D, sce_rho, pupil_samples, edge_width_samples,
-):
-    from .sampling import EDGE_EXTENT_SCALES
-
-    dx = pupil_diameter_mm / pupil_samples
-    n_grid = pupil_samples + 2 * int(math.ceil(EDGE_EXTENT_SCALES * edge_width_samples + 1))
-    k = jnp.arange(n_grid) - (n_grid - 1) / 2.0
-    x = k * dx
-    xx, yy = jnp.meshgrid(x, x)
-    r2 = xx * xx + yy * yy
-    r_pupil = 0.5 * pupil_diameter_mm
-    amp = soft_disk(r2, r_pupil, edge_width_samples * dx) * jnp.power(10.0, -sce_rho * r2)
-    r_meas = 0.5 * measured_pupil_mm
-    w = wavefront_um(coefficients_um, xx / r_meas, yy / r_meas)
-    w = w + dioptres_to_c20_um(defocus_D, pupil_diameter_mm) * zernike_mode(
-        4, xx / r_pupil, yy / r_pupil
-    )
-    field = amp * jnp.exp((-2j * jnp.pi / (wavelength_nm * 1e-3)) * w)
-    theta_rad = (jnp.arange(n_pixels) - n_pixels // 2) * pixel_arcmin / ARCMIN_PER_RADIAN
-    kernel = jnp.exp((-2j * jnp.pi / (wavelength_nm * 1e-6)) * theta_rad[:, None] * x[None, :])
-    g = kernel @ field @ kernel.T  # rows: θ_y, columns: θ_x
-    psf = jnp.abs(g) ** 2
-    return psf / jnp.sum(psf)
-
-
 __all__ = [
     "soft_disk",
     "disk_edge_distance",
@@ -584,7 +504,6 @@ __all__ = [
     "OTFStack",
     "polychromatic_otf",
     "psf_from_otf",
-    "monochromatic_psf",
     "validate_pupil",
     "field_radius_arcmin",
 ]

@@ -332,7 +332,7 @@ def peaks_from_grid(
     depths_b = jnp.broadcast_to(scene.depths_D[None, :], values.shape[:2])
     z_b = jnp.broadcast_to(eyes.zernike_um[:, None, :], values.shape[:2] + eyes.zernike_um.shape[-1:])
 
-    def refine(index):
+    def refine(index):  # index (n_eyes, n_depth)
         lo, hi = bracket_of(index)
         start = take(states_b, index)
         if method == "grid":
@@ -350,11 +350,12 @@ def peaks_from_grid(
             value_fn, lo_, hi_, s_, (z_, d_), method, atol_D, max_steps)
         return jax.vmap(jax.vmap(solve))(lo, hi, start, z_b, depths_b)
 
-    main = refine(best)
     has_second = second >= 0
-    # Most curves have one peak: refine second candidates only when some curve has one.
-    other = jax.lax.cond(jnp.any(has_second), lambda: refine(jnp.where(has_second, second, best)),
-                         lambda: main)
+    # Both candidates in one batched solve: one compiled solver (a lax.cond between two
+    # solves compiled the pipeline's derivatives twice).
+    both = jax.vmap(refine)(jnp.stack([best, jnp.where(has_second, second, best)]))
+    main = jax.tree_util.tree_map(lambda x: x[0], both)
+    other = jax.tree_util.tree_map(lambda x: x[1], both)
     swap = has_second & (other.value > main.value)
     pick = lambda a, b: jnp.where(swap, b, a)  # noqa: E731
     peak = jax.tree_util.tree_map(pick, main, other)

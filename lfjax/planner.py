@@ -55,7 +55,7 @@ from .layouts import Layout, open_pupil
 from .metrics import _half_plane_weights_np, ncsf
 from .optics import field_radius_arcmin, pupil_window_size, sa_parameters
 from .options import ModelOptions
-from .sampling import EDGE_EXTENT_SCALES, Sampling, next_fast_size, wavelength_bands
+from .sampling import EDGE_EXTENT_SCALES, Sampling, wavelength_bands
 from .spectral import Spectrum, make_spectrum
 from .units import DEGREES_PER_RADIAN
 from .zernike import n_modes_for_order, nm_from_ansi, zernike_basis

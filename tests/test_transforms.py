@@ -112,6 +112,7 @@ CASES = {
     "metrics": (metrics_vs_otf_width, 4.0, [3.0, 5.0], 1e-5),
     "ncsf": (ncsf_vs_frequency, 7.0, [2.0, 9.0, 20.0], 1e-5),
     "peak_finder": (peak_vs_centre, 1.23, [1.15, 1.23, 1.31], 1e-5),
+    "monochromatic_psf": (psf_vs_wavelength, 560.0, [480.0, 620.0], 1e-3),
 }
 
 
