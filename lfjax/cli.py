@@ -1,4 +1,5 @@
-"""Command line: ``lfjax reproduce`` (the paper's study: results, tables, figures, report).
+"""Command line: ``lfjax reproduce`` (the paper's study: results, tables, figures, report)
+and ``lfjax optimise`` (fit a subaperture layout to virtual eyes, report it on held-out eyes).
 
 Usage errors print one line and exit with status 2; failures during the run print one line
 and exit with status 1, leaving no partial output.
@@ -7,6 +8,7 @@ and exit with status 1, leaving no partial output.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -74,6 +76,50 @@ def _seed(text: str) -> int:
     return value
 
 
+def _finite_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
+    return value
+
+
+def _count(text: str) -> int:
+    """Whole number >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
+    return value
+
+
+def _objective(text: str):
+    """A name, or comma-separated name=weight pairs."""
+    from .layout_opt import OBJECTIVES, Objective
+
+    if "=" not in text:
+        if text not in OBJECTIVES:
+            raise argparse.ArgumentTypeError(
+                f"choose from {', '.join(OBJECTIVES)} or weights like depth_of_field=1,resolution=0.01; "
+                f"got {text!r}")
+        return Objective.parse(text)
+    weights = {}
+    for part in text.split(","):
+        name, _, weight = part.partition("=")
+        try:
+            weights[name.strip()] = _finite_float(weight)
+        except argparse.ArgumentTypeError as err:
+            raise argparse.ArgumentTypeError(f"weight of {name.strip()!r}: {err}") from None
+    try:
+        return Objective.parse(weights)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _OneLineParser(
         prog=PROG,
@@ -133,7 +179,87 @@ def build_parser() -> argparse.ArgumentParser:
                           "'lfjax reproduce' (other non-empty folders are never replaced)")
     rep.add_argument("--no-progress", action="store_true",
                      help="do not show the progress bar (on stderr)")
+    _add_optimise_parser(sub)
     return parser
+
+
+def _add_optimise_parser(sub) -> None:
+    opt = sub.add_parser(
+        "optimise",
+        help="fit a subaperture layout to virtual eyes; layout.json and figures",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Fit the subaperture layout of a light-field display to a training population of\n"
+            "virtual eyes (Thibos et al. 2002; seed S) and report it on a held-out population\n"
+            "(seed S+1). Objectives (lfjax.layout_opt): depth_of_field = mean VSOTF at the\n"
+            "correct accommodation over the rendered depths (maximised); accommodation =\n"
+            "mean squared error (D^2) of the continuous VSOTF peak within +-0.3 D of each\n"
+            "depth (minimised); resolution = smooth MTF cut-off at MTF 0.05, cpd\n"
+            "(maximised); or weights, e.g. depth_of_field=1,resolution=0.01. VSOTF is scored\n"
+            "against the natural open pupil (a reference that does not move with the layout).\n"
+            "The start is the tangent lattice (the paper's n x n grids for square), moved\n"
+            "into the constraints (and 2 % inside them for --solver bfgs).\n\n"
+            "Outputs in DIR: layout.json (centres_mm, diameters_mm, pupil_diameter_mm, name,\n"
+            "objective with before/after values, provenance), layouts.png (before/after),\n"
+            "through_focus.png (population-mean VSOTF before/after), history.png (loss per\n"
+            "step). Units: mm in the pupil, dioptres (D), cycles per degree (cpd), nm."
+        ),
+    )
+    opt.add_argument("--objective", type=_objective, default="depth_of_field", metavar="OBJ",
+                     help="depth_of_field (default), accommodation, resolution, or weights "
+                          "name=w,name=w (loss = -w*VSOTF + w*D^2 - w*cpd)")
+    opt.add_argument("--views", metavar="N", type=_positive_int, default=4,
+                     help="number of views, >= 1 (square lattice: n*n, e.g. 4, 9, 16; hex: any, "
+                          "7 and 19 fill rings; default 4)")
+    opt.add_argument("--parametrisation", choices=("lattice", "free"), default="lattice",
+                     help="lattice: pitch, diameter, rotation; free: every centre and diameter "
+                          "(default lattice)")
+    opt.add_argument("--lattice", choices=("square", "hex"), default="square",
+                     help="lattice of the start (and of the fit with --parametrisation lattice)")
+    opt.add_argument("--depths", metavar=("LOW", "HIGH"), nargs=2, type=_finite_float,
+                     default=(0.0, 4.0),
+                     help="rendered depth range in D, 0 <= LOW < HIGH (default 0 4)")
+    opt.add_argument("--n-depths", metavar="K", type=_positive_int, default=5,
+                     help="rendered depths evenly spanning the range, >= 2 (default 5)")
+    opt.add_argument("--cdp", metavar="D", type=_finite_float, default=2.0,
+                     help="central depth plane of the display, D >= 0 (default 2)")
+    opt.add_argument("--pupil", metavar="MM", type=_finite_float, default=3.0,
+                     help="pupil diameter, mm, in (0, 3] for the 3 mm eye statistics (default 3)")
+    opt.add_argument("--max-diameter", metavar="MM", type=_finite_float, default=None,
+                     help="largest subaperture diameter, mm (default: the pupil; smaller is "
+                          "faster)")
+    opt.add_argument("--min-diameter", metavar="MM", type=_finite_float, default=0.5,
+                     help="smallest subaperture diameter, mm (default 0.5)")
+    opt.add_argument("--containment", choices=("centre", "contained"), default="centre",
+                     help="centre: |centre| <= pupil radius, the pupil crops the rest "
+                          "(default); contained: |centre| + d/2 <= pupil radius")
+    opt.add_argument("--non-overlap", action="store_true", help="subapertures must not overlap")
+    opt.add_argument("--train-eyes", metavar="N", type=_positive_int, default=10,
+                     help="training eyes, >= 1 (default 10)")
+    opt.add_argument("--test-eyes", metavar="N", type=_count, default=200,
+                     help="held-out eyes, >= 0 (default 200; 0: none)")
+    opt.add_argument("--seed", metavar="S", type=_seed, default=0,
+                     help="training eyes from seed S, held-out eyes from S+1 (default 0)")
+    opt.add_argument("--wavelengths", metavar="NM", nargs="+", type=_finite_float,
+                     default=[450.0, 550.0, 650.0],
+                     help="wavelengths, nm, increasing, 400-700 (default 450 550 650)")
+    opt.add_argument("--freq-step", metavar="CPD", type=_finite_float, default=None,
+                     help="frequency step, cpd (default: the planner's aliasing guard for every "
+                          "feasible layout)")
+    opt.add_argument("--solver", choices=("lbfgsb", "bfgs"), default="lbfgsb",
+                     help="lbfgsb: jaxopt L-BFGS-B in box coordinates (default); bfgs: "
+                          "optimistix BFGS in unconstrained coordinates, which reach a bound "
+                          "only asymptotically (prefer lbfgsb when the start or the optimum "
+                          "sits on one, e.g. tangent discs with --non-overlap)")
+    opt.add_argument("--steps", metavar="N", type=_count, default=40,
+                     help="solver steps, >= 0 (default 40)")
+    opt.add_argument("--out", metavar="DIR", default="lfjax-layout",
+                     help="output folder; must be new or empty unless --force "
+                          "(default: ./lfjax-layout)")
+    opt.add_argument("--force", action="store_true",
+                     help="write into a non-empty DIR (files of the same names are replaced)")
+    opt.add_argument("--no-progress", action="store_true",
+                     help="do not show the progress bar (on stderr)")
 
 
 def _reproduce(args, t_start: float) -> int:
@@ -174,6 +300,131 @@ def _reproduce(args, t_start: float) -> int:
     return 0
 
 
+def _optimise_setup(args):
+    """Everything validated before any computation: (objective, constraints, depths, out)."""
+    from .layout_opt import Constraints, depth_grid, lattice_sites
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()) and not args.force:
+        raise ValueError(f"--out {out} is not empty (use --force to write into it)")
+    if not (0.0 < args.pupil <= 3.0):
+        raise ValueError(f"--pupil must be in (0, 3] mm (the eyes are measured on 3 mm), got {args.pupil:g}")
+    if args.depths[0] < 0 or args.depths[1] < 0:
+        raise ValueError(f"--depths must be >= 0 D (0 D is optical infinity), got {args.depths[0]:g} "
+                         f"{args.depths[1]:g}")
+    if not args.depths[1] > args.depths[0]:
+        raise ValueError(f"--depths must satisfy LOW < HIGH, got {args.depths[0]:g} {args.depths[1]:g} "
+                         f"({'empty' if args.depths[1] == args.depths[0] else 'inverted'} range)")
+    if args.n_depths < 2:
+        raise ValueError(f"--n-depths must be >= 2 for a depth range, got {args.n_depths}")
+    if args.cdp < 0:
+        raise ValueError(f"--cdp must be >= 0 D, got {args.cdp:g}")
+    if args.freq_step is not None and not args.freq_step > 0:
+        raise ValueError(f"--freq-step must be > 0 cpd, got {args.freq_step:g}")
+    wl = args.wavelengths
+    if any(w < 400 or w > 700 for w in wl) or any(b <= a for a, b in zip(wl, wl[1:])):
+        raise ValueError(f"--wavelengths must increase within 400-700 nm, got {wl}")
+    try:
+        constraints = Constraints(args.pupil, args.max_diameter, args.min_diameter,
+                                  args.containment, args.non_overlap)
+    except ValueError as err:
+        msg = str(err).replace("max_diameter_mm", "--max-diameter").replace(
+            "min_diameter_mm", "--min-diameter")
+        raise ValueError(msg) from None
+    try:
+        lattice_sites(args.lattice, args.views)
+    except ValueError as err:
+        raise ValueError(f"--views: {err}") from None
+    depths = depth_grid(args.depths[0], args.depths[1], args.n_depths)
+    return args.objective, constraints, depths, out
+
+
+def _optimise(args, t_start: float) -> int:
+    prog = f"{PROG} optimise"
+    try:
+        objective, constraints, depths, out = _optimise_setup(args)
+        from .layout_opt import feasible_start, free_params, initial_lattice, to_box
+
+        # BFGS moves in sigmoid coordinates, which cannot leave a bound: start 2 % inside
+        margin = 0.02 if args.solver == "bfgs" else 0.0
+        start = initial_lattice(args.lattice, args.views, constraints, margin)
+        if args.parametrisation == "free":
+            start = feasible_start(free_params(start.centres_mm, start.diameters_mm), constraints,
+                                   margin)
+        to_box(start, constraints)  # raises if no feasible start exists
+    except ValueError as err:
+        print(f"{prog}: error: {err}", file=sys.stderr)
+        return 2
+    enable_compilation_cache()
+    try:
+        result = run_optimise(args, objective, constraints, depths, out, start)
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as err:  # one line, no traceback
+        message = " ".join(str(err).split()) or type(err).__name__
+        print(f"{prog}: error: {type(err).__name__}: {message}", file=sys.stderr)
+        if os.environ.get("LFJAX_DEBUG"):
+            raise
+        return 1
+    print(result["summary"])
+    print(f"{prog}: wrote {len(result['files'])} files to {out} in "
+          f"{time.perf_counter() - t_start:.1f} s")
+    return 0
+
+
+def run_optimise(args, objective, constraints, depths, out: Path, start) -> dict:
+    """The optimise command's computation and files (inputs validated by the caller)."""
+    import numpy as np
+
+    from . import layout_opt as lo
+    from . import layout_plots
+    from .eyes import sample_eyes
+    from .sampling import Sampling
+
+    train = sample_eyes(args.seed, args.train_eyes)
+    test = sample_eyes(args.seed + 1, args.test_eyes) if args.test_eyes > 0 else None
+    planning = train if test is None else type(train)(
+        np.concatenate([np.asarray(train.zernike_um), np.asarray(test.zernike_um)]),
+        train.measured_pupil_mm)
+    sampling = None if args.freq_step is None else Sampling(args.freq_step)
+    problem = lo.make_problem(train, depths, constraints, objective, cdp_D=args.cdp,
+                              wavelengths_nm=args.wavelengths, sampling=sampling,
+                              planning_eyes=planning)
+    fit = lo.optimise_layout(start, problem, method=args.solver, max_steps=args.steps,
+                             test_eyes=test, progress=not args.no_progress,
+                             name=f"optimised-{args.parametrisation}-{args.views}")
+    shown = test if test is not None else train
+    shown = shown[: min(shown.n_eyes, 20)]
+    curves = {"before": lo.through_focus_curves(fit.initial_params, problem, eyes=shown),
+              "after": lo.through_focus_curves(fit.params, problem, eyes=shown)}
+    out.mkdir(parents=True, exist_ok=True)
+    files = layout_plots.save_fit_figures(fit, curves, out)
+
+    def brief(ev):
+        return None if ev is None else {k: {m: v for m, v in ev[k].items() if m != "values"}
+                                        for k in ("before", "after")}
+
+    record_objective = dict(fit.objective.as_dict(), name=fit.objective.name,
+                            train=brief(fit.train), test=brief(fit.test))
+    provenance = {
+        "command": "lfjax " + " ".join(getattr(args, "argv", None) or ["optimise", "..."]),
+        "seed_train": args.seed, "n_train_eyes": args.train_eyes,
+        "seed_test": args.seed + 1 if test is not None else None, "n_test_eyes": args.test_eyes,
+        "depths_D": depths.tolist(), "cdp_D": args.cdp, "wavelengths_nm": list(args.wavelengths),
+        "freq_step_cpd": problem.config.freq_step_cpd, "solver": fit.method,
+        "steps": fit.n_steps, "converged": fit.converged, "time_s": round(fit.time_s, 2),
+        "constraints": constraints.as_dict(), "model_options": problem.options.as_dict(),
+        "history": fit.history.tolist(),
+    }
+    files.append(lo.save_layout_json(out / "layout.json", fit.layout, constraints.pupil_diameter_mm,
+                                     objective=record_objective, provenance=provenance,
+                                     parameters=fit.params))
+    return {"fit": fit, "files": files, "summary": fit.summary()}
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``lfjax`` console script; returns the exit status."""
     t_start = time.perf_counter()
@@ -187,6 +438,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.command == "reproduce":
         return _reproduce(args, t_start)
+    if args.command == "optimise":
+        args.argv = list(sys.argv[1:] if argv is None else argv)
+        return _optimise(args, t_start)
     return 2  # pragma: no cover - argparse rejects unknown commands
 
 

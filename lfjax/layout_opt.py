@@ -1,0 +1,1584 @@
+"""Subaperture layout optimisation: fit where the views enter the pupil and how large they are.
+
+A light-field display samples the eye's pupil with subapertures (views). Their layout sets
+the depth of field, the accommodation the display drives and the resolution the eye sees.
+This module fits a layout to a population of virtual eyes with the pure, differentiable
+pipeline (:func:`lfjax.pipeline.retinal_metrics`) and reports it on a held-out population.
+
+Parametrisations
+----------------
+:class:`LatticeParams`
+    a square (n×n) or hexagonal lattice: pitch (mm), one subaperture diameter (mm) and a
+    rotation (rad). The lattice sites are chosen once (``lattice_sites``), so the view count
+    and every array shape stay fixed during a fit.
+:class:`FreeParams`
+    free centres (n_views, 2) and diameters (n_views,), mm.
+
+Both expose ``centres_mm`` and ``diameters_mm``, differentiable in their leaves, and so does
+:class:`lfjax.layouts.Layout`; every objective accepts any of the three.
+
+Constraints (:class:`Constraints`)
+----------------------------------
+* inside the pupil, one of two readings (``containment``):
+  ``"centre"`` (default) — each subaperture's centre lies in the pupil, |c| ≤ R. The pupil
+  crops the rest, as it crops the paper's tangent n×n grids (whose corner views reach
+  beyond the pupil: |c| + d/2 > R), and every view transmits light (at least the part of
+  its disc on the pupil side of its centre). ``"contained"`` — each disc lies wholly in
+  the pupil, |c| + d/2 ≤ R (the paper's grids violate it);
+* diameters in [``min_diameter_mm``, ``max_diameter_mm``] (positive by construction;
+  ``max_diameter_mm`` also sizes the static FFT windows);
+* optionally no overlap, |c_i − c_j| ≥ (d_i + d_j)/2 (``non_overlap``).
+
+Violations are impossible by construction: a fit moves in *feasible coordinates* whose
+every value maps to a feasible layout, and a starting layout that is not feasible raises a
+``ValueError`` naming the parameter and its allowed range. (One degenerate exception: free
+views that must not overlap and whose centres coincide exactly would need a zero diameter;
+the pipeline refuses it, "diameters_mm must be > 0 mm".) Two coordinate systems, two
+solvers:
+
+* ``method="lbfgsb"`` — box coordinates, solved with ``jaxopt.LBFGSB``. Lattice: diameter
+  and pitch as fractions in [0, 1] of their feasible interval (the pitch interval depends
+  on the diameter when discs must be contained or must not overlap), rotation in
+  ±π/4 (square) or ±π/6 (hex). Free: each centre a point of the square [−1, 1]² mapped onto
+  the pupil disc by the elliptical grid map (smooth, one-to-one; Fong 2015), each diameter
+  a fraction in [0, 1] between the lower bound and its cap (the largest diameter the
+  constraints allow at that centre: ``max_diameter_mm``, 2(R − |c|) when contained, a
+  smooth lower bound of the nearest other centre's distance when views must not overlap).
+* ``method="bfgs"`` — unconstrained coordinates, solved with ``optimistix.BFGS``:
+  fractions = sigmoid(u), centre = R·tanh(|u|)·u/|u| (the tanh-radial map of the plane
+  onto the open disc), rotation free.
+
+Objectives (each a mean over the eyes and the rendered depths of the problem)
+-------------------------------------------------------------------------------
+``"depth_of_field"`` (maximised)
+    population-mean VSOTF at the correct accommodation (accommodation = rendered depth),
+    :func:`depth_of_field`.
+``"accommodation"`` (minimised)
+    mean squared error (D²) of the predicted accommodation, the continuous VSOTF peak
+    refined by :func:`lfjax.peaks.refine_peak` (Newton, implicitly differentiated) on the
+    bracket depth ± ``bracket_D`` (lower end ≥ 0 D), started at the depth,
+    :func:`accommodation_mse`. A peak on a bracket end counts with its error but gives no
+    gradient (the constraint is active).
+``"resolution"`` (maximised)
+    a smooth MTF cut-off (cpd) at the correct accommodation: the frequency extent over
+    which the radial MTF exceeds ``mtf_threshold`` (0.05, the paper's cut-off criterion),
+    counted with a logistic step of width ``mtf_softness`` instead of a hard threshold,
+    :func:`soft_cutoff_cpd`. For a monotone MTF it equals the cut-off frequency to within
+    the frequency step; where the MTF of an off-CDP rendering dips below the threshold and
+    rises again, the bands above it count too.
+
+A dict of weights gives a weighted sum: loss = −w_dof·DoF + w_acc·MSE − w_res·resolution
+(units: VSOTF, D², cpd — scale the weights accordingly, e.g. resolution 0.01 per cpd).
+
+Why the open-pupil VSOTF reference is enforced
+-----------------------------------------------
+The paper normalises VSOTF by the same layout without aberrations. That reference moves
+with the layout: shrink the subapertures and reference and eye both lose contrast, but
+the eye's defocus and aberrations matter less, so the ratio rises. Every objective then
+rewards shrinking the subapertures without bound (measured: 2×2 at 1.5 mm pitch, 4 seeded
+eyes, correct accommodation at 0–4 D, mean VSOTF 0.83 at d = 0.5 mm against 0.46 at the
+tangent 1.5 mm). Scored against the natural open pupil (``ModelOptions(vsotf_reference=
+"open_pupil")``, a reference that does not depend on the layout) the same scan has an
+interior optimum near d ≈ 1 mm (benchmarks/layout_optimisation.py reproduces it).
+:func:`make_problem` refuses any other reference.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+from jaxtyping import Array, Float
+
+from ._types import as_real_array as _real
+from .eyes import Eyes
+from .layouts import Layout, make_layout
+from .options import ModelOptions
+from .peaks import refine_peak
+from .pipeline import (
+    Accommodation,
+    PipelineConfig,
+    RetinalMetrics,
+    Scene,
+    reference_normalisers,
+    retinal_metrics,
+)
+from .sampling import Sampling
+from .spectral import Spectrum, make_spectrum
+
+OBJECTIVES = ("depth_of_field", "accommodation", "resolution")
+MAXIMISED = ("depth_of_field", "resolution")
+LATTICES = ("square", "hex")
+CONTAINMENTS = ("centre", "contained")
+METHODS = ("lbfgsb", "bfgs")
+DEFAULT_WAVELENGTHS_NM = (450.0, 550.0, 650.0)
+LAYOUT_FORMAT = "lfjax-layout/1"
+
+_ROTATION_RANGE = {"square": math.pi / 4.0, "hex": math.pi / 6.0}
+TOL_MM = 1e-6
+"""Lengths within this many mm of a constraint's bound count as on it (float32 round-off)."""
+_EPS = 1e-6  # fraction clip for the unconstrained (logit / artanh) starting point
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _safe_sqrt(x):
+    """sqrt with a finite (zero) gradient at 0 (double-where)."""
+    positive = x > 0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
+
+
+def _finite_scalar(name: str, value, lo: float | None = None, hi: float | None = None,
+                   lo_open: bool = False) -> float:
+    """Host check of one scalar parameter: finite and inside [lo, hi] (or (lo, hi])."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    bad_lo = lo is not None and (x <= lo if lo_open else x < lo)
+    bad_hi = hi is not None and x > hi
+    if not math.isfinite(x) or bad_lo or bad_hi:
+        left = "(" if lo_open else "["
+        rng = f"{left}{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
+        raise ValueError(f"{name} must be finite and in {rng}, got {value!r}")
+    return x
+
+
+# ----------------------------------------------------------------------------- lattices
+
+
+def lattice_sites(kind: str, n_views: int) -> np.ndarray:
+    """Lattice sites in units of the pitch, (n_views, 2), host array.
+
+    ``"square"``: ``n_views`` must be n² — the n×n grid centred on the pupil (row-major,
+    as :func:`lfjax.layouts.grid_layout`). ``"hex"``: the ``n_views`` sites of the unit
+    triangular lattice nearest the pupil centre (one site at the centre; ties broken by
+    angle, so 1, 7, 19, 37 views give whole rings).
+    """
+    if kind not in LATTICES:
+        raise ValueError(f"kind must be one of {LATTICES}, got {kind!r}")
+    if isinstance(n_views, bool) or int(n_views) != n_views or n_views < 1:
+        raise ValueError(f"n_views must be an integer >= 1, got {n_views!r}")
+    n_views = int(n_views)
+    if kind == "square":
+        n = int(round(math.sqrt(n_views)))
+        if n * n != n_views:
+            raise ValueError(f"a square lattice needs n_views = n*n (1, 4, 9, 16, ...), got {n_views}")
+        offsets = np.arange(n) - (n - 1) / 2.0
+        xx, yy = np.meshgrid(offsets, offsets)
+        return np.stack([xx.ravel(), yy.ravel()], axis=1)
+    reach = int(math.ceil(math.sqrt(n_views))) + 2
+    i, k = np.meshgrid(np.arange(-reach, reach + 1), np.arange(-reach, reach + 1), indexing="ij")
+    pts = np.stack([k.ravel() + 0.5 * i.ravel(), i.ravel() * math.sqrt(3.0) / 2.0], axis=1)
+    radius = np.round(np.hypot(pts[:, 0], pts[:, 1]), 9)
+    angle = np.round(np.mod(np.arctan2(pts[:, 1], pts[:, 0]), 2 * math.pi), 9)
+    order = np.lexsort((angle, radius))
+    return pts[order[:n_views]]
+
+
+def hex_sites_in_pupil(pitch_mm: float, pupil_diameter_mm: float) -> np.ndarray:
+    """Hexagonal lattice sites (pitch units) whose centres fall inside the pupil at this pitch."""
+    pitch = _finite_scalar("pitch_mm", pitch_mm, 0.0, None, lo_open=True)
+    radius = 0.5 * _finite_scalar("pupil_diameter_mm", pupil_diameter_mm, 0.0, None, lo_open=True)
+    n_max = int(math.ceil((radius / pitch + 2) ** 2 * 4))
+    sites = lattice_sites("hex", n_max)
+    keep = np.hypot(sites[:, 0], sites[:, 1]) * pitch <= radius * (1 - 1e-9)
+    return sites[keep]
+
+
+class LatticeParams(eqx.Module):
+    """A lattice of equal subapertures: pitch, diameter and rotation (array leaves).
+
+    Attributes
+    ----------
+    pitch_mm : () distance between neighbouring sites, mm
+    diameter_mm : () subaperture diameter, mm
+    rotation_rad : () rotation of the lattice about the pupil centre, rad (counter-clockwise)
+    sites : static tuple of (u, v) site coordinates in units of the pitch
+    kind : static, ``"square"`` or ``"hex"``
+    """
+
+    pitch_mm: Float[Array, ""] = eqx.field(converter=_real)
+    diameter_mm: Float[Array, ""] = eqx.field(converter=_real)
+    rotation_rad: Float[Array, ""] = eqx.field(converter=_real)
+    sites: tuple = eqx.field(static=True)
+    kind: str = eqx.field(static=True)
+
+    def __check_init__(self):
+        if self.kind not in LATTICES:
+            raise ValueError(f"kind must be one of {LATTICES}, got {self.kind!r}")
+        if len(self.sites) < 1:
+            raise ValueError("a lattice needs at least one site")
+
+    @property
+    def n_views(self) -> int:
+        return len(self.sites)
+
+    @property
+    def max_site_radius(self) -> float:
+        """Largest |site| in pitch units (host float)."""
+        return max(math.hypot(u, v) for u, v in self.sites)
+
+    @property
+    def centres_mm(self):
+        s = jnp.asarray(np.asarray(self.sites, float), self.pitch_mm.dtype)
+        c, si = jnp.cos(self.rotation_rad), jnp.sin(self.rotation_rad)
+        x = c * s[:, 0] - si * s[:, 1]
+        y = si * s[:, 0] + c * s[:, 1]
+        return self.pitch_mm * jnp.stack([x, y], axis=1)
+
+    @property
+    def diameters_mm(self):
+        return jnp.broadcast_to(self.diameter_mm, (self.n_views,))
+
+
+def lattice_params(kind: str, n_views: int | None, pitch_mm: float, diameter_mm: float | None = None,
+                   rotation_rad: float = 0.0, pupil_diameter_mm: float = 3.0) -> LatticeParams:
+    """Lattice layout parameters, checked on the host.
+
+    ``n_views`` fixes the sites (:func:`lattice_sites`); for ``kind="hex"`` it may be None:
+    the sites whose centres fall inside the pupil at ``pitch_mm`` (:func:`hex_sites_in_pupil`).
+    ``diameter_mm`` defaults to the pitch (tangent discs).
+    """
+    pitch = _finite_scalar("pitch_mm", pitch_mm, 0.0, None, lo_open=True)
+    diameter = pitch if diameter_mm is None else _finite_scalar("diameter_mm", diameter_mm, 0.0,
+                                                                None, lo_open=True)
+    rotation = _finite_scalar("rotation_rad", rotation_rad)
+    if n_views is None:
+        if kind != "hex":
+            raise ValueError("n_views is required for a square lattice (n*n views)")
+        sites = hex_sites_in_pupil(pitch, pupil_diameter_mm)
+    else:
+        sites = lattice_sites(kind, n_views)
+    return LatticeParams(pitch, diameter, rotation, tuple(map(tuple, sites.tolist())), kind)
+
+
+def tangent_lattice(kind: str, n_views: int, pupil_diameter_mm: float = 3.0) -> LatticeParams:
+    """Tangent discs (pitch = diameter) filling the pupil as the paper's grids do: square
+    n×n with pitch = pupil/n (:func:`lfjax.layouts.grid_layout`); hex with pitch =
+    pupil/(2ρ + 1), ρ the outermost site's radius in pitches (one pitch for 7 views)."""
+    sites = lattice_sites(kind, n_views)
+    if kind == "square":
+        pitch = float(pupil_diameter_mm) / int(round(math.sqrt(n_views)))
+    else:
+        rho = float(np.hypot(sites[:, 0], sites[:, 1]).max())
+        pitch = float(pupil_diameter_mm) / (2.0 * rho + 1.0) if rho > 0 else float(pupil_diameter_mm)
+    return LatticeParams(pitch, pitch, 0.0, tuple(map(tuple, sites.tolist())), kind)
+
+
+class FreeParams(eqx.Module):
+    """Free subapertures: centres (n_views, 2) and diameters (n_views,), mm (array leaves)."""
+
+    centres_mm: Float[Array, "n_views 2"] = eqx.field(converter=_real)
+    diameters_mm: Float[Array, " n_views"] = eqx.field(converter=_real)
+
+    def __check_init__(self):
+        if self.centres_mm.ndim != 2 or self.centres_mm.shape[-1] != 2:
+            raise ValueError(f"centres_mm must have shape (n_views, 2), got {self.centres_mm.shape}")
+        if self.diameters_mm.shape != self.centres_mm.shape[:1]:
+            raise ValueError(f"diameters_mm must have shape ({self.centres_mm.shape[0]},), "
+                             f"got {self.diameters_mm.shape}")
+
+    @property
+    def n_views(self) -> int:
+        return int(self.diameters_mm.shape[0])
+
+
+def free_params(centres_mm, diameters_mm) -> FreeParams:
+    """Free layout parameters from host arrays (mm), checked finite."""
+    c = np.asarray(centres_mm, float).reshape(-1, 2)
+    d = np.asarray(diameters_mm, float).reshape(-1)
+    if c.shape[0] < 1:
+        raise ValueError("a layout needs at least one view (n_views >= 1)")
+    if d.shape[0] != c.shape[0]:
+        raise ValueError(f"{c.shape[0]} centres_mm but {d.shape[0]} diameters_mm")
+    for name, x in (("centres_mm", c), ("diameters_mm", d)):
+        if not np.all(np.isfinite(x)):
+            raise ValueError(f"{name} must be finite (no NaN or inf), got {x.tolist()}")
+    return FreeParams(jnp.asarray(c), jnp.asarray(d))
+
+
+def as_free(params) -> FreeParams:
+    """Any layout-like (LatticeParams, FreeParams, Layout) as FreeParams."""
+    return FreeParams(params.centres_mm, params.diameters_mm)
+
+
+# ----------------------------------------------------------------------------- constraints
+
+
+@dataclass(frozen=True)
+class Constraints:
+    """Feasible layouts (static, hashable; all lengths in mm).
+
+    Attributes
+    ----------
+    pupil_diameter_mm : the eye's (calculation) pupil, mm
+    max_diameter_mm : largest subaperture diameter, mm (default: the pupil); it also sizes
+        the pipeline's static FFT windows, so a smaller cap makes every evaluation cheaper
+    min_diameter_mm : smallest subaperture diameter, mm (default 0.5 mm: the sampling is
+        planned for it, and below it the diffraction blur of a view dominates)
+    containment : ``"centre"`` (|c| ≤ R; default) or ``"contained"`` (|c| + d/2 ≤ R)
+    non_overlap : discs must not overlap, |c_i − c_j| ≥ (d_i + d_j)/2. Free views whose
+        centres come closer than ``min_diameter_mm`` then get diameters below it (at most
+        the nearest distance); coincident centres would need a zero diameter, which the
+        pipeline refuses ("diameters_mm must be > 0 mm")
+    """
+
+    pupil_diameter_mm: float = 3.0
+    max_diameter_mm: float | None = None
+    min_diameter_mm: float = 0.5
+    containment: str = "centre"
+    non_overlap: bool = False
+
+    def __post_init__(self):
+        pupil = _finite_scalar("pupil_diameter_mm", self.pupil_diameter_mm, 0.0, None, lo_open=True)
+        dmax = pupil if self.max_diameter_mm is None else _finite_scalar(
+            "max_diameter_mm", self.max_diameter_mm, 0.0, pupil, lo_open=True)
+        dmin = _finite_scalar("min_diameter_mm", self.min_diameter_mm, 0.0, dmax, lo_open=True)
+        if self.containment not in CONTAINMENTS:
+            raise ValueError(f"containment must be one of {CONTAINMENTS}, got {self.containment!r}")
+        object.__setattr__(self, "pupil_diameter_mm", pupil)
+        object.__setattr__(self, "max_diameter_mm", dmax)
+        object.__setattr__(self, "min_diameter_mm", dmin)
+        object.__setattr__(self, "non_overlap", bool(self.non_overlap))
+
+    @property
+    def radius_mm(self) -> float:
+        return 0.5 * self.pupil_diameter_mm
+
+    @property
+    def centre_radius_mm(self) -> float:
+        """Radius of the disc the centres live in (mm): R, or R − d_min/2 when contained
+        (so that every centre leaves room for the smallest disc)."""
+        r = self.radius_mm
+        return r - 0.5 * self.min_diameter_mm if self.containment == "contained" else r
+
+    def as_dict(self) -> dict:
+        return dict(pupil_diameter_mm=self.pupil_diameter_mm, max_diameter_mm=self.max_diameter_mm,
+                    min_diameter_mm=self.min_diameter_mm, containment=self.containment,
+                    non_overlap=self.non_overlap)
+
+    def violations(self, layout, tol: float = TOL_MM) -> list[str]:
+        """Host check of any layout-like: a list of messages (empty when feasible; lengths
+        within ``tol`` mm of a bound count as on it — float32 round-off)."""
+        c = np.asarray(layout.centres_mm, float).reshape(-1, 2)
+        d = np.asarray(layout.diameters_mm, float).reshape(-1)
+        out = []
+        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(d))):
+            return ["centres_mm and diameters_mm must be finite"]
+        r = np.hypot(c[:, 0], c[:, 1])
+        gap = np.hypot(*(c[:, None, :] - c[None, :, :]).transpose(2, 0, 1))
+        # without overlap, free views closer than min_diameter_mm may be smaller (at most
+        # their smooth nearest distance, as the free parametrisation caps them)
+        floor = np.full(d.shape, self.min_diameter_mm)
+        if self.non_overlap and len(d) > 1:
+            near = np.asarray(_soft_nearest_distance(jnp.asarray(c)), float)
+            floor = np.minimum(floor, near)
+        for i in np.nonzero(d <= 0)[0]:
+            out.append(f"diameters_mm[{i}] = {d[i]:.6g} mm must be > 0 (non-overlapping views "
+                       f"need distinct centres)")
+        for i in np.nonzero((d < floor - tol) | (d > self.max_diameter_mm + tol))[0]:
+            out.append(f"diameters_mm[{i}] = {d[i]:.6g} mm outside [{floor[i]:.6g}, "
+                       f"{self.max_diameter_mm:g}] mm")
+        reach = r + (0.5 * d if self.containment == "contained" else 0.0)
+        for i in np.nonzero(reach > self.radius_mm + tol)[0]:
+            what = "|centre| + d/2" if self.containment == "contained" else "|centre|"
+            out.append(f"view {i}: {what} = {reach[i]:.6g} mm exceeds the pupil radius "
+                       f"{self.radius_mm:g} mm")
+        if self.non_overlap and len(d) > 1:
+            need = 0.5 * (d[:, None] + d[None, :])
+            bad = np.argwhere(np.triu(gap < need - tol, 1))
+            for i, j in bad:
+                out.append(f"views {i} and {j} overlap: distance {gap[i, j]:.6g} mm < "
+                           f"(d_i + d_j)/2 = {need[i, j]:.6g} mm")
+        return out
+
+    def check(self, layout) -> None:
+        """Raise ``ValueError`` listing every violated constraint of a layout-like."""
+        bad = self.violations(layout)
+        if bad:
+            raise ValueError("layout violates the constraints: " + "; ".join(bad))
+
+
+# ----------------------------------------------------------------------------- feasible maps
+
+
+def _lattice_bounds(params: LatticeParams, constraints: Constraints):
+    """(d_lo, d_hi, rho_max) on the host; raises when no lattice of these sites is feasible."""
+    rho = params.max_site_radius
+    radius = constraints.radius_mm
+    d_lo, d_hi = constraints.min_diameter_mm, constraints.max_diameter_mm
+    if constraints.non_overlap and params.n_views > 1 and rho > 0:
+        # nearest neighbours are one pitch apart: d ≤ pitch ≤ p_hi(d)
+        limit = radius / (rho + 0.5) if constraints.containment == "contained" else radius / rho
+        d_hi = min(d_hi, limit)
+    if d_hi < d_lo:
+        raise ValueError(
+            f"no feasible {params.kind} lattice of {params.n_views} views: non-overlapping discs "
+            f"inside a {constraints.pupil_diameter_mm:g} mm pupil can be at most {d_hi:.4g} mm, "
+            f"below min_diameter_mm = {d_lo:g} mm"
+        )
+    return d_lo, d_hi, rho
+
+
+def _pitch_range(diameter, params: LatticeParams, constraints: Constraints, rho: float):
+    """Feasible pitch interval (mm) for a lattice diameter (traced)."""
+    radius = constraints.radius_mm
+    reach = radius - 0.5 * diameter if constraints.containment == "contained" else radius
+    # A single site at the centre does not move with the pitch: any positive pitch works.
+    p_hi = reach / rho if rho > 0 else jnp.asarray(constraints.pupil_diameter_mm, diameter.dtype)
+    p_lo = diameter if (constraints.non_overlap and params.n_views > 1) else jnp.zeros_like(diameter)
+    return p_lo, p_hi
+
+
+def _square_to_disc(s):
+    """Elliptical grid map of [−1, 1]² onto the unit disc (smooth, one-to-one)."""
+    x, y = s[..., 0], s[..., 1]
+    return jnp.stack([x * jnp.sqrt(1.0 - 0.5 * y * y), y * jnp.sqrt(1.0 - 0.5 * x * x)], axis=-1)
+
+
+def _disc_to_square(q: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`_square_to_disc` (host)."""
+    u, v = q[..., 0], q[..., 1]
+    r2 = 2.0 * math.sqrt(2.0)
+
+    def half(a, b, t):
+        return 0.5 * np.sqrt(np.maximum(2.0 + a * a - b * b + r2 * t, 0.0))
+
+    x = half(u, v, u) - half(u, v, -u)
+    y = half(v, u, v) - half(v, u, -v)
+    return np.clip(np.stack([x, y], axis=-1), -1.0, 1.0)
+
+
+def _plane_to_disc(u):
+    """tanh-radial map of the plane onto the open unit disc: tanh(|u|)·u/|u| (smooth at 0)."""
+    r2 = jnp.sum(u * u, axis=-1, keepdims=True)
+    r = _safe_sqrt(r2)
+    small = r2 < 1e-12
+    scale = jnp.where(small, 1.0 - r2 / 3.0, jnp.tanh(r) / jnp.where(small, 1.0, r))
+    return u * scale
+
+
+def _disc_to_plane(q: np.ndarray) -> np.ndarray:
+    r = np.hypot(q[..., 0], q[..., 1])[..., None]
+    rc = np.minimum(r, 1.0 - _EPS)
+    scale = np.where(r > 1e-12, np.arctanh(rc) / np.where(r > 1e-12, r, 1.0), 1.0)
+    return q * scale
+
+
+def _diameter_caps(centres, constraints: Constraints):
+    """Largest feasible diameter at each centre (mm): max_diameter, 2(R − |c|) when
+    contained, a smooth lower bound of the nearest other centre's distance
+    (:func:`_soft_nearest_distance`) when views must not overlap."""
+    cap = jnp.full(centres.shape[:1], constraints.max_diameter_mm, centres.dtype)
+    if constraints.containment == "contained":
+        r = _safe_sqrt(jnp.sum(centres * centres, axis=-1))
+        cap = jnp.minimum(cap, 2.0 * (constraints.radius_mm - r))
+    if constraints.non_overlap and centres.shape[0] > 1:
+        cap = jnp.minimum(cap, _soft_nearest_distance(centres))
+    return cap
+
+
+NEAREST_SOFTNESS = 16.0
+"""Exponent p of the smooth nearest-neighbour distance (Σ_j r_ij^−p)^(−1/p)."""
+
+
+def _soft_nearest_distance(centres):
+    """Smooth lower bound of each centre's distance to its nearest other centre (mm):
+    (Σ_j r_ij^−p)^(−1/p) ≤ min_j r_ij, within a factor k^(−1/p) of it for k tied
+    neighbours (2^(−1/16) ≈ 0.958: two equidistant neighbours, as on a lattice).
+
+    The exact minimum has a kink wherever two neighbours are equally near — every lattice
+    start — and a quasi-Newton step across it can only get worse (measured: optimistix
+    BFGS rejected every step from a 2×2 lattice)."""
+    n = centres.shape[0]
+    diff = centres[:, None, :] - centres[None, :, :]
+    r2 = jnp.sum(diff * diff, axis=-1)
+    off = ~jnp.eye(n, dtype=bool)
+    ok = off & (r2 > 0)
+    # r^-p = (r²)^(-p/2); coincident centres give +inf → distance 0 (zero diameter)
+    inv = jnp.where(ok, jnp.where(ok, r2, 1.0) ** (-0.5 * NEAREST_SOFTNESS),
+                    jnp.where(off, jnp.inf, 0.0))
+    total = jnp.sum(inv, axis=1)
+    finite = jnp.isfinite(total)
+    return jnp.where(finite, jnp.where(finite, total, 1.0) ** (-1.0 / NEAREST_SOFTNESS), 0.0)
+
+
+def _free_diameters(centres, fraction, constraints: Constraints):
+    cap = _diameter_caps(centres, constraints)
+    lo = jnp.minimum(constraints.min_diameter_mm, cap)
+    return lo + fraction * (cap - lo)
+
+
+def _free_fraction(params: FreeParams, constraints: Constraints) -> np.ndarray:
+    """Host inverse of the diameter map; raises naming the view and its allowed range."""
+    c = np.asarray(params.centres_mm, float)
+    d = np.asarray(params.diameters_mm, float)
+    cap = np.asarray(_diameter_caps(jnp.asarray(c), constraints), float)
+    lo = np.minimum(constraints.min_diameter_mm, cap)
+    bad = (d < lo - TOL_MM) | (d > cap + TOL_MM)
+    if np.any(bad):
+        i = int(np.nonzero(bad)[0][0])
+        raise ValueError(
+            f"diameters_mm[{i}] = {d[i]:.6g} mm must be in [{lo[i]:.6g}, {cap[i]:.6g}] mm at its "
+            f"centre (min/max_diameter_mm, containment={constraints.containment!r}, "
+            f"non_overlap={constraints.non_overlap})"
+        )
+    span = cap - lo
+    return np.clip(np.where(span > 1e-12, (d - lo) / np.where(span > 1e-12, span, 1.0), 0.0), 0, 1)
+
+
+def _free_disc_points(params: FreeParams, constraints: Constraints) -> np.ndarray:
+    c = np.asarray(params.centres_mm, float)
+    rc = constraints.centre_radius_mm
+    r = np.hypot(c[:, 0], c[:, 1])
+    bad = r > rc + TOL_MM
+    if np.any(bad):
+        i = int(np.nonzero(bad)[0][0])
+        raise ValueError(
+            f"centres_mm[{i}] = {c[i].tolist()} lies {r[i]:.6g} mm from the pupil centre; allowed "
+            f"|centre| <= {rc:.6g} mm (containment={constraints.containment!r})"
+        )
+    q = c / rc
+    return q / np.maximum(np.hypot(q[:, 0], q[:, 1]), 1.0)[:, None]
+
+
+def _check_finite_params(params) -> None:
+    if isinstance(params, LatticeParams):
+        for name in ("pitch_mm", "diameter_mm", "rotation_rad"):
+            _finite_scalar(name, np.asarray(getattr(params, name)))
+    elif isinstance(params, FreeParams):
+        for name in ("centres_mm", "diameters_mm"):
+            x = np.asarray(getattr(params, name), float)
+            if not np.all(np.isfinite(x)):
+                raise ValueError(f"{name} must be finite (no NaN or inf), got {x.tolist()}")
+    else:
+        raise TypeError(f"expected LatticeParams or FreeParams, got {type(params).__name__}")
+
+
+def _lattice_fractions(params: LatticeParams, constraints: Constraints):
+    """Host: (a, b) fractions of a lattice's diameter and pitch; raises when infeasible."""
+    d_lo, d_hi, rho = _lattice_bounds(params, constraints)
+    d = float(params.diameter_mm)
+    if not (d_lo - TOL_MM <= d <= d_hi + TOL_MM):
+        raise ValueError(
+            f"diameter_mm = {d:.6g} mm must be in [{d_lo:.6g}, {d_hi:.6g}] mm "
+            f"(min/max_diameter_mm{', non-overlap within the pupil' if d_hi < constraints.max_diameter_mm else ''})"
+        )
+    p_lo, p_hi = (float(x) for x in _pitch_range(jnp.asarray(d), params, constraints, rho))
+    p = float(params.pitch_mm)
+    if not (p_lo - TOL_MM <= p <= p_hi + TOL_MM):
+        raise ValueError(
+            f"pitch_mm = {p:.6g} mm must be in [{p_lo:.6g}, {p_hi:.6g}] mm for diameter_mm = {d:.6g} "
+            f"(outermost site at {rho:.4g} pitches; containment={constraints.containment!r}, "
+            f"non_overlap={constraints.non_overlap})"
+        )
+    a = (d - d_lo) / (d_hi - d_lo) if d_hi > d_lo else 0.5
+    b = (p - p_lo) / (p_hi - p_lo) if p_hi > p_lo else 0.5
+    return float(np.clip(a, 0, 1)), float(np.clip(b, 0, 1))
+
+
+def _lattice_from_fractions(a, b, rotation, template: LatticeParams, constraints: Constraints):
+    d_lo, d_hi, rho = _lattice_bounds(template, constraints)
+    d = d_lo + a * (d_hi - d_lo)
+    p_lo, p_hi = _pitch_range(d, template, constraints, rho)
+    return LatticeParams(p_lo + b * (p_hi - p_lo), d, rotation, template.sites, template.kind)
+
+
+def feasible_start(params, constraints: Constraints, margin: float = 0.0):
+    """``params`` moved into the feasible set (host): the lattice diameter, then its pitch,
+    clipped into their feasible intervals, the rotation wrapped into the symmetry range;
+    free centres pulled into the centres' disc, each diameter clipped into [floor, cap] at
+    its centre. ``margin`` ∈ [0, 0.5) keeps every fraction in [margin, 1 − margin]: starts
+    for ``method="bfgs"``, whose sigmoid coordinates saturate on a bound (a start there
+    cannot move)."""
+    _check_finite_params(params)
+    margin = _finite_scalar("margin", margin, 0.0, 0.49)
+    if isinstance(params, LatticeParams):
+        d_lo, d_hi, rho = _lattice_bounds(params, constraints)
+        d = float(np.clip(float(params.diameter_mm), d_lo, d_hi))
+        p_lo, p_hi = (float(x) for x in _pitch_range(jnp.asarray(d), params, constraints, rho))
+        p = float(np.clip(float(params.pitch_mm), p_lo, p_hi))
+        half = _ROTATION_RANGE[params.kind]
+        rot = (float(params.rotation_rad) + half) % (2 * half) - half
+        a, b = _lattice_fractions(LatticeParams(p, d, rot, params.sites, params.kind), constraints)
+        a, b = (float(np.clip(x, margin, 1 - margin)) for x in (a, b))
+        return _lattice_from_fractions(jnp.asarray(a), jnp.asarray(b), rot, params, constraints)
+    c = np.asarray(params.centres_mm, float)
+    rc = constraints.centre_radius_mm * (1 - margin)
+    r = np.hypot(c[:, 0], c[:, 1])
+    c = c * np.minimum(1.0, rc / np.maximum(r, 1e-300))[:, None]
+    cap = np.asarray(_diameter_caps(jnp.asarray(c), constraints), float)
+    lo = np.minimum(constraints.min_diameter_mm, cap)
+    f = np.clip((np.asarray(params.diameters_mm, float) - lo) / np.maximum(cap - lo, 1e-300),
+                margin, 1 - margin)
+    return free_params(c, np.where(cap > lo, lo + f * (cap - lo), cap))
+
+
+def initial_lattice(kind: str, n_views: int, constraints: Constraints, margin: float = 0.0):
+    """A feasible starting lattice: :func:`tangent_lattice` moved into the feasible set by
+    :func:`feasible_start` (e.g. shrunk so that discs are contained)."""
+    return feasible_start(tangent_lattice(kind, n_views, constraints.pupil_diameter_mm),
+                          constraints, margin)
+
+
+def to_box(params, constraints: Constraints):
+    """Box coordinates of a feasible layout and their bounds: (x, (lower, upper)).
+
+    Raises ``ValueError`` naming the parameter and its allowed range when ``params`` is not
+    feasible. Every point of the box maps back (:func:`from_box`) to a feasible layout.
+    """
+    _check_finite_params(params)
+    dtype = jnp.result_type(float)
+    if isinstance(params, LatticeParams):
+        a, b = _lattice_fractions(params, constraints)
+        rot = float(params.rotation_rad)
+        half = _ROTATION_RANGE[params.kind]
+        if abs(rot) > half + 1e-12:
+            raise ValueError(f"rotation_rad = {rot:.6g} must be in [{-half:.6g}, {half:.6g}] "
+                             f"(the {params.kind} lattice's symmetry range)")
+        x = dict(diameter=a, pitch=b, rotation=rot)
+        lower = dict(diameter=0.0, pitch=0.0, rotation=-half)
+        upper = dict(diameter=1.0, pitch=1.0, rotation=half)
+        as_arr = lambda t: {k: jnp.asarray(v, dtype) for k, v in t.items()}  # noqa: E731
+        return as_arr(x), (as_arr(lower), as_arr(upper))
+    q = _free_disc_points(params, constraints)
+    f = _free_fraction(params, constraints)
+    x = dict(disc=jnp.asarray(_disc_to_square(q), dtype), fraction=jnp.asarray(f, dtype))
+    lower = dict(disc=-jnp.ones_like(x["disc"]), fraction=jnp.zeros_like(x["fraction"]))
+    upper = dict(disc=jnp.ones_like(x["disc"]), fraction=jnp.ones_like(x["fraction"]))
+    return x, (lower, upper)
+
+
+def from_box(x, template, constraints: Constraints):
+    """Layout parameters of box coordinates ``x`` (traced; feasible for any x in the box)."""
+    if isinstance(template, LatticeParams):
+        return _lattice_from_fractions(x["diameter"], x["pitch"], x["rotation"], template,
+                                       constraints)
+    centres = constraints.centre_radius_mm * _square_to_disc(x["disc"])
+    return FreeParams(centres, _free_diameters(centres, x["fraction"], constraints))
+
+
+def _logit(p):
+    p = np.clip(np.asarray(p, float), _EPS, 1.0 - _EPS)
+    return np.log(p) - np.log1p(-p)
+
+
+def to_unconstrained(params, constraints: Constraints):
+    """Unconstrained coordinates (any real values) of a feasible layout; raises like
+    :func:`to_box`. Fractions become logits, centres the inverse tanh-radial map."""
+    _check_finite_params(params)
+    dtype = jnp.result_type(float)
+    if isinstance(params, LatticeParams):
+        a, b = _lattice_fractions(params, constraints)
+        return dict(diameter=jnp.asarray(_logit(a), dtype), pitch=jnp.asarray(_logit(b), dtype),
+                    rotation=jnp.asarray(float(params.rotation_rad), dtype))
+    q = _free_disc_points(params, constraints)
+    f = _free_fraction(params, constraints)
+    return dict(disc=jnp.asarray(_disc_to_plane(q), dtype), fraction=jnp.asarray(_logit(f), dtype))
+
+
+def from_unconstrained(u, template, constraints: Constraints):
+    """Layout parameters of unconstrained coordinates ``u`` (traced; always feasible)."""
+    if isinstance(template, LatticeParams):
+        return _lattice_from_fractions(jax.nn.sigmoid(u["diameter"]), jax.nn.sigmoid(u["pitch"]),
+                                       u["rotation"], template, constraints)
+    centres = constraints.centre_radius_mm * _plane_to_disc(u["disc"])
+    return FreeParams(centres, _free_diameters(centres, jax.nn.sigmoid(u["fraction"]), constraints))
+
+
+# ----------------------------------------------------------------------------- objectives
+
+
+@dataclass(frozen=True)
+class Objective:
+    """What a fit optimises (static, hashable).
+
+    Attributes
+    ----------
+    weights : ((name, weight), …) over :data:`OBJECTIVES`; loss = Σ ± weight·term with −
+        for the maximised terms (depth_of_field: VSOTF; resolution: cpd) and + for
+        accommodation (D²)
+    bracket_D : half-width of the accommodation peak bracket around each depth, D
+    mtf_threshold : MTF level of the cut-off (the paper's 0.05)
+    mtf_softness : width of the logistic step that counts frequencies above the threshold
+    peak_atol_D : Newton tolerance of the accommodation peak, D
+    """
+
+    weights: tuple = (("depth_of_field", 1.0),)
+    bracket_D: float = 0.3
+    mtf_threshold: float = 0.05
+    mtf_softness: float = 0.02
+    peak_atol_D: float = 1e-6
+
+    def __post_init__(self):
+        w = tuple((str(k), float(v)) for k, v in dict(self.weights).items())
+        for name, value in w:
+            if name not in OBJECTIVES:
+                raise ValueError(f"objective {name!r} unknown; choose from {OBJECTIVES}")
+            _finite_scalar(f"weight of {name}", value, 0.0)
+        if not any(v > 0 for _, v in w):
+            raise ValueError(f"at least one objective weight must be > 0, got {dict(w)}")
+        object.__setattr__(self, "weights", w)
+        _finite_scalar("bracket_D", self.bracket_D, 0.0, 2.0, lo_open=True)
+        _finite_scalar("mtf_threshold", self.mtf_threshold, 0.0, 1.0, lo_open=True)
+        _finite_scalar("mtf_softness", self.mtf_softness, 0.0, 1.0, lo_open=True)
+        _finite_scalar("peak_atol_D", self.peak_atol_D, 0.0, 0.1, lo_open=True)
+
+    @classmethod
+    def parse(cls, objective) -> Objective:
+        """An Objective from itself, a name of :data:`OBJECTIVES`, or a {name: weight} dict."""
+        if isinstance(objective, Objective):
+            return objective
+        if isinstance(objective, str):
+            if objective not in OBJECTIVES:
+                raise ValueError(f"objective must be one of {OBJECTIVES} or a dict of weights, "
+                                 f"got {objective!r}")
+            return cls(((objective, 1.0),))
+        if isinstance(objective, dict):
+            return cls(tuple(objective.items()))
+        raise ValueError(f"objective must be a name, a dict of weights or an Objective, got {objective!r}")
+
+    def weight(self, name: str) -> float:
+        return dict(self.weights).get(name, 0.0)
+
+    @property
+    def active(self) -> tuple[str, ...]:
+        return tuple(k for k, v in self.weights if v > 0)
+
+    @property
+    def name(self) -> str:
+        if len(self.active) == 1:
+            return self.active[0]
+        return " + ".join(f"{v:g}·{k}" for k, v in self.weights if v > 0)
+
+    def as_dict(self) -> dict:
+        return dict(weights=dict(self.weights), bracket_D=self.bracket_D,
+                    mtf_threshold=self.mtf_threshold, mtf_softness=self.mtf_softness)
+
+
+class LayoutProblem(eqx.Module):
+    """Everything a layout objective needs besides the layout (see :func:`make_problem`).
+
+    Attributes
+    ----------
+    eyes : the population the objective averages over
+    spectrum : wavelengths, weights, LCA, SCE
+    depths_D : (n_depth,) rendered depths, D
+    cdp_D : () central depth plane, D
+    accommodation : the correct-focus states (accommodation = rendered depth)
+    reference : open-pupil VSOTF/Strehl normalisers (independent of the layout)
+    config, objective, constraints, options : static
+    window_D : static, accommodation offsets (± D) the sampling was planned for
+    """
+
+    eyes: Eyes
+    spectrum: Spectrum
+    depths_D: Float[Array, " n_depth"]
+    cdp_D: Float[Array, ""]
+    accommodation: Accommodation
+    reference: tuple
+    config: PipelineConfig = eqx.field(static=True)
+    objective: Objective = eqx.field(static=True)
+    constraints: Constraints = eqx.field(static=True)
+    options: ModelOptions = eqx.field(static=True)
+    window_D: float = eqx.field(static=True)
+
+    @property
+    def pupil_diameter_mm(self) -> float:
+        return self.constraints.pupil_diameter_mm
+
+    def with_eyes(self, eyes: Eyes) -> LayoutProblem:
+        """The same problem on another population (the held-out eyes)."""
+        if eyes.measured_pupil_mm < self.pupil_diameter_mm:
+            raise ValueError(f"eyes measured on {eyes.measured_pupil_mm:g} mm cannot be evaluated "
+                             f"on a {self.pupil_diameter_mm:g} mm pupil")
+        return eqx.tree_at(lambda p: p.eyes, self, eyes)
+
+    def with_objective(self, objective) -> LayoutProblem:
+        return LayoutProblem(self.eyes, self.spectrum, self.depths_D, self.cdp_D,
+                             self.accommodation, self.reference, self.config,
+                             Objective.parse(objective), self.constraints, self.options,
+                             self.window_D)
+
+    def scene(self, layout) -> Scene:
+        return Scene(layout.centres_mm, layout.diameters_mm, self.cdp_D, self.depths_D,
+                     self.pupil_diameter_mm)
+
+
+def depth_grid(low_D: float, high_D: float, n_depths: int) -> np.ndarray:
+    """``n_depths`` rendered depths evenly spanning [low_D, high_D] (D), validated:
+    0 ≤ low < high, finite; n_depths ≥ 2 (or 1 with low == high)."""
+    lo = _finite_scalar("depth range low end (D)", low_D, 0.0)
+    hi = _finite_scalar("depth range high end (D)", high_D, 0.0)
+    if isinstance(n_depths, bool) or int(n_depths) != n_depths or n_depths < 1:
+        raise ValueError(f"n_depths must be an integer >= 1, got {n_depths!r}")
+    if n_depths == 1 and hi == lo:
+        return np.array([lo])
+    if not hi > lo:
+        raise ValueError(f"depth range must satisfy 0 <= low < high (D); got low = {lo:g}, "
+                         f"high = {hi:g} ({'empty' if hi == lo else 'inverted'})")
+    if n_depths < 2:
+        raise ValueError(f"n_depths must be >= 2 for a depth range, got {n_depths}")
+    return np.linspace(lo, hi, int(n_depths))
+
+
+def _check_depths(depths_D) -> np.ndarray:
+    d = np.atleast_1d(np.asarray(depths_D, float))
+    if d.ndim != 1 or d.size < 1:
+        raise ValueError(f"depths_D must be a non-empty 1-D array, got shape {d.shape}")
+    if not np.all(np.isfinite(d)) or np.any(d < 0):
+        raise ValueError(f"depths_D must be finite and >= 0 D (0 D is optical infinity), got {d.tolist()}")
+    return d
+
+
+def envelope_layout(constraints: Constraints) -> Layout:
+    """The worst case of the feasible set for the sampling guard: the largest disc at the
+    pupil edge (widest defocus blur and display shift) and the smallest one (widest
+    diffraction blur)."""
+    radius = constraints.centre_radius_mm
+    if constraints.containment == "contained":
+        radius = constraints.radius_mm - 0.5 * constraints.max_diameter_mm
+    edge = max(radius * (1 - 1e-6), 0.0)
+    return make_layout([[edge, 0.0], [0.0, 0.0]],
+                       [constraints.max_diameter_mm, constraints.min_diameter_mm],
+                       constraints.pupil_diameter_mm, name="envelope",
+                       window_diameter_mm=constraints.max_diameter_mm)
+
+
+def guard_sampling(constraints: Constraints, depths_D, cdp_D: float, wavelengths_nm, eyes_zernike_um=None,
+                   measured_pupil_mm: float = 3.0, window_D: float = 0.5,
+                   options: ModelOptions = ModelOptions(vsotf_reference="open_pupil")) -> Sampling:
+    """Frequency sampling whose aliasing guard holds for every feasible layout: the
+    planner's guard (``estimate_accuracy=False``) on :func:`envelope_layout`, for
+    accommodation within ±``window_D`` of each depth."""
+    from .planner import plan_sampling
+
+    plan = plan_sampling(
+        envelope_layout(constraints), pupil_diameter_mm=constraints.pupil_diameter_mm,
+        cdp_D=float(cdp_D), depths_D=_check_depths(depths_D), accommodation_window_D=window_D,
+        wavelengths_nm=np.asarray(wavelengths_nm, float), eyes_zernike_um=eyes_zernike_um,
+        measured_pupil_mm=measured_pupil_mm, options=options, estimate_accuracy=False,
+    )
+    return plan.sampling
+
+
+def make_problem(
+    eyes: Eyes, depths_D, constraints: Constraints = Constraints(), objective="depth_of_field",
+    *, cdp_D: float = 2.0, wavelengths_nm=DEFAULT_WAVELENGTHS_NM,
+    options: ModelOptions = ModelOptions(vsotf_reference="open_pupil"),
+    sampling: Sampling | None = None, window_D: float = 0.5, planning_eyes: Eyes | None = None,
+    eye_chunk: int | None = None,
+) -> LayoutProblem:
+    """A layout-optimisation problem, validated on the host.
+
+    Parameters
+    ----------
+    eyes : population the objective averages over (the training eyes)
+    depths_D : rendered depths, D (finite, ≥ 0)
+    constraints : feasible layouts (pupil, diameter range, containment, overlap)
+    objective : a name of :data:`OBJECTIVES`, a {name: weight} dict or an :class:`Objective`
+    cdp_D : the display's central depth plane, D
+    wavelengths_nm : spectrum (V(λ)-weighted), nm
+    options : model options; ``vsotf_reference`` must be ``"open_pupil"`` (module docstring)
+    sampling : frequency sampling; default :func:`guard_sampling` for the constraints'
+        envelope, the depths, ±``window_D`` and ``planning_eyes`` (default ``eyes``; pass the
+        union with the held-out eyes so one sampling serves both)
+    window_D : accommodation offsets (D) the default sampling must cover (≥ the peak bracket)
+    eye_chunk : eyes evaluated together inside the pipeline's map (None: one at a time)
+    """
+    if options.vsotf_reference != "open_pupil":
+        raise ValueError(
+            "layout objectives need ModelOptions(vsotf_reference='open_pupil'): the paper's "
+            "reference (the same layout without aberrations) shrinks with the subapertures, so "
+            f"every objective would reward shrinking them without bound; got {options.vsotf_reference!r}"
+        )
+    if not isinstance(eyes, Eyes):
+        raise ValueError(f"eyes must be lfjax.Eyes, got {type(eyes).__name__}")
+    if not np.all(np.isfinite(np.asarray(eyes.zernike_um))):
+        raise ValueError("eyes.zernike_um contains non-finite values (NaN or inf)")
+    if eyes.measured_pupil_mm < constraints.pupil_diameter_mm - 1e-12:
+        raise ValueError(f"pupil_diameter_mm = {constraints.pupil_diameter_mm:g} exceeds the eyes' "
+                         f"measured pupil {eyes.measured_pupil_mm:g} mm")
+    depths = _check_depths(depths_D)
+    cdp = _finite_scalar("cdp_D", cdp_D, 0.0)
+    objective = Objective.parse(objective)
+    window_D = _finite_scalar("window_D", window_D, 0.0, None, lo_open=True)
+    if "accommodation" in objective.active and objective.bracket_D > window_D + 1e-12:
+        raise ValueError(f"window_D = {window_D:g} D must cover the peak bracket ±{objective.bracket_D:g} D")
+    wl = np.atleast_1d(np.asarray(wavelengths_nm, float))
+    spectrum = make_spectrum(wl, options)
+    if sampling is None:
+        plan_eyes = eyes if planning_eyes is None else planning_eyes
+        sampling = guard_sampling(constraints, depths, cdp, wl, np.asarray(plan_eyes.zernike_um),
+                                  plan_eyes.measured_pupil_mm, window_D, options)
+    config = PipelineConfig.build(wl, constraints.max_diameter_mm, constraints.pupil_diameter_mm,
+                                  sampling, options, eye_chunk)
+    accommodation = Accommodation.per_depth(depths[:, None], options, constraints.pupil_diameter_mm)
+    dtype = jnp.result_type(float)
+    cdp_arr, depths_arr = jnp.asarray(cdp, dtype), jnp.asarray(depths, dtype)
+    # Open-pupil reference: independent of the layout, so computed once (any layout will do).
+    any_layout = Scene(jnp.zeros((1, 2), dtype), jnp.full((1,), constraints.max_diameter_mm, dtype),
+                       cdp_arr, depths_arr, constraints.pupil_diameter_mm)
+    reference = _reference_jit(any_layout, spectrum, accommodation, config)
+    return LayoutProblem(eyes, spectrum, depths_arr, cdp_arr, accommodation,
+                         tuple(jax.lax.stop_gradient(r) for r in reference), config, objective,
+                         constraints, options, window_D)
+
+
+_reference_jit = eqx.filter_jit(reference_normalisers)
+
+
+def correct_focus_metrics(layout, problem: LayoutProblem) -> RetinalMetrics:
+    """Pipeline output at the correct accommodation (accommodation = rendered depth):
+    RetinalMetrics of shape (n_eyes, n_depth, 1[, L//2+1])."""
+    return retinal_metrics(problem.eyes, problem.scene(layout), problem.spectrum,
+                           problem.accommodation, problem.config, problem.reference)
+
+
+def depth_of_field(metrics: RetinalMetrics):
+    """Population-mean VSOTF at the correct accommodation over the rendered depths (open-pupil
+    reference: 1 = natural viewing of an aberration-free eye). Higher is better."""
+    return jnp.mean(metrics.vsotf)
+
+
+def soft_cutoff_cpd(radial_mtf, freq_step_cpd: float, threshold: float = 0.05, softness: float = 0.02):
+    """Smooth MTF cut-off (cpd) of radial MTFs (…, L//2+1) sampled at f = k·df.
+
+    .. math:: f_c ≈ Δf\\left(\\tfrac12 + \\sum_{k≥1} σ\\!\\left(\\frac{M(kΔf) − t}{s}\\right)\\right)
+
+    σ the logistic function, t the threshold and s the softness: the frequency extent over
+    which the MTF exceeds t. For a monotone MTF it equals the first crossing of t to within
+    Δf/2 (the ½ centres the count on the sample bins); as s → 0 it becomes the hard count.
+    """
+    above = jax.nn.sigmoid((radial_mtf[..., 1:] - threshold) / softness)
+    return freq_step_cpd * (0.5 + jnp.sum(above, axis=-1))
+
+
+def resolution(metrics: RetinalMetrics, problem: LayoutProblem):
+    """Population-mean smooth MTF cut-off (cpd) at the correct accommodation over the depths
+    (:func:`soft_cutoff_cpd`). Higher is better."""
+    o = problem.objective
+    return jnp.mean(soft_cutoff_cpd(metrics.radial_mtf, problem.config.freq_step_cpd,
+                                    o.mtf_threshold, o.mtf_softness))
+
+
+def _peak_vsotf(a, args):
+    """VSOTF of one eye (zernike_um) rendering one depth through a layout, at accommodation a."""
+    zernike_um, depth, centres, diameters, problem = args
+    scene = Scene(centres, diameters, problem.cdp_D, depth[None], problem.pupil_diameter_mm)
+    acc = problem.accommodation
+    state = Accommodation(a[None], jnp.zeros((1, 1), jnp.int32), acc.sa_c40_um_per_D, acc.sa_radius_mm)
+    eye = Eyes(zernike_um[None], problem.eyes.measured_pupil_mm, problem.eyes.orientation)
+    m = retinal_metrics(eye, scene, problem.spectrum, state, problem.config, problem.reference)
+    return m.vsotf[0, 0, 0]
+
+
+def predicted_accommodation_D(layout, problem: LayoutProblem):
+    """Continuous VSOTF peak of every (eye, depth), (n_eyes, n_depth), D: Newton
+    (:func:`lfjax.peaks.refine_peak`) on [max(depth − b, 0), depth + b] started at the depth
+    (b = ``objective.bracket_D``); differentiable in the layout (implicit function theorem).
+    Returns (peak_D, success)."""
+    b = problem.objective.bracket_D
+    z = problem.eyes.zernike_um
+    n_eyes, n_depth = z.shape[0], problem.depths_D.shape[0]
+    z_b = jnp.broadcast_to(z[:, None, :], (n_eyes, n_depth, z.shape[1]))
+    d_b = jnp.broadcast_to(problem.depths_D[None, :], (n_eyes, n_depth))
+    centres, diameters = layout.centres_mm, layout.diameters_mm
+
+    def one(z1, d1):
+        peak = refine_peak(_peak_vsotf, jnp.maximum(d1 - b, 0.0), d1 + b, d1,
+                           (z1, d1, centres, diameters, problem), "newton",
+                           problem.objective.peak_atol_D, 32)
+        return peak.accommodation_D, peak.success
+
+    return jax.vmap(jax.vmap(one))(z_b, d_b)
+
+
+def accommodation_mse(layout, problem: LayoutProblem):
+    """Mean squared error (D²) of the predicted accommodation against the rendered depth,
+    over eyes and depths (:func:`predicted_accommodation_D`). Lower is better."""
+    peak, _ = predicted_accommodation_D(layout, problem)
+    return jnp.mean((peak - problem.depths_D[None, :]) ** 2)
+
+
+def objective_terms(layout, problem: LayoutProblem, terms=None) -> dict:
+    """{name: scalar} of the requested objective terms (default: the problem's active ones)."""
+    terms = problem.objective.active if terms is None else tuple(terms)
+    out = {}
+    if "depth_of_field" in terms or "resolution" in terms:
+        m = correct_focus_metrics(layout, problem)
+        if "depth_of_field" in terms:
+            out["depth_of_field"] = depth_of_field(m)
+        if "resolution" in terms:
+            out["resolution"] = resolution(m, problem)
+    if "accommodation" in terms:
+        out["accommodation"] = accommodation_mse(layout, problem)
+    return out
+
+
+def combine(terms: dict, objective: Objective):
+    """Weighted loss of objective terms: Σ ± weight·term (− for maximised terms)."""
+    total = 0.0
+    for name in objective.active:
+        sign = -1.0 if name in MAXIMISED else 1.0
+        total = total + sign * objective.weight(name) * terms[name]
+    return total
+
+
+def layout_loss(layout, problem: LayoutProblem):
+    """The problem's weighted objective as a loss to minimise (scalar); non-finite values
+    raise (``eqx.error_if``) instead of steering a solver."""
+    loss = combine(objective_terms(layout, problem), problem.objective)
+    return eqx.error_if(loss, ~jnp.isfinite(loss), "layout objective is not finite (NaN or inf)")
+
+
+# ----------------------------------------------------------------------------- evaluation
+
+
+def _eye_chunks(eyes: Eyes, chunk: int):
+    """(sub-batch of ``chunk`` eyes, valid mask) covering ``eyes``; the last chunk is padded
+    with repeats of the last eye, so every chunk has one shape (one compilation)."""
+    chunk = int(chunk)
+    if chunk < 1:
+        raise ValueError(f"chunk must be >= 1, got {chunk}")
+    n = eyes.n_eyes
+    for start in range(0, n, chunk):
+        idx = np.arange(start, start + chunk)
+        valid = idx < n
+        yield Eyes(eyes.zernike_um[np.minimum(idx, n - 1)], eyes.measured_pupil_mm,
+                   eyes.orientation), valid
+
+
+@eqx.filter_jit
+def _values_jit(layout, problem: LayoutProblem, terms: tuple):
+    """Per (eye, depth) values of the requested terms, each (n_eyes, n_depth)."""
+    out = {}
+    if "depth_of_field" in terms or "resolution" in terms:
+        m = correct_focus_metrics(layout, problem)
+        out["vsotf"] = m.vsotf[..., 0]
+        o = problem.objective
+        out["cutoff_cpd"] = soft_cutoff_cpd(m.radial_mtf[..., 0, :], problem.config.freq_step_cpd,
+                                            o.mtf_threshold, o.mtf_softness)
+    if "accommodation" in terms:
+        peak, success = predicted_accommodation_D(layout, problem)
+        out["peak_D"] = peak
+        out["peak_success"] = success
+    return out
+
+
+def evaluate_layout(layout, problem: LayoutProblem, eyes: Eyes | None = None, terms=OBJECTIVES,
+                    chunk: int | None = None) -> dict:
+    """Objective terms of a layout on a population (host numbers).
+
+    ``eyes`` (default the problem's) are evaluated ``chunk`` at a time (default the
+    problem's eye count, so the fit's compiled functions are reused; the last chunk is padded
+    with repeats). Returns a dict: each term's population mean (as the objective defines
+    it), ``loss`` (the problem's weighted objective, when its terms were evaluated),
+    per-depth means ``vsotf_by_depth``, ``cutoff_by_depth`` (cpd), ``peak_error_by_depth``
+    (D), ``worst_depth_vsotf`` (lowest per-depth mean VSOTF), ``accommodation_rmse_D``,
+    ``peak_success_fraction`` and the per-(eye, depth) arrays under ``values``.
+    """
+    eyes = problem.eyes if eyes is None else eyes
+    terms = tuple(t for t in OBJECTIVES if t in tuple(terms))
+    layout = as_free(layout)
+    parts = []
+    for sub, valid in _eye_chunks(eyes, problem.eyes.n_eyes if chunk is None else chunk):
+        vals = _values_jit(layout, problem.with_eyes(sub), terms)
+        parts.append({k: np.asarray(v)[valid] for k, v in vals.items()})
+    values = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    depths = np.asarray(problem.depths_D)
+    out = {"n_eyes": eyes.n_eyes, "depths_D": depths.tolist(), "values": values}
+    if "vsotf" in values:
+        by_depth = values["vsotf"].mean(axis=0)
+        out["depth_of_field"] = float(values["vsotf"].mean())
+        out["vsotf_by_depth"] = by_depth.tolist()
+        out["worst_depth_vsotf"] = float(by_depth.min())
+        out["resolution"] = float(values["cutoff_cpd"].mean())
+        out["cutoff_by_depth"] = values["cutoff_cpd"].mean(axis=0).tolist()
+    if "peak_D" in values:
+        err = values["peak_D"] - depths[None, :]
+        out["accommodation"] = float(np.mean(err**2))
+        out["accommodation_rmse_D"] = float(math.sqrt(out["accommodation"]))
+        out["peak_error_by_depth"] = err.mean(axis=0).tolist()
+        out["peak_success_fraction"] = float(values["peak_success"].mean())
+    if all(t in out for t in problem.objective.active):
+        out["loss"] = float(combine(out, problem.objective))
+    for k, v in out.items():
+        if isinstance(v, float) and not math.isfinite(v):
+            raise FloatingPointError(f"evaluation gave a non-finite {k}")
+    return out
+
+
+@eqx.filter_jit
+def _curves_jit(layout, problem: LayoutProblem, accommodation_D):
+    acc = Accommodation.per_depth(accommodation_D, problem.options, problem.pupil_diameter_mm)
+    m = retinal_metrics(problem.eyes, problem.scene(layout), problem.spectrum, acc, problem.config,
+                        problem.reference)
+    return m.vsotf
+
+
+def through_focus_curves(layout, problem: LayoutProblem, offsets_D=None, eyes: Eyes | None = None,
+                         chunk: int | None = None):
+    """Through-focus VSOTF of a layout: (accommodation_D (n_depth, n_k), vsotf (n_eyes,
+    n_depth, n_k)); accommodation = depth + offsets (default ±``window_D`` in 0.1 D steps),
+    states below 0 D are NaN (the eye cannot relax beyond infinity)."""
+    if offsets_D is None:
+        w = problem.window_D
+        offsets_D = np.round(np.arange(-w, w + 1e-9, 0.1), 9)
+    offsets = np.asarray(offsets_D, float)
+    depths = np.asarray(problem.depths_D)
+    acc = depths[:, None] + offsets[None, :]
+    eyes = problem.eyes if eyes is None else eyes
+    rows = []
+    for sub, valid in _eye_chunks(eyes, eyes.n_eyes if chunk is None else chunk):
+        rows.append(np.asarray(_curves_jit(as_free(layout), problem.with_eyes(sub),
+                                           jnp.asarray(np.maximum(acc, 0.0))))[valid])
+    vs = np.concatenate(rows)
+    vs[:, acc < 0] = np.nan
+    return acc, vs
+
+
+def diameter_scan(eyes: Eyes, n_per_side: int, pitch_mm: float, diameters_mm, depths_D,
+                  reference: str = "open_pupil", *, pupil_diameter_mm: float = 3.0,
+                  cdp_D: float = 2.0, wavelengths_nm=DEFAULT_WAVELENGTHS_NM,
+                  sampling: Sampling | None = None, options: ModelOptions = ModelOptions()):
+    """Mean VSOTF at the correct accommodation of an n×n grid at a fixed pitch for each
+    subaperture diameter: (n_diameters, n_depth), the mean over ``eyes``.
+
+    ``reference`` selects the VSOTF reference (``"paper"`` or ``"open_pupil"``); this is the
+    check behind the module docstring's warning (with ``"paper"`` the mean rises as the
+    subapertures shrink). ``sampling`` defaults to the planner's guard for the largest and
+    smallest diameter on this grid.
+    """
+    from .layouts import make_layout
+    from .pipeline import retinal_metrics_jit
+
+    d = np.atleast_1d(np.asarray(diameters_mm, float))
+    depths = _check_depths(depths_D)
+    options = options.replace(vsotf_reference=reference)
+    sites = lattice_sites("square", int(n_per_side) ** 2)
+    centres = float(pitch_mm) * sites
+    pupil = float(pupil_diameter_mm)
+    window = float(min(d.max(), pupil))
+    wl = np.atleast_1d(np.asarray(wavelengths_nm, float))
+    if sampling is None:
+        from .planner import plan_sampling
+
+        envelope = make_layout(np.concatenate([centres, centres[:1]]),
+                               np.concatenate([np.full(len(centres), d.max()), [d.min()]]), pupil,
+                               window_diameter_mm=window)
+        sampling = plan_sampling(envelope, pupil_diameter_mm=pupil, cdp_D=cdp_D, depths_D=depths,
+                                 accommodation_window_D=0.5, wavelengths_nm=wl,
+                                 eyes_zernike_um=np.asarray(eyes.zernike_um),
+                                 measured_pupil_mm=eyes.measured_pupil_mm, options=options,
+                                 estimate_accuracy=False).sampling
+    config = PipelineConfig.build(wl, window, pupil, sampling, options)
+    spectrum = make_spectrum(wl, options)
+    acc = Accommodation.per_depth(depths[:, None], options, pupil)
+    rows = []
+    for di in d:
+        scene = Scene(centres, np.full(len(centres), di), cdp_D, depths, pupil)
+        rows.append(np.asarray(retinal_metrics_jit(eyes, scene, spectrum, acc, config).vsotf)[..., 0].mean(0))
+    return np.stack(rows)
+
+
+# ----------------------------------------------------------------------------- solvers
+#
+# The expensive part of every solver step is the objective and its gradient with respect to
+# the subapertures' centres and diameters. It is compiled once (:data:`_loss_and_grad`, per
+# view count and problem) and shared by both routes and both parametrisations; the
+# coordinate maps (box or unconstrained → layout) and their pullbacks are small compiled
+# functions, and the solvers' own steps run eagerly on these compiled pieces. Compiling the
+# solvers' steps whole would trace the pipeline once per call site (jaxopt's zoom line
+# search: 8 times, ~40 s to compile on 2 cores; optimistix BFGS: ~16 s) for no speed-up.
+
+_loss_and_grad = eqx.filter_jit(eqx.filter_value_and_grad(layout_loss))
+""":func:`layout_loss` and its gradient with respect to a FreeParams' centres and diameters."""
+
+
+def _coords_to_params(coords, template, constraints: Constraints, route: str):
+    if route == "box":
+        return from_box(coords, template, constraints)
+    return from_unconstrained(coords, template, constraints)
+
+
+@eqx.filter_jit
+def _coords_to_free(coords, template, constraints: Constraints, route: str):
+    return as_free(_coords_to_params(coords, template, constraints, route))
+
+
+@eqx.filter_jit
+def _coords_pullback(coords, template, constraints: Constraints, route: str, grad_free):
+    _, pull = jax.vjp(lambda x: as_free(_coords_to_params(x, template, constraints, route)), coords)
+    return pull(grad_free)[0]
+
+
+class _CoordinateObjective:
+    """Loss and gradient in solver coordinates: compiled pieces composed on the host."""
+
+    def __init__(self, template, problem: LayoutProblem, route: str):
+        self.template, self.problem, self.route = template, problem, route
+        self.constraints = problem.constraints
+
+    def value_and_grad(self, coords):
+        free = _coords_to_free(coords, self.template, self.constraints, self.route)
+        value, grad_free = _loss_and_grad(free, self.problem)
+        return value, _coords_pullback(coords, self.template, self.constraints, self.route, grad_free)
+
+    def optimistix_fn(self):
+        """fn(y, args) → (loss, None) for optimistix, differentiable through a custom JVP
+        whose tangent is ⟨∇loss, t⟩ from the compiled gradient."""
+
+        @jax.custom_jvp
+        def loss(y):
+            return self.value_and_grad(y)[0]
+
+        @loss.defjvp
+        def loss_jvp(primals, tangents):
+            value, grad = self.value_and_grad(primals[0])
+            dot = sum(jnp.vdot(g, t) for g, t in zip(jax.tree_util.tree_leaves(grad),
+                                                    jax.tree_util.tree_leaves(tangents[0])))
+            return value, dot
+
+        return lambda y, args: (loss(y), None)
+
+
+def _lbfgsb(fun, tol: float):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="JAXopt is no longer maintained")
+        import jaxopt
+    # jit=False: jaxopt's loop and line search run on the host around the compiled
+    # objective; backtracking needs one objective + gradient per trial step (zoom ~2x more).
+    return jaxopt.LBFGSB(fun=fun, value_and_grad=True, tol=tol, maxls=20, jit=False,
+                         linesearch="backtracking")
+
+
+@dataclass
+class LayoutFit:
+    """Result of :func:`optimise_layout`.
+
+    Attributes
+    ----------
+    layout, initial_layout : fitted and starting :class:`lfjax.layouts.Layout`
+    params, initial_params : fitted and starting parameters (LatticeParams or FreeParams)
+    history : loss (the problem's weighted objective) at the accepted iterate after each
+        solver step, starting with the initial layout's
+    method, n_steps, converged, time_s : solver, steps taken, tolerance met, wall time (s)
+    train : {"before": …, "after": …} :func:`evaluate_layout` on the training eyes
+    test : the same on the held-out eyes (None without them)
+    objective, constraints : what was optimised, within which bounds
+    """
+
+    layout: Layout
+    params: object
+    initial_layout: Layout
+    initial_params: object
+    history: np.ndarray
+    method: str
+    n_steps: int
+    converged: bool
+    time_s: float
+    train: dict
+    test: dict | None
+    objective: Objective
+    constraints: Constraints
+
+    def summary(self) -> str:
+        lines = [f"objective: {self.objective.name}; method {self.method}, {self.n_steps} steps "
+                 f"({'converged' if self.converged else 'step limit'}), {self.time_s:.1f} s",
+                 f"loss: {self.history[0]:.6g} -> {self.history[-1]:.6g}"]
+        for label, ev in (("train", self.train), ("test", self.test)):
+            if ev is None:
+                continue
+            for term in OBJECTIVES:
+                if term in ev["before"]:
+                    lines.append(f"{label} ({ev['before']['n_eyes']} eyes) {term}: "
+                                 f"{ev['before'][term]:.5g} -> {ev['after'][term]:.5g}")
+            if "worst_depth_vsotf" in ev["before"]:
+                lines.append(f"{label} worst-depth VSOTF: {ev['before']['worst_depth_vsotf']:.4g} -> "
+                             f"{ev['after']['worst_depth_vsotf']:.4g}")
+        lines.append("fitted: " + describe_params(self.params))
+        return "\n".join(lines)
+
+
+def describe_params(params) -> str:
+    """One line describing layout parameters (mm, rad)."""
+    if isinstance(params, LatticeParams):
+        return (f"{params.kind} lattice, {params.n_views} views: pitch {float(params.pitch_mm):.4f} mm, "
+                f"diameter {float(params.diameter_mm):.4f} mm, rotation {float(params.rotation_rad):.4f} rad")
+    c = np.asarray(params.centres_mm, float)
+    d = np.asarray(params.diameters_mm, float)
+    return (f"free, {len(d)} views: diameters {np.round(d, 4).tolist()} mm, centres "
+            f"{np.round(c, 4).tolist()} mm")
+
+
+def to_layout(params, constraints: Constraints, name: str = "optimised") -> Layout:
+    """A checked :class:`lfjax.layouts.Layout` of parameters (window = the diameter cap)."""
+    c = np.asarray(params.centres_mm, float)
+    d = np.asarray(params.diameters_mm, float)
+    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(d))):
+        raise FloatingPointError(f"non-finite layout: centres {c.tolist()}, diameters {d.tolist()}")
+    return make_layout(c, d, constraints.pupil_diameter_mm, name=name,
+                       window_diameter_mm=constraints.max_diameter_mm)
+
+
+def optimise_layout(
+    initial, problem: LayoutProblem, *, method: str = "lbfgsb", max_steps: int = 50,
+    tol: float = 1e-5, test_eyes: Eyes | None = None, progress: bool = True,
+    evaluate_terms=None, name: str = "optimised",
+) -> LayoutFit:
+    """Fit a layout to the problem's (training) eyes and report it on held-out eyes.
+
+    Parameters
+    ----------
+    initial : LatticeParams or FreeParams, feasible under ``problem.constraints`` (else a
+        ``ValueError`` names the parameter and its allowed range)
+    problem : :func:`make_problem`
+    method : ``"lbfgsb"`` (jaxopt L-BFGS-B in box coordinates) or ``"bfgs"`` (optimistix BFGS
+        in unconstrained coordinates); see the module docstring
+    max_steps : solver steps (each one or a few objective + gradient evaluations)
+    tol : stopping tolerance (L-BFGS-B: projected-gradient norm; BFGS: rtol = atol = tol)
+    test_eyes : held-out population (evaluated before and after, never fitted)
+    progress : tqdm progress bar on stderr
+    evaluate_terms : terms reported by :func:`evaluate_layout` (default all three when the
+        objective uses accommodation, else depth of field and resolution — accommodation
+        peaks cost tens of pipeline evaluations per eye)
+
+    Returns a :class:`LayoutFit`. Raises ``FloatingPointError`` rather than return a
+    non-finite layout.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if isinstance(max_steps, bool) or int(max_steps) != max_steps or max_steps < 0:
+        raise ValueError(f"max_steps must be an integer >= 0, got {max_steps!r}")
+    _finite_scalar("tol", tol, 0.0, None, lo_open=True)
+    constraints = problem.constraints
+    if isinstance(initial, Layout):
+        initial = free_params(initial.centres_mm, initial.diameters_mm)
+    if evaluate_terms is None:
+        evaluate_terms = OBJECTIVES if "accommodation" in problem.objective.active else (
+            "depth_of_field", "resolution")
+    t0 = time.perf_counter()
+    history = []
+    converged = False
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=int(max_steps), desc=f"optimise {problem.objective.name}", unit="step",
+                   leave=True)
+    try:
+        def tick():
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(loss=f"{history[-1]:.5g}")
+
+        if method == "lbfgsb":
+            x, bounds = to_box(initial, constraints)
+            target = _CoordinateObjective(initial, problem, "box")
+            solver = _lbfgsb(target.value_and_grad, float(tol))
+            state = solver.init_state(x, bounds)
+            history.append(float(state.value))
+            for _ in range(int(max_steps)):
+                if float(state.error) <= tol:
+                    break
+                x, state = solver.update(x, state, bounds)
+                history.append(float(state.value))
+                tick()
+            converged = float(state.error) <= tol
+            fitted = from_box(x, initial, constraints)
+        else:
+            y = to_unconstrained(initial, constraints)
+            target = _CoordinateObjective(initial, problem, "raw")
+            fn = target.optimistix_fn()
+            solver = optx.BFGS(rtol=float(tol), atol=float(tol))
+            f_struct = jax.ShapeDtypeStruct((), jnp.result_type(float))
+            state = solver.init(fn, y, None, {}, f_struct, None, frozenset())
+            history.append(float(target.value_and_grad(y)[0]))
+            for _ in range(int(max_steps)):
+                y, state, _ = solver.step(fn, y, None, {}, state, frozenset())
+                accepted = int(state.num_accepted_steps) > 0
+                history.append(float(state.f_info.f) if accepted else history[0])
+                tick()
+                done, result = solver.terminate(fn, y, None, {}, state, frozenset())
+                if bool(done):
+                    converged = result == optx.RESULTS.successful
+                    break
+            fitted = from_unconstrained(y, initial, constraints)
+    finally:
+        if bar is not None:
+            bar.close()
+    history = np.asarray(history, float)
+    if not np.all(np.isfinite(history)):
+        raise FloatingPointError(f"the objective became non-finite during the fit: {history.tolist()}")
+    _check_finite_params(fitted)
+    layout = to_layout(fitted, constraints, name)
+    constraints.check(layout)  # by construction; kept as a guard against regressions
+    initial_layout = to_layout(initial, constraints, "initial")
+    train = {"before": evaluate_layout(initial, problem, terms=evaluate_terms),
+             "after": evaluate_layout(fitted, problem, terms=evaluate_terms)}
+    test = None
+    if test_eyes is not None:
+        held_out = problem.with_eyes(test_eyes)
+        test = {"before": evaluate_layout(initial, held_out, terms=evaluate_terms,
+                                          chunk=problem.eyes.n_eyes),
+                "after": evaluate_layout(fitted, held_out, terms=evaluate_terms,
+                                         chunk=problem.eyes.n_eyes)}
+    return LayoutFit(layout, fitted, initial_layout, initial, history, method, len(history) - 1,
+                     bool(converged), time.perf_counter() - t0, train, test, problem.objective,
+                     constraints)
+
+
+# ----------------------------------------------------------------------------- files
+
+
+def params_to_dict(params) -> dict:
+    """JSON-ready description of layout parameters."""
+    if isinstance(params, LatticeParams):
+        return dict(kind="lattice", lattice=params.kind, pitch_mm=float(params.pitch_mm),
+                    diameter_mm=float(params.diameter_mm), rotation_rad=float(params.rotation_rad),
+                    sites=[list(s) for s in params.sites])
+    return dict(kind="free", centres_mm=np.asarray(params.centres_mm, float).tolist(),
+                diameters_mm=np.asarray(params.diameters_mm, float).tolist())
+
+
+def params_from_dict(record: dict):
+    """Inverse of :func:`params_to_dict` (host-checked)."""
+    kind = record.get("kind")
+    if kind == "lattice":
+        for key in ("pitch_mm", "diameter_mm", "rotation_rad"):
+            _finite_scalar(key, record[key])
+        sites = tuple(tuple(float(v) for v in s) for s in record["sites"])
+        return LatticeParams(record["pitch_mm"], record["diameter_mm"], record["rotation_rad"],
+                             sites, record["lattice"])
+    if kind == "free":
+        return free_params(record["centres_mm"], record["diameters_mm"])
+    raise ValueError(f"parameters kind must be 'lattice' or 'free', got {kind!r}")
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.ndarray, jax.Array)):
+        return _jsonable(np.asarray(x).tolist())
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def save_layout_json(path, layout: Layout, pupil_diameter_mm: float, *, objective=None,
+                     provenance: dict | None = None, parameters=None) -> Path:
+    """Write a layout as JSON: centres_mm, diameters_mm, pupil_diameter_mm, name, objective,
+    provenance (+ parameters when given: LatticeParams/FreeParams or their dict).
+
+    ``objective``: an :class:`Objective`, a name, or a dict (e.g. with its values).
+    ``provenance`` gets the lfjax version and a UTC time stamp added.
+    """
+    from . import __version__
+
+    make_layout(layout.centres_mm, layout.diameters_mm, pupil_diameter_mm)  # validates
+    if isinstance(objective, Objective):
+        objective = objective.as_dict()
+    elif isinstance(objective, str):
+        objective = {"name": objective}
+    if parameters is not None and not isinstance(parameters, dict):
+        parameters = params_to_dict(parameters)
+    prov = {"lfjax_version": __version__,
+            "written_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+    prov.update(provenance or {})
+    record = {
+        "format": LAYOUT_FORMAT,
+        "name": layout.name,
+        "pupil_diameter_mm": float(pupil_diameter_mm),
+        "window_diameter_mm": float(layout.window_diameter_mm),
+        "centres_mm": np.asarray(layout.centres_mm, float).tolist(),
+        "diameters_mm": np.asarray(layout.diameters_mm, float).tolist(),
+        "objective": objective,
+        "provenance": prov,
+    }
+    if parameters is not None:
+        record["parameters"] = parameters
+    path = Path(path)
+    path.write_text(json.dumps(_jsonable(record), indent=2) + "\n")
+    return path
+
+
+def load_layout_json(path) -> tuple[Layout, dict]:
+    """Read :func:`save_layout_json`'s file: (validated Layout, the whole record)."""
+    record = json.loads(Path(path).read_text())
+    if not isinstance(record, dict) or record.get("format") != LAYOUT_FORMAT:
+        raise ValueError(f"{path}: not an lfjax layout file (format {LAYOUT_FORMAT!r} expected)")
+    for key in ("centres_mm", "diameters_mm", "pupil_diameter_mm"):
+        if key not in record:
+            raise ValueError(f"{path}: missing {key!r}")
+    pupil = _finite_scalar("pupil_diameter_mm", record["pupil_diameter_mm"], 0.0, None, lo_open=True)
+    layout = make_layout(record["centres_mm"], record["diameters_mm"], pupil,
+                         name=str(record.get("name", "custom")),
+                         window_diameter_mm=record.get("window_diameter_mm"))
+    return layout, record
+
+
+__all__ = [
+    "OBJECTIVES",
+    "LATTICES",
+    "CONTAINMENTS",
+    "METHODS",
+    "lattice_sites",
+    "hex_sites_in_pupil",
+    "LatticeParams",
+    "lattice_params",
+    "tangent_lattice",
+    "initial_lattice",
+    "feasible_start",
+    "FreeParams",
+    "free_params",
+    "as_free",
+    "Constraints",
+    "to_box",
+    "from_box",
+    "to_unconstrained",
+    "from_unconstrained",
+    "Objective",
+    "LayoutProblem",
+    "depth_grid",
+    "envelope_layout",
+    "guard_sampling",
+    "make_problem",
+    "correct_focus_metrics",
+    "depth_of_field",
+    "soft_cutoff_cpd",
+    "resolution",
+    "predicted_accommodation_D",
+    "accommodation_mse",
+    "objective_terms",
+    "combine",
+    "layout_loss",
+    "evaluate_layout",
+    "through_focus_curves",
+    "diameter_scan",
+    "LayoutFit",
+    "describe_params",
+    "to_layout",
+    "optimise_layout",
+    "params_to_dict",
+    "params_from_dict",
+    "save_layout_json",
+    "load_layout_json",
+]

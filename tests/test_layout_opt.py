@@ -1,0 +1,391 @@
+"""Layout optimisation (lfjax.layout_opt): feasibility by construction, bad input, fits that
+beat their start inside the pupil, objective gradients against finite differences, JSON,
+the ``lfjax optimise`` command and the notebook.
+
+One tiny problem (1 wavelength, Sampling(2 cpd), 2 depths, 4 views, 2 mm diameter cap) is
+shared by the tests and by the command-line run, so they reuse one compiled objective.
+"""
+
+import json
+import math
+import os
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lfjax
+from lfjax import cli
+from lfjax import layout_opt as lo
+
+import helpers as H
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOK = ROOT / "notebooks" / "optimise_layout.ipynb"
+
+DEPTHS = [1.0, 3.0]
+WAVELENGTHS = [550.0]
+SAMPLING = lfjax.Sampling(2.0)
+CONSTRAINTS = lo.Constraints(3.0, max_diameter_mm=2.0, min_diameter_mm=0.5)
+
+
+def tiny_problem(eyes, objective="depth_of_field", constraints=CONSTRAINTS):
+    return lo.make_problem(eyes, DEPTHS, constraints, objective, wavelengths_nm=WAVELENGTHS,
+                           sampling=SAMPLING)
+
+
+@pytest.fixture(scope="module")
+def dl_problem():
+    return tiny_problem(lfjax.eyes.aberration_free_eye())
+
+
+def perturbed_tangent_2x2():
+    """The paper's tangent 2×2 grid (pitch = d = 1.5 mm), each view nudged differently."""
+    grid = lfjax.grid_layout(2, 3.0)
+    shift = np.array([[0.05, -0.03], [-0.04, 0.02], [0.03, 0.04], [-0.02, -0.05]])
+    return lo.free_params(np.asarray(grid.centres_mm) + shift,
+                          np.asarray(grid.diameters_mm) + [0.05, -0.04, 0.02, -0.03])
+
+
+def assert_inside(layout, constraints):
+    c = np.asarray(layout.centres_mm)
+    d = np.asarray(layout.diameters_mm)
+    assert np.all(np.hypot(c[:, 0], c[:, 1]) <= constraints.radius_mm + 1e-12)
+    assert np.all(d >= constraints.min_diameter_mm - 1e-12)
+    assert np.all(d <= constraints.max_diameter_mm + 1e-12)
+    assert constraints.violations(layout) == []
+
+
+# ------------------------------------------------------------------ parametrisations
+
+
+def test_square_lattice_is_the_papers_grid_and_hex_fills_rings():
+    for n in (2, 3, 4):
+        lat = lo.tangent_lattice("square", n * n)
+        grid = lfjax.grid_layout(n, 3.0)
+        np.testing.assert_allclose(lat.centres_mm, grid.centres_mm, atol=1e-12)
+        np.testing.assert_allclose(lat.diameters_mm, grid.diameters_mm, atol=1e-12)
+    hex7 = lo.lattice_sites("hex", 7)
+    np.testing.assert_allclose(np.hypot(*hex7.T), [0] + [1] * 6, atol=1e-12)
+    assert len(lo.hex_sites_in_pupil(1.0, 3.0)) == 7  # ring at 1 mm inside R = 1.5 mm
+    lat = lo.lattice_params("hex", None, 1.0, 0.8, 0.1)
+    assert lat.n_views == 7
+    # rotation turns every centre about the pupil centre
+    c0 = np.asarray(lo.lattice_params("square", 4, 1.5, 1.5, 0.0).centres_mm)
+    c1 = np.asarray(lo.lattice_params("square", 4, 1.5, 1.5, 0.3).centres_mm)
+    np.testing.assert_allclose(np.hypot(*c0.T), np.hypot(*c1.T), atol=1e-12)
+    np.testing.assert_allclose(np.arctan2(c1[:, 1], c1[:, 0]) - np.arctan2(c0[:, 1], c0[:, 0]),
+                               0.3, atol=1e-12)
+
+
+def test_disc_maps_invert():
+    q = np.random.default_rng(0).uniform(-1, 1, (200, 2))
+    q = q[np.hypot(*q.T) < 0.999]
+    np.testing.assert_allclose(lo._square_to_disc(lo._disc_to_square(q)), q, atol=1e-9)
+    np.testing.assert_allclose(lo._plane_to_disc(lo._disc_to_plane(q)), q, atol=1e-9)
+    # the square's boundary lands on the circle, its inside strictly inside
+    s = np.stack([np.ones(5), np.linspace(-1, 1, 5)], axis=1)
+    np.testing.assert_allclose(np.hypot(*np.asarray(lo._square_to_disc(s)).T), 1.0, atol=1e-12)
+
+
+CONSTRAINT_CASES = [
+    lo.Constraints(3.0),
+    lo.Constraints(3.0, 2.0, 0.5, "contained"),
+    lo.Constraints(3.0, 2.0, 0.4, "centre", non_overlap=True),
+    lo.Constraints(3.0, 1.5, 0.3, "contained", non_overlap=True),
+]
+
+
+@pytest.mark.parametrize("constraints", CONSTRAINT_CASES, ids=lambda c: f"{c.containment}-{c.non_overlap}")
+@pytest.mark.parametrize("kind", ["square4", "square9", "hex7", "free5"])
+def test_every_coordinate_maps_to_a_feasible_layout(constraints, kind):
+    """Random points of the box, its corners, and huge unconstrained values: never a
+    violated constraint."""
+    rng = np.random.default_rng(1)
+    if kind == "free5":
+        template = lo.free_params(np.zeros((5, 2)), np.ones(5))
+    else:
+        template = lo.tangent_lattice(kind[:-1], int(kind[-1]))
+    x0, (lower, upper) = lo.to_box(_feasible(template, constraints), constraints)
+    for trial in range(6):
+        if trial < 2:  # corners: every coordinate at a bound
+            x = jax.tree_util.tree_map(lambda lo_, hi_: jnp.where(trial == 0, lo_, hi_), lower, upper)
+        else:
+            x = jax.tree_util.tree_map(
+                lambda lo_, hi_: lo_ + (hi_ - lo_) * rng.uniform(size=np.shape(lo_)), lower, upper)
+        layout = lo.as_free(lo.from_box(x, template, constraints))
+        if trial < 2 and kind == "free5" and constraints.non_overlap:
+            # all views at one corner: coincident centres, the documented degenerate case
+            assert "distinct centres" in " ".join(constraints.violations(layout))
+            continue
+        assert np.all(np.asarray(layout.diameters_mm) > 0)
+        assert constraints.violations(layout) == [], (trial, constraints.violations(layout))
+        u = jax.tree_util.tree_map(lambda a: 30.0 * rng.standard_normal(np.shape(a)), x0)
+        layout = lo.as_free(lo.from_unconstrained(u, template, constraints))
+        assert constraints.violations(layout) == []
+
+
+def _feasible(template, constraints):
+    if isinstance(template, lo.FreeParams):
+        angles = np.linspace(0, 2 * np.pi, 5, endpoint=False)
+        c = 0.9 * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+        return lo.free_params(c, np.full(5, constraints.min_diameter_mm))
+    return lo.initial_lattice(template.kind, template.n_views, constraints)
+
+
+def test_coordinates_round_trip():
+    lat = lo.lattice_params("square", 4, 1.3, 1.1, 0.2)
+    for to, back in ((lo.to_box, lo.from_box), (lo.to_unconstrained, lo.from_unconstrained)):
+        x = to(lat, CONSTRAINTS)
+        x = x[0] if isinstance(x, tuple) else x
+        again = back(x, lat, CONSTRAINTS)
+        for name in ("pitch_mm", "diameter_mm", "rotation_rad"):
+            np.testing.assert_allclose(getattr(again, name), getattr(lat, name), atol=1e-9)
+    free = perturbed_tangent_2x2()
+    for to, back in ((lo.to_box, lo.from_box), (lo.to_unconstrained, lo.from_unconstrained)):
+        x = to(free, CONSTRAINTS)
+        x = x[0] if isinstance(x, tuple) else x
+        again = back(x, free, CONSTRAINTS)
+        np.testing.assert_allclose(again.centres_mm, free.centres_mm, atol=1e-9)
+        np.testing.assert_allclose(again.diameters_mm, free.diameters_mm, atol=1e-9)
+
+
+# ------------------------------------------------------------------ bad input
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: lo.to_box(lo.lattice_params("square", 4, 2.5, 1.0), CONSTRAINTS), "pitch_mm"),
+    (lambda: lo.to_box(lo.lattice_params("square", 4, 1.5, 0.2), CONSTRAINTS), "diameter_mm"),
+    (lambda: lo.to_box(lo.lattice_params("square", 4, 1.5, 2.5), CONSTRAINTS), "diameter_mm"),
+    (lambda: lo.to_box(lo.lattice_params("square", 4, 1.0, 1.0, 1.0), CONSTRAINTS), "rotation_rad"),
+    (lambda: lo.to_box(lo.free_params([[1.6, 0.0]], [1.0]), CONSTRAINTS), r"centres_mm\[0\]"),
+    (lambda: lo.to_box(lo.free_params([[1.3, 0.0]], [0.5]),
+                       lo.Constraints(3.0, containment="contained")), r"centres_mm\[0\]"),
+    (lambda: lo.to_unconstrained(lo.free_params([[0.5, 0.0], [-0.5, 0.0]], [1.2, 0.9]),
+                                 lo.Constraints(3.0, non_overlap=True)), r"diameters_mm\[0\]"),
+    (lambda: lo.to_box(lo.tangent_lattice("square", 16),
+                       lo.Constraints(3.0, min_diameter_mm=1.0, non_overlap=True)), "no feasible"),
+    (lambda: lo.lattice_params("square", 4, float("nan")), "pitch_mm"),
+    (lambda: lo.lattice_params("square", 4, 1.0, float("inf")), "diameter_mm"),
+    (lambda: lo.free_params([[0.0, float("nan")]], [1.0]), "centres_mm"),
+    (lambda: lo.lattice_sites("square", 5), "n_views"),
+    (lambda: lo.lattice_sites("hex", 0), "n_views"),
+    (lambda: lo.free_params(np.zeros((0, 2)), []), "n_views"),
+    (lambda: lo.Constraints(3.0, max_diameter_mm=1.0, min_diameter_mm=1.5), "min_diameter_mm"),
+    (lambda: lo.Constraints(3.0, max_diameter_mm=4.0), "max_diameter_mm"),
+    (lambda: lo.Constraints(float("nan")), "pupil_diameter_mm"),
+    (lambda: lo.Constraints(3.0, containment="inside"), "containment"),
+    (lambda: lo.depth_grid(3.0, 1.0, 5), "inverted"),
+    (lambda: lo.depth_grid(2.0, 2.0, 5), "empty"),
+    (lambda: lo.depth_grid(-1.0, 2.0, 5), r"\[0, inf\]"),
+    (lambda: lo.depth_grid(0.0, float("nan"), 5), "high end"),
+    (lambda: lo.depth_grid(0.0, 4.0, 0), "n_depths"),
+    (lambda: lo.Objective.parse("sharpness"), "objective"),
+    (lambda: lo.Objective.parse({"depth_of_field": 0.0}), "weight must be > 0"),
+    (lambda: lo.Objective.parse({"resolution": float("nan")}), "weight of resolution"),
+])
+def test_bad_input_raises_naming_the_parameter(make, match):
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
+def test_problem_refuses_the_paper_reference_and_bad_depths():
+    eye = lfjax.eyes.aberration_free_eye()
+    with pytest.raises(ValueError, match="open_pupil"):
+        lo.make_problem(eye, DEPTHS, CONSTRAINTS, options=lfjax.ModelOptions(), sampling=SAMPLING)
+    for depths in ([], [-0.5, 1.0], [1.0, float("nan")]):
+        with pytest.raises(ValueError, match="depths_D"):
+            lo.make_problem(eye, depths, CONSTRAINTS, sampling=SAMPLING)
+    with pytest.raises(ValueError, match="window_D"):
+        lo.make_problem(eye, DEPTHS, CONSTRAINTS, "accommodation", sampling=SAMPLING, window_D=0.2)
+
+
+def test_optimiser_arguments_are_checked(dl_problem):
+    start = perturbed_tangent_2x2()
+    with pytest.raises(ValueError, match="method"):
+        lo.optimise_layout(start, dl_problem, method="adam")
+    with pytest.raises(ValueError, match="max_steps"):
+        lo.optimise_layout(start, dl_problem, max_steps=-1)
+    outside = lo.free_params([[1.7, 0.0], [0, 0], [0, 0.5], [0.5, 0]], [1.0] * 4)
+    with pytest.raises(ValueError, match=r"centres_mm\[0\]"):
+        lo.optimise_layout(outside, dl_problem, max_steps=1)
+
+
+# ------------------------------------------------------------------ fits
+
+
+def test_lbfgsb_fit_beats_the_perturbed_tangent_grid_inside_the_pupil(dl_problem):
+    start = perturbed_tangent_2x2()
+    fit = lo.optimise_layout(start, dl_problem, method="lbfgsb", max_steps=6, progress=False)
+    assert fit.history.shape == (fit.n_steps + 1,)
+    assert np.all(np.isfinite(fit.history))
+    assert np.all(np.diff(fit.history) <= 1e-9)  # line search: never worse
+    before, after = fit.train["before"], fit.train["after"]
+    assert after["depth_of_field"] > before["depth_of_field"] + 0.01
+    assert fit.history[-1] == pytest.approx(-after["depth_of_field"], rel=1e-9)
+    assert_inside(fit.layout, CONSTRAINTS)
+    assert isinstance(fit.params, lo.FreeParams) and fit.layout.window_diameter_mm == 2.0
+
+
+def test_bfgs_free_fit_without_overlap_beats_its_start():
+    """Free views that must not overlap, from the tangent lattice moved 2 % inside the
+    bounds: BFGS in unconstrained coordinates improves (with the exact nearest-neighbour
+    minimum it rejected every step: a kink where two neighbours tie) and nothing overlaps."""
+    constraints = lo.Constraints(3.0, max_diameter_mm=2.0, min_diameter_mm=0.5, non_overlap=True)
+    problem = tiny_problem(lfjax.eyes.aberration_free_eye(), constraints=constraints)
+    lattice = lo.tangent_lattice("square", 4)
+    start = lo.feasible_start(lo.free_params(lattice.centres_mm, lattice.diameters_mm),
+                              constraints, margin=0.02)
+    assert constraints.violations(start) == []
+    fit = lo.optimise_layout(start, problem, method="bfgs", max_steps=5, progress=False)
+    assert fit.train["after"]["depth_of_field"] > fit.train["before"]["depth_of_field"] + 0.01
+    assert np.all(np.diff(fit.history) <= 1e-9)
+    assert isinstance(fit.params, lo.FreeParams)
+    assert_inside(fit.layout, constraints)
+
+
+def test_feasible_start_moves_layouts_inside():
+    constraints = lo.Constraints(3.0, 1.2, 0.5, "contained", non_overlap=True)
+    for params in (lo.tangent_lattice("square", 9), lo.lattice_params("hex", 7, 2.0, 1.9, 1.0),
+                   lo.free_params([[1.6, 0.0], [0.0, 0.1], [0.0, -0.1]], [3.0, 0.2, 2.0])):
+        moved = lo.feasible_start(params, constraints, margin=0.05)
+        assert constraints.violations(moved) == []
+        lo.to_unconstrained(moved, constraints)  # accepted as a start
+
+
+@pytest.mark.parametrize("objective", lo.OBJECTIVES)
+def test_objective_gradients_match_finite_differences(objective):
+    """Reverse-mode gradient of each objective (depth of field; accommodation MSE through
+    the implicitly differentiated Newton peak; soft cut-off) against central differences of
+    the same compiled loss along a random direction of all centres and diameters, float64."""
+    problem = tiny_problem(lfjax.sample_eyes(3, 1), objective)
+    layout = lo.free_params([[-0.7, -0.6], [0.75, -0.7], [-0.65, 0.8], [0.7, 0.72]],
+                            [1.2, 1.3, 1.25, 1.1])
+    _, grad = lo._loss_and_grad(layout, problem)
+    direction = H.random_direction(jax.random.key(0), layout)
+    analytic = H.tree_vdot(grad, direction)
+    fd = H.directional_fd(lambda f: lo._loss_and_grad(f, problem)[0], layout, direction, 1e-5)
+    assert abs(fd) > 1e-4, f"{objective}: derivative too small to test"
+    np.testing.assert_allclose(analytic, fd, rtol=1e-6)
+
+
+def test_evaluation_on_held_out_eyes_pads_chunks(dl_problem):
+    """Three eyes in chunks of the problem's one: same numbers as one at a time."""
+    eyes = lfjax.sample_eyes(7, 3)
+    layout = perturbed_tangent_2x2()
+    whole = lo.evaluate_layout(layout, dl_problem, eyes, terms=("depth_of_field", "resolution"))
+    single = [lo.evaluate_layout(layout, dl_problem, eyes[i], terms=("depth_of_field", "resolution"))
+              for i in range(3)]
+    assert whole["n_eyes"] == 3
+    assert whole["depth_of_field"] == pytest.approx(np.mean([s["depth_of_field"] for s in single]))
+    assert whole["values"]["vsotf"].shape == (3, 2)
+
+
+# ------------------------------------------------------------------ files
+
+
+def test_layout_json_round_trip(tmp_path):
+    params = lo.lattice_params("hex", 7, 1.0, 0.8, 0.1)
+    layout = lo.to_layout(params, lo.Constraints(3.0), "hex7")
+    path = lo.save_layout_json(tmp_path / "layout.json", layout, 3.0,
+                               objective={"name": "depth_of_field", "value": 0.5},
+                               provenance={"seed": 0}, parameters=params)
+    again, record = lo.load_layout_json(path)
+    np.testing.assert_allclose(again.centres_mm, layout.centres_mm, atol=1e-15)
+    np.testing.assert_allclose(again.diameters_mm, layout.diameters_mm, atol=1e-15)
+    assert again.name == "hex7" and record["pupil_diameter_mm"] == 3.0
+    assert record["objective"]["value"] == 0.5 and record["provenance"]["seed"] == 0
+    assert "lfjax_version" in record["provenance"]
+    back = lo.params_from_dict(record["parameters"])
+    np.testing.assert_allclose(back.centres_mm, params.centres_mm, atol=1e-15)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"format": "something else"}))
+    with pytest.raises(ValueError, match="not an lfjax layout"):
+        lo.load_layout_json(bad)
+    record["diameters_mm"][0] = float("nan")
+    bad.write_text(json.dumps(record))
+    with pytest.raises(ValueError, match="finite"):
+        lo.load_layout_json(bad)
+
+
+# ------------------------------------------------------------------ command line
+
+TINY_CLI = ["optimise", "--train-eyes", "1", "--test-eyes", "2", "--wavelengths", "550",
+            "--freq-step", "2", "--depths", "1", "3", "--n-depths", "2", "--max-diameter", "2",
+            "--steps", "4", "--solver", "bfgs", "--no-progress"]
+
+
+def test_cli_optimise_tiny_case(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(cli, "enable_compilation_cache", lambda folder=None: None)
+    out = tmp_path / "fit"
+    code = cli.main([*TINY_CLI, "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err[-2000:]
+    assert str(out) in captured.out.strip().splitlines()[-1]
+    names = {p.name for p in out.iterdir()}
+    assert names == {"layout.json", "layouts.png", "through_focus.png", "history.png"}
+    for name in names - {"layout.json"}:
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    layout, record = lo.load_layout_json(out / "layout.json")
+    assert layout.n_subapertures == 4
+    assert_inside(layout, CONSTRAINTS)
+    test = record["objective"]["test"]
+    assert test["before"]["n_eyes"] == 2
+    assert math.isfinite(test["after"]["depth_of_field"])
+    assert record["objective"]["train"]["after"]["depth_of_field"] > \
+        record["objective"]["train"]["before"]["depth_of_field"]
+    assert record["provenance"]["seed_test"] == 1 and record["parameters"]["kind"] == "lattice"
+    # a second run into the same folder needs --force
+    code = cli.main([*TINY_CLI, "--out", str(out)])
+    assert code == 2 and "--force" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--depths", "3", "1"], "inverted"),
+    (["--depths", "2", "2"], "empty"),
+    (["--depths", "-1", "2"], ">= 0 D"),
+    (["--depths", "0", "nan"], "--depths"),
+    (["--views", "0"], "--views"),
+    (["--views", "5"], "--views"),
+    (["--pupil", "nan"], "--pupil"),
+    (["--pupil", "4"], "--pupil"),
+    (["--n-depths", "1"], "--n-depths"),
+    (["--min-diameter", "2.5", "--max-diameter", "2"], "--min-diameter"),
+    (["--objective", "sharpness"], "--objective"),
+    (["--objective", "resolution=nan"], "--objective"),
+    (["--wavelengths", "600", "500"], "--wavelengths"),
+    (["--train-eyes", "0"], "--train-eyes"),
+])
+def test_cli_bad_input_one_line_exit_2(capsys, tmp_path, args, message):
+    out = tmp_path / "never"
+    code = cli.main(["optimise", *args, "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and message in err[0] and "error" in err[0]
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------ notebook
+
+
+def test_notebook_executes(tmp_path):
+    """notebooks/optimise_layout.ipynb runs top to bottom at its tiny size
+    (LFJAX_NOTEBOOK_SIZE=tiny; the committed outputs are from the 'small' size)."""
+    import nbformat
+    from nbclient import NotebookClient
+
+    nb = nbformat.read(NOTEBOOK, as_version=4)
+    os.environ["LFJAX_NOTEBOOK_SIZE"] = "tiny"
+    try:
+        NotebookClient(nb, timeout=600, kernel_name="python3",
+                       resources={"metadata": {"path": str(tmp_path)}}).execute()
+    finally:
+        del os.environ["LFJAX_NOTEBOOK_SIZE"]
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    assert not [o for o in outputs if o.output_type == "error"]
+    images = [o for o in outputs if "image/png" in o.get("data", {})]
+    assert len(images) >= 3
+    text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
+    assert "held-out" in text
