@@ -113,21 +113,25 @@ def test_defocused_eye_peak_is_exact_and_its_gradient_analytic(method="newton"):
 
 
 def test_implicit_gradient_matches_finite_difference_of_the_resolved_peak():
-    """Aberrated eye, 2×2 views: d(peak)/d(z) along a random direction against central
-    differences of re-solved peaks (float64)."""
+    """Aberrated eye, 2×2 views: d(peak)/d(eye's Zernike coefficients, subaperture centres
+    and diameters, CDP) along a random direction against central differences of re-solved
+    peaks (float64)."""
     layout = lfjax.grid_layout(2, 3.0)
-    cfg, scene, grid, allowed = _pipeline(layout, [1.5], options=lfjax.ModelOptions(),
-                                          spectrum=lfjax.make_spectrum([550.0]))
-    spectrum = lfjax.make_spectrum([550.0])
-    z0 = jnp.asarray(np.asarray(lfjax.sample_eyes(2, 1).zernike_um)[0, :10])
+    options = lfjax.ModelOptions()
+    spectrum = lfjax.make_spectrum([550.0], options)
+    cfg, scene, grid, allowed = _pipeline(layout, [1.5], options=options, spectrum=spectrum)
+    params = dict(z=jnp.asarray(np.asarray(lfjax.sample_eyes(2, 1).zernike_um)[0, :10]),
+                  centres=scene.centres_mm, diameters=scene.diameters_mm * 0.9,
+                  cdp=jnp.asarray(2.0))
 
-    def peak_of(z):
-        return accommodation_peaks_jit(lfjax.Eyes(z[None], 3.0), scene, spectrum, grid, cfg,
+    def peak_of(p):
+        s = Scene(p["centres"], p["diameters"], p["cdp"], scene.depths_D, 3.0)
+        return accommodation_peaks_jit(lfjax.Eyes(p["z"][None], 3.0), s, spectrum, grid, cfg,
                                        "vsotf", "newton", allowed).accommodation_D[0, 0]
 
-    v = H.random_direction(jax.random.key(3), z0)
-    directional = H.tree_vdot(jax.grad(peak_of)(z0), v)
-    fd = H.directional_fd(peak_of, z0, v, 1e-4)
+    v = H.random_direction(jax.random.key(3), params)
+    directional = H.tree_vdot(jax.grad(peak_of)(params), v)
+    fd = H.directional_fd(peak_of, params, v, 1e-4)
     assert abs(fd) > 1e-2
     np.testing.assert_allclose(directional, fd, rtol=2e-4)
 
