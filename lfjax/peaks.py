@@ -254,7 +254,7 @@ def _bracket(states_D, index):
 def accommodation_peaks(
     eyes: Eyes, scene: Scene, spectrum: Spectrum, grid: Accommodation, config: PipelineConfig,
     metric: str = "vsotf", method: str = "auto", allowed=None, prominence: float = 0.05,
-    atol_D: float = 1e-5, max_steps: int = 32,
+    atol_D: float = 1e-5, max_steps: int = 32, refine_second: bool = True,
 ) -> Peaks:
     """Continuous predicted accommodation of every eye and rendered depth (pure, jittable).
 
@@ -269,9 +269,10 @@ def accommodation_peaks(
     prominence : a second local maximum is reported when it stands this fraction of its
         value above the valley between it and the global one
     atol_D : location tolerance, D
-
-    Both the global grid maximum and the second one are refined; the higher refined value
-    is returned as the peak (so a second peak that refines higher wins).
+    refine_second : refine the second local maximum too (default). Both candidates then
+        run in one batched solve and the higher refined value is returned as the peak (a
+        second peak that refines higher wins). False halves the solver's work: the second
+        peak is located by the grid parabola and valued on the grid.
     """
     _check_method(method)
     if metric not in METRICS:
@@ -279,13 +280,15 @@ def accommodation_peaks(
     reference = reference_normalisers(scene, spectrum, grid, config)
     on_grid = retinal_metrics(eyes, scene, spectrum, grid, config, reference)
     return peaks_from_grid(getattr(on_grid, metric), eyes, scene, spectrum, grid, config,
-                           reference, metric, method, allowed, prominence, atol_D, max_steps)
+                           reference, metric, method, allowed, prominence, atol_D, max_steps,
+                           refine_second)
 
 
 def peaks_from_grid(
     values, eyes: Eyes, scene: Scene, spectrum: Spectrum, grid: Accommodation,
     config: PipelineConfig, reference, metric: str = "vsotf", method: str = "auto",
     allowed=None, prominence: float = 0.05, atol_D: float = 1e-5, max_steps: int = 32,
+    refine_second: bool = True,
 ) -> Peaks:
     """:func:`accommodation_peaks` from metric values already computed on the grid,
     ``values`` (n_eyes, n_depth, n_k); ``reference`` = the scene's
@@ -351,11 +354,20 @@ def peaks_from_grid(
         return jax.vmap(jax.vmap(solve))(lo, hi, start, z_b, depths_b)
 
     has_second = second >= 0
-    # Both candidates in one batched solve: one compiled solver (a lax.cond between two
-    # solves compiled the pipeline's derivatives twice).
-    both = jax.vmap(refine)(jnp.stack([best, jnp.where(has_second, second, best)]))
-    main = jax.tree_util.tree_map(lambda x: x[0], both)
-    other = jax.tree_util.tree_map(lambda x: x[1], both)
+    second_index = jnp.where(has_second, second, best)
+    if refine_second:
+        # Both candidates in one batched solve: one compiled solver (a lax.cond between two
+        # solves compiled the pipeline's derivatives twice).
+        both = jax.vmap(refine)(jnp.stack([best, second_index]))
+        main = jax.tree_util.tree_map(lambda x: x[0], both)
+        other = jax.tree_util.tree_map(lambda x: x[1], both)
+    else:
+        main = refine(best)
+        lo, hi = bracket_of(second_index)
+        located = jnp.clip(parabola_vertex(states_b, jnp.where(allowed_b, values, -jnp.inf),
+                                           second_index), lo, hi)
+        other = Peak(located, take(values, second_index), jnp.ones(located.shape, bool),
+                     jnp.full(located.shape, -1, jnp.int32), jnp.zeros(located.shape, jnp.int32))
     swap = has_second & (other.value > main.value)
     pick = lambda a, b: jnp.where(swap, b, a)  # noqa: E731
     peak = jax.tree_util.tree_map(pick, main, other)

@@ -282,7 +282,8 @@ def layout_through_focus(
                 accommodation_D=config.accommodation_D, window_D=config.window_D,
                 pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
                 spectrum=spectrum, sampling=sampling, options=options,
-                continuous_peaks=("vsotf",),
+                # claim 2 reads the global VSOTF peak; second peaks stay grid-located
+                continuous_peaks=("vsotf",), refine_second_peaks=False,
             )
             return jax.block_until_ready(tf), sampling
         except ValueError as err:

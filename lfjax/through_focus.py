@@ -187,6 +187,7 @@ def through_focus(
     check_aliasing: bool = True,
     continuous_peaks: tuple = (),
     peak_method: str = "auto",
+    refine_second_peaks: bool = True,
 ) -> ThroughFocus:
     """VSOTF, Strehl and radial MTF through focus for eyes × depths × accommodation states.
 
@@ -215,6 +216,8 @@ def through_focus(
         the grid in the same compiled call (:mod:`lfjax.peaks`; ``()`` for grid peaks only)
     peak_method : refinement, one of :data:`lfjax.peaks.PEAK_METHODS` ("auto": Newton for
         VSOTF, golden section for the Strehl ratio)
+    refine_second_peaks : refine second local maxima too (default; see
+        :func:`lfjax.peaks.accommodation_peaks`); False halves the refinement's cost
 
     Elemental OTFs are computed once per distinct absolute state and reused by every depth.
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
@@ -280,7 +283,7 @@ def through_focus(
     metrics, peaks = _metrics_and_peaks(
         eyes, Scene.from_layout(layout, depths, cdp_D, pupil_diameter_mm), spectrum,
         Accommodation.shared(grid, index, options, pupil_diameter_mm), config, allowed,
-        continuous_peaks, peak_method,
+        continuous_peaks, peak_method, refine_second_peaks,
     )
     mask = jnp.asarray(allowed)
     # NaN marks states beyond the hyperopic limit (never computed); `allowed` says which.
@@ -294,13 +297,14 @@ def through_focus(
 
 @eqx.filter_jit
 def _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed, peak_metrics,
-                       peak_method):
+                       peak_method, refine_second):
     """Grid metrics and the continuous peaks refined from them, in one compiled call."""
     reference = reference_normalisers(scene, spectrum, accommodation, config)
     metrics = retinal_metrics(eyes, scene, spectrum, accommodation, config, reference)
     peaks = {
         name: peaks_from_grid(getattr(metrics, name), eyes, scene, spectrum, accommodation,
-                              config, reference, name, peak_method, allowed)
+                              config, reference, name, peak_method, allowed,
+                              refine_second=refine_second)
         for name in peak_metrics
     }
     return metrics, peaks
