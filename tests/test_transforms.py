@@ -181,3 +181,31 @@ def test_traced_negative_pupil_raises():
         jax.block_until_ready(jax.jit(vs)(jnp.asarray(-1.0)))
     with pytest.raises(Exception, match="pupil_diameter_mm must be in"):
         jax.block_until_ready(jax.jit(vs)(jnp.asarray(3.5)))
+
+
+def test_array_likes_are_converted_on_construction_and_default_sampling_is_planned():
+    """Eyes, Layout and Spectrum built from NumPy arrays work in the pipeline (they used to
+    fail deep inside with "'numpy.ndarray' object has no attribute 'at'"); with no sampling
+    given, through_focus plans one with the field guard and reports it."""
+    from lfjax.layouts import Layout
+    from lfjax.optics import _field_check
+    from lfjax.spectral import Spectrum
+    from lfjax.through_focus import through_focus
+
+    eyes = lfjax.Eyes(np.zeros((1, 15)), 3.0)
+    assert isinstance(eyes.zernike_um, jax.Array)
+    grid2 = lfjax.grid_layout(2, 3.0)
+    layout = Layout(np.asarray(grid2.centres_mm), np.asarray(grid2.diameters_mm), 1.5, "2x2")
+    s = lfjax.make_spectrum([550.0])
+    spectrum = Spectrum(*(np.asarray(x) for x in (s.wavelengths_nm, s.weights, s.lca_D,
+                                                   s.sce_rho_per_mm2)))
+    acc = np.round(np.arange(0, 26) * 0.2, 9)
+    with pytest.raises(ValueError, match="aliasing"):  # the old default refuses this scene
+        through_focus(eyes, layout, [0.0, 4.0], acc, cdp_D=2.0, spectrum=spectrum,
+                      sampling=lfjax.Sampling())
+    tf = through_focus(eyes, layout, [0.0, 4.0], acc, cdp_D=2.0, spectrum=spectrum)
+    assert tf.sampling is not None and tf.sampling.freq_step_cpd < 1.0
+    _field_check(eyes.zernike_um, 3.0, 3.0, 2.0, acc, [0.0, 4.0], layout, spectrum, tf.sampling)
+    assert np.all(np.isfinite(np.asarray(tf.vsotf)))
+    with pytest.raises(ValueError, match="Spectrum.weights must have the shape"):
+        Spectrum(np.array([500.0, 600.0]), np.array([1.0]), np.zeros(2), np.zeros(2))
