@@ -348,6 +348,25 @@ def retinal_metrics(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation:
     return jax.lax.map(one_eye, _eye_coefficients(eyes, config), batch_size=config.eye_chunk)
 
 
+def pair_metric(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
+                accommodation: Accommodation, config: PipelineConfig, reference,
+                metric: str = "vsotf"):
+    """One eye's VSOTF or Strehl ratio for each (depth, k) pair, (n_depth, n_k).
+
+    The inner function of solvers: only the metric asked for is traced (derivatives of the
+    others would be traced and then discarded), and the inputs are not re-checked (the
+    caller's grid evaluation checked them). ``zernike_um`` as the pipeline uses it (piston
+    and tilt already dropped); ``reference`` from :func:`reference_normalisers`.
+    """
+    n_fft, df = config.n_fft, config.freq_step_cpd
+    elemental = elemental_otfs(zernike_um, measured_pupil_mm, scene, spectrum, accommodation,
+                               config.bands, config.sampling)
+    otf = render(elemental, scene, accommodation.pair_index, n_fft, df)
+    if metric == "vsotf":
+        return vsotf_numerator(otf, ncsf_half_plane(n_fft, df, config.ncsf)) / reference[0]
+    return psf_peak(otf, n_fft, df) / reference[1]
+
+
 retinal_metrics_jit = eqx.filter_jit(retinal_metrics)
 otf_stack_jit = eqx.filter_jit(otf_stack)
 """:func:`retinal_metrics` compiled (``eqx.filter_jit``: static config, arrays traced)."""
@@ -368,6 +387,7 @@ __all__ = [
     "PipelineConfig",
     "RetinalMetrics",
     "retinal_metrics",
+    "pair_metric",
     "retinal_metrics_jit",
     "vsotf_and_strehl",
     "otf_stack",

@@ -78,7 +78,13 @@ def test_quick_run_tables_are_complete_and_finite(quick_run):
     assert len(summary) == n_cells * 2
     cutoff = pd.read_csv(out / rep.TABLES["cutoff"])
     assert len(cutoff) == n_cells
-    for table in (pred, summary, cutoff):
+    # continuous peaks are refined for VSOTF only (Strehl rows: NaN, "not computed")
+    continuous = pred.predicted_accommodation_continuous_D
+    assert np.all(np.isfinite(continuous[pred.metric == "vsotf"]))
+    assert np.all(np.isnan(continuous[pred.metric == "strehl"]))
+    assert np.all(np.abs(continuous[pred.metric == "vsotf"]
+                         - pred.predicted_accommodation_D[pred.metric == "vsotf"]) <= 0.2 + 1e-9)
+    for table in (pred.drop(columns="predicted_accommodation_continuous_D"), summary, cutoff):
         numeric = table.select_dtypes("number").to_numpy(float)
         assert np.all(np.isfinite(numeric))
     # predictions lie on the accommodation grid, inside the evaluated window
