@@ -73,7 +73,8 @@ def fig_through_focus(curves: dict, depths_D, title: str | None = None) -> Figur
         for i, ax in enumerate(axes):
             a = acc[i]
             ok = np.isfinite(vs[:, i]).all(axis=0)
-            mean = np.nanmean(vs[:, i], axis=0)
+            mean = np.full(ok.shape, np.nan)
+            mean[ok] = vs[:, i][:, ok].mean(axis=0)
             ax.plot(a[ok], mean[ok], color=colour, lw=1.6,
                     label=f"{label} (mean of {vs.shape[0]} eyes)" if i == 0 else None)
             if vs.shape[0] > 1:
