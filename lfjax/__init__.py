@@ -4,13 +4,15 @@ Wave-optics model (Miyanishi, Sahin & Gotchev) of an ideal integral-imaging ligh
 display viewed by a population of aberrated eyes, as pure, jitted, vmapped and
 differentiable JAX functions. Stage modules: :mod:`lfjax.zernike`, :mod:`lfjax.eyes`,
 :mod:`lfjax.spectral`, :mod:`lfjax.layouts`, :mod:`lfjax.optics`, :mod:`lfjax.metrics`,
-:mod:`lfjax.through_focus`, :mod:`lfjax.images`, :mod:`lfjax.planner`;
+:mod:`lfjax.through_focus`, :mod:`lfjax.images`, :mod:`lfjax.planner`,
+:mod:`lfjax.pipeline` (the pure core), :mod:`lfjax.peaks`, :mod:`lfjax.layout_opt`;
 :mod:`lfjax.reproduce` and :mod:`lfjax.cli` run the paper's study.
 """
 
 from importlib.metadata import PackageNotFoundError, version
 
 from . import eyes as eyes
+from . import layout_opt as layout_opt
 from . import layouts as layouts
 from . import metrics as metrics
 from . import optics as optics

@@ -28,7 +28,7 @@ with one of:
     around the pipeline's derivatives compiles 3–4× longer), and the vertex of the
     least-squares parabola through those five points, clipped to the bracket. Its
     derivative is that of the fitted vertex (a finite-difference estimate of the implicit
-    one). Success: the fit is concave.
+    one). Success: the fit is concave and its vertex lies within the five points.
 ``"parabola"``
     the vertex of the parabola through the grid maximum and its neighbours (no solver).
 ``"grid"``
@@ -193,10 +193,14 @@ def _local_refinement(value_fn, vertex_D, lower_D, upper_D, args) -> Peak:
     c0, c1, c2 = jnp.moveaxis(jnp.linalg.solve(normal, rhs[..., None])[..., 0], -1, 0)
     concave = c2 < 0
     shift = jnp.where(concave, -c1 / (2.0 * jnp.where(concave, c2, -1.0)), 0.0)
+    # a vertex beyond the five points (a coarse grid's parabola far off) is not trusted
+    within = jnp.abs(shift) <= offsets[-1]
     location = jnp.clip(centre + jnp.clip(shift, offsets[0], offsets[-1]), lower_D, upper_D)
     peak_value = c0 + c1 * (location - centre) + c2 * (location - centre) ** 2
     n = jnp.full(location.shape, len(LOCAL_OFFSETS_D), jnp.int32)
-    return Peak(location, peak_value, concave, jnp.full(location.shape, -1, jnp.int32), n)
+    on_limit = (location <= 0.0) & (c1 < 0)  # held at the hyperopic limit
+    return Peak(location, peak_value, concave & (within | on_limit),
+                jnp.full(location.shape, -1, jnp.int32), n)
 
 
 def parabola_vertex(states_D, values, index):

@@ -83,7 +83,8 @@ def test_quick_run_tables_are_complete_and_finite(quick_run):
     assert np.all(np.isfinite(continuous[pred.metric == "vsotf"]))
     assert np.all(np.isnan(continuous[pred.metric == "strehl"]))
     assert np.all(np.abs(continuous[pred.metric == "vsotf"]
-                         - pred.predicted_accommodation_D[pred.metric == "vsotf"]) <= 0.2 + 1e-9)
+                         - pred.predicted_accommodation_D[pred.metric == "vsotf"])
+                  <= config.accommodation_step_D + 1e-9)
     for table in (pred.drop(columns="predicted_accommodation_continuous_D"), summary, cutoff):
         numeric = table.select_dtypes("number").to_numpy(float)
         assert np.all(np.isfinite(numeric))
