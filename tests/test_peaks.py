@@ -253,3 +253,19 @@ def test_local_refinement_agrees_with_the_exact_peak():
     assert np.all(np.asarray(local.success))
     np.testing.assert_allclose(np.asarray(local.accommodation_D)[:, 0], exact, atol=5e-4)
     assert np.max(np.abs(np.asarray(parabola.accommodation_D)[:, 0] - exact)) > 1e-3
+
+
+def test_flat_curves_of_strongly_aberrated_eyes_are_not_reported_as_successes():
+    """Strongly aberrated eyes (0.6 µm of spherical aberration; 1.5 µm of coma on a 3 mm
+    pupil) have VSOTF curves that are flat (≈ 0.06, rising slowly) or tiny and symmetric
+    (≈ 0.001) over ±1 D: the maximum sits on the window's edge, and every method says so
+    (at_grid_edge, not successful) instead of returning a confident prediction."""
+    cfg, scene, grid, allowed = _pipeline(lfjax.open_pupil(3.0), [2.0], window=1.0)
+    z = np.zeros((2, 15))
+    z[0, 12], z[1, 7] = 0.6, 1.5
+    eyes = lfjax.Eyes(z, 3.0)
+    for method in ("newton", "golden", "local"):
+        peaks = accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf", method, allowed)
+        assert np.all(np.asarray(peaks.at_grid_edge)), method
+        assert not np.any(np.asarray(peaks.success)), method
+        assert np.all(np.abs(np.abs(np.asarray(peaks.accommodation_D) - 2.0) - 1.0) < 1e-3)
