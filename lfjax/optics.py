@@ -156,6 +156,7 @@ def _embed_half_plane(otf_half, n_fft: int):
 def _elemental_otfs(
     coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
     centres_mm, diameters_mm, spectrum: Spectrum, bands, sampling: Sampling, sa_params,
+    wavelength_normalisation: str = "transmitted_energy",
 ):
     """Spectrally weighted elemental OTFs of one eye.
 
@@ -163,7 +164,9 @@ def _elemental_otfs(
     band of wavelengths is transformed on its own window and embedded in the largest.
     Returns complex (n_acc, n_sub, L, L//2+1), the half plane f_x ≥ 0 of
     Σ_λ w_λ OTF_{λ,n,a}, each OTF carrying the energy its pupil transmits
-    (OTF(0) = ∫|P|² dA in mm²).
+    (OTF(0) = ∫|P|² dA in mm²) or, with ``wavelength_normalisation="unit_sum"``, that energy
+    divided by the energy all subapertures transmit at λ (each wavelength's PSF summed over
+    the views then has unit volume, as ISETBio normalises; the views keep their ratios).
     """
     n_fft = max(b[2] for b in bands)
     total = None
@@ -172,7 +175,7 @@ def _elemental_otfs(
             coefficients_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
             centres_mm, diameters_mm,
             jax.tree_util.tree_map(lambda x: x[start:stop], spectrum),
-            band_fft, sampling, sa_params,
+            band_fft, sampling, sa_params, wavelength_normalisation,
         )
         part = _embed_half_plane(part, n_fft)
         total = part if total is None else total + part
@@ -182,7 +185,12 @@ def _elemental_otfs(
 def _elemental_otfs_band(
     coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
     centres_mm, diameters_mm, spectrum: Spectrum, n_fft: int, sampling: Sampling, sa_params,
+    wavelength_normalisation: str = "transmitted_energy",
 ):
+    """One band of :func:`_elemental_otfs`: every wavelength's PSFs lie on the same angular
+    grid (the pupil step is λ·Δf), so the band's weighted PSFs are summed first and
+    transformed once (the transform is linear); the zero-frequency term is set from the
+    summed analytic energies (a finite pupil sum under-counts the soft edge)."""
     df_rad = sampling.freq_step_cpd * DEGREES_PER_RADIAN
     real = jnp.result_type(float)
     use_mft = sampling.transform == "mft"
@@ -200,7 +208,8 @@ def _elemental_otfs_band(
         n_pupil = pupil_window_size(n_fft, sampling)
     c40 = (sa_params[0] * accommodation_D).astype(real)
 
-    def one_wavelength(total, xs):
+    def one_wavelength(carry, xs):
+        psf_total, energy_total = carry
         wl_nm, weight, lca_D, rho = xs
         wl_mm = wl_nm * 1e-6
         dx = dx_mft if use_mft else (wl_mm * df_rad).astype(real)
@@ -211,6 +220,8 @@ def _elemental_otfs_band(
             )
         )(centres_mm, diameters_mm)
         amp, w_eye, z20, z40, energy = parts  # (n_sub, n_pupil, n_pupil) and (n_sub,)
+        if wavelength_normalisation == "unit_sum":
+            weight = weight / jnp.sum(energy)
         c20 = dioptres_to_c20_um(accommodation_D - cdp_D + lca_D, pupil_diameter_mm)
         w = (
             w_eye[None]
@@ -225,30 +236,27 @@ def _elemental_otfs_band(
             theta = jnp.asarray(k_theta, real) * pixel_rad
             kernel = jnp.exp((-2j * jnp.pi / wl_mm) * theta[:, None] * local[None, :])
             spectrum_2d = jnp.einsum("jy,...yx,mx->...jm", kernel, field, kernel)
-            psf = jnp.real(spectrum_2d) ** 2 + jnp.imag(spectrum_2d) ** 2
-            otf = jnp.fft.rfft2(psf) * (dx**4 * pixel_rad**2 / wl_mm**2)
+            scale = dx**4 * pixel_rad**2 / wl_mm**2
         else:
             # The aperture fills only the central n_pupil samples; an explicit pad then one
             # fft2 is faster on CPU than two padded 1-D passes (measured).
             pad = n_fft - n_pupil
             field = jnp.pad(field, ((0, 0), (0, 0), (0, pad), (0, pad)))
             spectrum_2d = jnp.fft.fft2(field)
-            psf = jnp.real(spectrum_2d) ** 2 + jnp.imag(spectrum_2d) ** 2
-            # The PSF is real: its OTF is Hermitian and the half plane (rfft2) holds it all.
-            otf = jnp.fft.rfft2(psf) * (dx * dx / (n_fft * n_fft))
-        otf = otf.at[..., 0, 0].set(jnp.broadcast_to(energy, otf.shape[:-2]))
-        return total + weight * otf, None
+            scale = dx * dx / (n_fft * n_fft)
+        psf = jnp.real(spectrum_2d) ** 2 + jnp.imag(spectrum_2d) ** 2
+        return (psf_total + (weight * scale) * psf, energy_total + weight * energy), None
 
-    complex_dtype = jnp.result_type(real, 1j)
-    init = jnp.zeros(
-        (accommodation_D.shape[0], centres_mm.shape[0], n_fft, n_fft // 2 + 1), complex_dtype
-    )
+    n_acc, n_sub = accommodation_D.shape[0], centres_mm.shape[0]
+    init = (jnp.zeros((n_acc, n_sub, n_fft, n_fft), real), jnp.zeros((n_sub,), real))
     xs = (spectrum.wavelengths_nm, spectrum.weights, spectrum.lca_D, spectrum.sce_rho_per_mm2)
     # Reverse mode recomputes each wavelength's fields instead of stacking them over the
     # scan (jax.checkpoint): gradients 1.5x faster on CPU, forward unchanged
     # (benchmarks/bench_gradient.py, RESULTS.md).
-    total, _ = jax.lax.scan(jax.checkpoint(one_wavelength), init, xs)
-    return total
+    (psf_band, energy_band), _ = jax.lax.scan(jax.checkpoint(one_wavelength), init, xs)
+    # The PSF is real: its OTF is Hermitian and the half plane (rfft2) holds it all.
+    otf = jnp.fft.rfft2(psf_band)
+    return otf.at[..., 0, 0].set(jnp.broadcast_to(energy_band, otf.shape[:-2]).astype(otf.dtype))
 
 
 def frequencies_cpd(n_fft: int, freq_step_cpd: float):

@@ -529,27 +529,29 @@ class _Proxy:
 
 
 def _fft_work(bands, n_sub: int) -> float:
-    """Relative FFT work per eye and state: Σ n_λ·n_sub·n_fft²·log2(n_fft)."""
-    return float(sum((b - a) * n_sub * n**2 * math.log2(n) for a, b, n in bands))
+    """Relative FFT work per eye and state: per wavelength one complex fft2 of the pupil field
+    per view (5 n² log2 n), per band one real rfft2 of the band's summed PSFs (2.5 n² log2 n)."""
+    return float(sum(n_sub * n**2 * math.log2(n) * (5.0 * (b - a) + 2.5) for a, b, n in bands))
 
 
 def _cost_s(bands, n_sub: int, n_states: int, n_modes: int, sampling: Sampling) -> float:
-    """Modelled seconds per eye: transforms + pupil evaluation, per band (see module)."""
+    """Modelled seconds per eye: transforms + pupil evaluation, per band (see module). Each
+    wavelength pays its pupil field and its transform to the PSF; each band one rfft2 of its
+    summed PSFs (optics._elemental_otfs_band)."""
     total = 0.0
     for start, stop, n in bands:
         n_wl = stop - start
         log = math.log2(n)
+        otf_fft = 2.5 * n * n * log / _FFT_FLOPS_PER_S  # once per band
         if sampling.transform == "mft":
             m = sampling.mft_pupil_samples
-            flops_mm = 8.0 * n * m * (m + n)
-            flops_fft = 2.5 * n * n * log
+            per_wavelength = 8.0 * n * m * (m + n) / _MATMUL_FLOPS_PER_S
             pupil = m * m
         else:
-            flops_mm = 0.0
-            flops_fft = 7.5 * n * n * log
+            per_wavelength = 5.0 * n * n * log / _FFT_FLOPS_PER_S
             pupil = pupil_window_size(n, sampling) ** 2
-        per = flops_fft / _FFT_FLOPS_PER_S + flops_mm / _MATMUL_FLOPS_PER_S + pupil * _PUPIL_S_PER_SAMPLE
-        total += n_wl * n_sub * n_states * per
+        per_wavelength += pupil * _PUPIL_S_PER_SAMPLE
+        total += n_sub * n_states * (n_wl * per_wavelength + otf_fft)
     return total
 
 
