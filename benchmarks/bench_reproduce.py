@@ -27,7 +27,7 @@ import numpy as np
 
 def floor_seconds() -> tuple[float, list[str]]:
     import lfjax
-    from lfjax.reproduce import StudyConfig, _planned_sampling, study_eyes
+    from lfjax.reproduce.config import StudyConfig, _planned_sampling, study_eyes
     from lfjax.sampling import wavelength_bands
 
     config = StudyConfig()

@@ -25,7 +25,7 @@ import numpy as np
 from IPython.display import Image, display
 
 import lfjax
-from lfjax import plots, reproduce
+from lfjax import reproduce
 from lfjax.cli import enable_compilation_cache
 from lfjax.images import retinal_image, snellen_e
 
@@ -88,7 +88,7 @@ reproduce.cutoff_table(ds)[
 
 # %%
 examples = reproduce.compute_examples(ds, config)
-figures = plots.all_figures(ds, examples)
+figures = reproduce.all_figures(ds, examples)
 for key, fig in figures.items():
     print(key, reproduce.FIGURES[key])
     show(fig)

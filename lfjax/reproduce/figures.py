@@ -1,9 +1,12 @@
-"""Figures of the reproduction (Miyanishi et al. Figs. 3–11) from the study Datasets.
+"""The reproduction's figures (Miyanishi et al. Figs. 3–11) from the study Datasets.
 
 Host-only (numpy, matplotlib). Each ``fig*`` function takes the Datasets of
 :func:`lfjax.reproduce.run_study` / :func:`lfjax.reproduce.compute_examples` and returns a
 :class:`matplotlib.figure.Figure` built without pyplot (no global state, any backend);
-:func:`save_figures` writes them all as PNG.
+:func:`all_figures` builds every figure the data allow and :func:`save_figures` writes them
+as PNG under the names in ``FIGURES``.
+
+Imports :mod:`~lfjax.reproduce.study` (its eye selectors) from the package.
 """
 
 from __future__ import annotations
@@ -15,6 +18,21 @@ import numpy as np
 from matplotlib.colors import hsv_to_rgb
 from matplotlib.figure import Figure
 
+from .study import _aberrated, _average
+
+FIGURES = {
+    "fig03": "fig03_zernike_coefficients.png",
+    "fig04": "fig04_ncsf_csf.png",
+    "fig05": "fig05_example_through_focus.png",
+    "fig06": "fig06_vsotf_natural.png",
+    "fig07": "fig07_vsotf_viewpoints.png",
+    "fig08": "fig08_strehl_viewpoints.png",
+    "fig09": "fig09_vsotf_vs_strehl.png",
+    "fig10": "fig10_radial_mtf.png",
+    "fig11": "fig11_cutoff_frequency.png",
+}
+"""PNG file name of each figure, keyed like :func:`all_figures`."""
+
 GREY = "0.55"
 MEAN_COLOUR = "tab:red"
 AVERAGE_COLOUR = "tab:blue"
@@ -22,14 +40,6 @@ CDP_COLOUR = "tab:green"
 METRIC_LABEL = {"vsotf": "VSOTF", "strehl": "Strehl ratio"}
 # Panel grids place their axes by hand: a layout engine on ~30 axes costs seconds per figure.
 _GRID_SPACING = dict(left=0.07, right=0.99, bottom=0.15, top=0.9, wspace=0.08, hspace=0.12)
-
-
-def _aberrated(ds):
-    return ds.sel(eye=~ds.is_average.values)
-
-
-def _average(ds):
-    return ds.sel(eye=ds.is_average.values).isel(eye=0)
 
 
 def _attr_json(ds, key, default):
@@ -47,8 +57,8 @@ def _attr_json(ds, key, default):
 
 def fig_zernike(ds) -> Figure:
     """Fig. 3: Zernike coefficients j = 1…13 of the virtual eyes against mean ± 2 SD."""
-    from .eyes import sample_eyes, thibos_statistics
-    from .zernike import nm_from_ansi
+    from ..eyes import sample_eyes, thibos_statistics
+    from ..zernike import nm_from_ansi
 
     pupil = float(ds.attrs.get("measured_pupil_mm", 3.0))
     mean, cov, n_subjects = thibos_statistics(pupil)
@@ -85,7 +95,7 @@ def fig_ncsf(ds, examples) -> Figure:
     import jax.numpy as jnp
     from matplotlib.colors import LogNorm
 
-    from .metrics import diffraction_limited_mtf, ncsf
+    from ..metrics import diffraction_limited_mtf, ncsf
 
     model = ds.attrs.get("option_ncsf", "watson_ahumada_2005")
     f = np.linspace(-60, 60, 481)
@@ -402,7 +412,7 @@ def fig_cutoff(ds) -> Figure:
 
 
 def all_figures(ds, examples) -> dict[str, Figure]:
-    """Every figure the data allow, keyed like :data:`lfjax.reproduce.FIGURES`."""
+    """Every figure the data allow, keyed like :data:`FIGURES`."""
     figs = {"fig03": fig_zernike(ds)}
     if "fig4_dl_mtf" in examples:
         figs["fig04"] = fig_ncsf(ds, examples)
@@ -421,8 +431,6 @@ def all_figures(ds, examples) -> dict[str, Figure]:
 
 def save_figures(ds, examples, folder, config=None, dpi: int = 110) -> list[str]:
     """Write every figure as PNG into ``folder``; returns the file names."""
-    from .reproduce import FIGURES
-
     folder = Path(folder)
     names = []
     for key, fig in all_figures(ds, examples).items():
@@ -432,15 +440,17 @@ def save_figures(ds, examples, folder, config=None, dpi: int = 110) -> list[str]
     return names
 
 
+
 __all__ = [
-    "fig_zernike",
-    "fig_ncsf",
+    "FIGURES",
+    "all_figures",
+    "fig_cutoff",
     "fig_example",
     "fig_natural",
+    "fig_ncsf",
+    "fig_radial_mtf",
     "fig_viewpoints",
     "fig_vsotf_vs_strehl",
-    "fig_radial_mtf",
-    "fig_cutoff",
-    "all_figures",
+    "fig_zernike",
     "save_figures",
 ]

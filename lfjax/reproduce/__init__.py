@@ -1,0 +1,226 @@
+"""Reproduction of Miyanishi, Sahin & Gotchev: the study, its tables, figures and report.
+
+The study (paper §4): a 3 mm pupil, the display's central depth plane (CDP) at 2 D, natural
+view plus 2×2, 3×3 and 4×4 viewpoints, points rendered from CDP − 2 D to CDP + 2 D in
+0.5 D steps, through-focus on a 0.2 D accommodation grid, 400–700 nm in 10 nm steps,
+seeded virtual eyes (Thibos et al. 2002) plus the average eye; VSOTF and Strehl ratio.
+
+The parts, each importing only those listed before it:
+
+* :mod:`~lfjax.reproduce.config` — :class:`StudyConfig`, :func:`study_eyes`, the sampling plan;
+* :mod:`~lfjax.reproduce.study` — :func:`run_study` returns every number as one labelled
+  :class:`xarray.Dataset`; :func:`compute_examples` the data of Figs. 4, 5 and 9;
+* :mod:`~lfjax.reproduce.claims` — :func:`evaluate_claims` turns the Dataset into the
+  paper's findings as checkable claims (:class:`Claim`);
+* :mod:`~lfjax.reproduce.alternatives` — the modelling choices the paper leaves open
+  (``ALTERNATIVES``) and the claims under each (:func:`run_alternatives`);
+* :mod:`~lfjax.reproduce.report` — CSV tables and ``REPORT.md``;
+* :mod:`~lfjax.reproduce.figures` — Figs. 3–11;
+* this module — :func:`reproduce` writes results file, CSV tables, figures and ``REPORT.md``
+  into a folder (through a temporary folder moved into place at the end), and re-exports
+  the public names of the parts. ``lfjax reproduce`` is its command line (:mod:`lfjax.cli`).
+
+Host-side orchestration (numpy, xarray, files); the numerics are :mod:`lfjax.through_focus`
+and :mod:`lfjax.optics`.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+from .alternatives import ALTERNATIVES, run_alternatives
+from .claims import Claim, dof_D, evaluate_claims
+from .config import LF_LAYOUTS, METRICS, StudyConfig, study_eyes
+from .figures import FIGURES, all_figures, save_figures
+from .report import (
+    TABLES,
+    alternatives_table,
+    claims_table,
+    cutoff_table,
+    prediction_table,
+    summary_table,
+    write_report,
+)
+from .study import compute_examples, layout_through_focus, run_study, study_sampling
+
+MARKER_FILE = ".lfjax-reproduce"
+"""Empty file marking a folder written by :func:`reproduce` (``--force`` replaces only these)."""
+
+RESULTS_FILE = "results.nc"
+EXAMPLES_FILE = "examples.nc"
+
+
+# ----------------------------------------------------------------------------- output folder
+
+
+class OutputError(ValueError):
+    """The output folder cannot be used (exists, not empty, not writable)."""
+
+
+def _nearest_existing(path: Path) -> Path:
+    p = path
+    while not p.exists():
+        if p.parent == p:
+            break
+        p = p.parent
+    return p
+
+
+def check_output_dir(out, force: bool = False) -> Path:
+    """Validate ``out`` before any work: returns its absolute path or raises OutputError."""
+    out = Path(out).expanduser().absolute()
+    if out.exists():
+        if not out.is_dir():
+            raise OutputError(f"--out {out} exists and is not a folder")
+        if any(out.iterdir()):
+            if not force:
+                raise OutputError(f"--out {out} is not empty; use --force to replace it")
+            if not (out / MARKER_FILE).exists():
+                raise OutputError(
+                    f"--out {out} is not empty and was not written by lfjax reproduce; "
+                    "refusing to replace it even with --force (choose another folder)"
+                )
+        anchor = out.parent
+    else:
+        anchor = _nearest_existing(out.parent)
+        if not anchor.is_dir():
+            raise OutputError(f"cannot create --out {out}: {anchor} is not a folder")
+    if not os.access(anchor, os.W_OK | os.X_OK):
+        raise OutputError(f"--out {out} is not writable (no write permission in {anchor})")
+    return out
+
+
+def _move_into_place(tmp: Path, out: Path) -> None:
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if out.exists():
+        old = Path(tempfile.mkdtemp(prefix=".lfjax-old-", dir=out.parent))
+        old.rmdir()
+        out.rename(old)
+        try:
+            tmp.rename(out)
+        except OSError:
+            old.rename(out)
+            raise
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        tmp.rename(out)
+
+
+def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # noqa: B008
+              progress: bool = True) -> dict:
+    """Run the study and write everything into ``out`` (atomically: a temporary folder in
+    the same parent, moved into place when complete).
+
+    Returns a dict with ``out`` (Path), ``files`` (names), ``claims``, ``seconds``.
+    """
+    from tqdm.auto import tqdm
+
+    t_start = time.perf_counter()
+    out = check_output_dir(out, force)
+    anchor = out.parent if out.parent.exists() else _nearest_existing(out.parent)
+    layouts = list(config.layouts)
+    stages = ["eyes"] + [f"through-focus {n}" for n in layouts] + ["examples: natural view"]
+    if "2x2" in layouts:
+        stages.append("examples: 2x2 viewpoints")
+    if config.alternatives:
+        stages += [f"alternative {v}: {n}" for v in ["baseline (reduced)", *ALTERNATIVES]
+                   for n in layouts]
+    stages += ["tables", "figures", "report"]
+    bar = tqdm(total=len(stages), unit="stage", disable=not progress, dynamic_ncols=True,
+               bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} stages [{elapsed}<{remaining}]")
+    state = {"first": True}
+    timings: dict[str, float] = {}
+    clock = {"t": time.perf_counter(), "name": None}
+
+    def stage(name: str) -> None:
+        now = time.perf_counter()
+        if clock["name"] is not None:
+            timings[clock["name"]] = now - clock["t"]
+        clock.update(t=now, name=name)
+        if not state["first"]:
+            bar.update(1)
+        state["first"] = False
+        bar.set_description(name)
+
+    tmp = Path(tempfile.mkdtemp(prefix=".lfjax-reproduce-", dir=anchor))
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it private; the result is an ordinary folder
+    try:
+        stage("eyes")
+        study_eyes(config)
+        ds = run_study(config, stage=lambda n: stage(f"through-focus {n}"))
+        examples = compute_examples(ds, config, stage=stage)
+        claims = evaluate_claims(ds, config.dof_fraction)
+        alternatives = run_alternatives(config, stage=stage) if config.alternatives else {}
+        stage("tables")
+        files = [RESULTS_FILE, EXAMPLES_FILE]
+        ds.to_netcdf(tmp / RESULTS_FILE, engine="h5netcdf")
+        examples.to_netcdf(tmp / EXAMPLES_FILE, engine="h5netcdf")
+        tables = {
+            "predictions": prediction_table(ds),
+            "summary": summary_table(ds),
+            "cutoff": cutoff_table(ds),
+            "claims": claims_table(claims),
+        }
+        if alternatives:
+            tables["alternatives"] = alternatives_table(claims, alternatives)
+        for key, table in tables.items():
+            table.to_csv(tmp / TABLES[key], index=False, float_format="%.6g")
+            files.append(TABLES[key])
+        stage("figures")
+        files += save_figures(ds, examples, tmp, config)
+        stage("report")
+        timings_now = dict(timings)
+        timings_now["total"] = time.perf_counter() - t_start
+        files.append("REPORT.md")
+        write_report(tmp / "REPORT.md", ds, claims, alternatives, config, timings_now,
+                     sorted(files))
+        (tmp / MARKER_FILE).write_text("")
+        bar.update(1)
+        bar.close()
+        _move_into_place(tmp, out)
+    except BaseException:
+        bar.close()
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return dict(out=out, files=sorted(files), claims=claims,
+                seconds=time.perf_counter() - t_start, timings=timings)
+
+
+
+__all__ = [
+    "ALTERNATIVES",
+    "EXAMPLES_FILE",
+    "FIGURES",
+    "LF_LAYOUTS",
+    "MARKER_FILE",
+    "METRICS",
+    "RESULTS_FILE",
+    "TABLES",
+    "Claim",
+    "OutputError",
+    "StudyConfig",
+    "all_figures",
+    "alternatives_table",
+    "check_output_dir",
+    "claims_table",
+    "compute_examples",
+    "cutoff_table",
+    "dof_D",
+    "evaluate_claims",
+    "layout_through_focus",
+    "prediction_table",
+    "reproduce",
+    "run_alternatives",
+    "run_study",
+    "save_figures",
+    "study_eyes",
+    "study_sampling",
+    "summary_table",
+    "write_report",
+]

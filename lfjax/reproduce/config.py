@@ -1,0 +1,210 @@
+"""The study's configuration: what the reproduction computes, on which eyes and sampling.
+
+:class:`StudyConfig` holds the settings (defaults: the paper's experiment;
+:meth:`~StudyConfig.quick` for tests, :meth:`~StudyConfig.reduced` for the modelling
+alternatives). :func:`study_eyes` draws the virtual eyes plus the average eye.
+``_planned_sampling`` asks :func:`lfjax.planner.plan_sampling` for the frequency step of one
+layout's scene. ``METRICS`` and ``LF_LAYOUTS`` name the metrics and the light-field layouts
+the study reads.
+
+The bottom layer of :mod:`lfjax.reproduce`: it imports no other part of the package.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..eyes import Eyes, average_eye, sample_eyes
+from ..layouts import PAPER_LAYOUTS
+from ..options import ModelOptions
+from ..sampling import Sampling
+
+METRICS = ("vsotf", "strehl")
+LF_LAYOUTS = ("2x2", "3x3", "4x4")
+
+
+def _grid(start: float, stop: float, step: float) -> tuple[float, ...]:
+    n = int(math.floor((stop - start) / step + 1e-9)) + 1
+    return tuple(float(v) for v in np.round(start + step * np.arange(n), 9))
+
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    """Settings of the reproduction (defaults: the paper's experiment).
+
+    Attributes
+    ----------
+    n_eyes : int
+        Virtual eyes drawn from Thibos et al. (2002), ``sample_eyes(seed, n_eyes)``; the
+        average eye is always added as one more eye.
+    seed : int
+        Seed of the eye draw (0 ≤ seed < 2³²).
+    pupil_diameter_mm : float, mm
+    cdp_D : float, D
+        Central depth plane of the display.
+    depth_offsets_D : tuple of float, D
+        Rendered depths relative to the CDP (natural view: the CDP only).
+    accommodation_step_D, accommodation_max_D : float, D
+        Shared absolute accommodation grid 0 … max in steps (the paper's 0.2 D).
+    window_D : float, D
+        Each rendered depth is evaluated over accommodation states within ±window_D of it
+        (and ≥ 0 D, the hyperopic limit). ±2 D keeps the CDP inside the range for every
+        depth, which the Strehl-ratio finding for 2×2 viewpoints needs.
+    wavelengths_nm : (start, stop, step), nm
+    layouts : names from ``lfjax.layouts.PAPER_LAYOUTS``
+    options : ModelOptions
+    cutoff_threshold : float
+        MTF value defining the cut-off frequency (paper: 0.05).
+    dof_fraction : float
+        Depth of field: depth range where the mean cut-off frequency stays ≥ this fraction
+        of its best value.
+    example_letter_arcmin : float, arcmin
+        Snellen E height for the simulated retinal images (Fig. 9).
+    alternatives : bool
+        Run the modelling-choice alternatives (on a reduced set, see :meth:`reduced`).
+    label : str
+    """
+
+    n_eyes: int = 10
+    seed: int = 0
+    pupil_diameter_mm: float = 3.0
+    cdp_D: float = 2.0
+    depth_offsets_D: tuple[float, ...] = _grid(-2.0, 2.0, 0.5)
+    accommodation_step_D: float = 0.2
+    accommodation_max_D: float = 5.0
+    window_D: float = 2.0
+    wavelengths_nm: tuple[float, float, float] = (400.0, 700.0, 10.0)
+    layouts: tuple[str, ...] = PAPER_LAYOUTS
+    options: ModelOptions = field(default_factory=ModelOptions)
+    cutoff_threshold: float = 0.05
+    dof_fraction: float = 0.8
+    example_letter_arcmin: float = 15.0
+    alternatives: bool = True
+    label: str = "full"
+
+    def __post_init__(self):
+        if int(self.n_eyes) != self.n_eyes or self.n_eyes < 1:
+            raise ValueError(f"n_eyes must be an integer >= 1, got {self.n_eyes}")
+        if int(self.seed) != self.seed or not (0 <= self.seed < 2**32):
+            raise ValueError(f"seed must be an integer in [0, 2**32), got {self.seed}")
+        if not (self.accommodation_step_D > 0 and self.accommodation_max_D > 0):
+            raise ValueError("accommodation_step_D and accommodation_max_D must be > 0 D")
+        if not (self.window_D > 0):
+            raise ValueError(f"window_D must be > 0 D, got {self.window_D}")
+        if len(self.depth_offsets_D) < 1:
+            raise ValueError("depth_offsets_D must hold at least one depth")
+        if any(self.cdp_D + d < 0 for d in self.depth_offsets_D):
+            raise ValueError("every rendered depth cdp_D + offset must be >= 0 D")
+        if 0.0 not in [round(d, 9) for d in self.depth_offsets_D]:
+            raise ValueError("depth_offsets_D must include 0 (the CDP)")
+        unknown = [name for name in self.layouts if name not in PAPER_LAYOUTS]
+        if unknown or not self.layouts:
+            raise ValueError(
+                f"layouts must be a non-empty subset of {PAPER_LAYOUTS}, got {unknown}"
+            )
+        if not (0 < self.cutoff_threshold < 1 and 0 < self.dof_fraction < 1):
+            raise ValueError("cutoff_threshold and dof_fraction must be in (0, 1)")
+
+    @classmethod
+    def quick(cls, n_eyes: int = 2, seed: int = 0, **changes) -> StudyConfig:
+        """A small version for tests: 2 eyes, depths CDP−2/CDP/CDP+2, 0.5 D accommodation
+        steps, 30 nm wavelength steps, no alternatives."""
+        base = dict(
+            n_eyes=n_eyes, seed=seed, depth_offsets_D=(-2.0, 0.0, 2.0),
+            accommodation_step_D=0.5, wavelengths_nm=(400.0, 700.0, 30.0),
+            alternatives=False, label="quick",
+        )
+        base.update(changes)
+        return cls(**base)
+
+    def reduced(self) -> StudyConfig:
+        """The reduced set on which modelling-choice alternatives run: the same eyes and
+        accommodation grid, rendered depths CDP−2 … CDP+2 in 1 D steps, 20 nm wavelength
+        steps (a baseline is rerun on the same set, so changes are like for like)."""
+        offsets = tuple(d for d in self.depth_offsets_D if abs(d - round(d)) < 1e-9)
+        start, stop, step = self.wavelengths_nm
+        return dataclasses.replace(
+            self, depth_offsets_D=offsets, wavelengths_nm=(start, stop, max(step, 20.0)),
+            alternatives=False, label=f"{self.label}-reduced",
+        )
+
+    def replace(self, **changes) -> StudyConfig:
+        return dataclasses.replace(self, **changes)
+
+    @property
+    def depths_D(self) -> np.ndarray:
+        return np.round(self.cdp_D + np.asarray(self.depth_offsets_D, float), 9)
+
+    @property
+    def accommodation_D(self) -> np.ndarray:
+        return np.asarray(_grid(0.0, self.accommodation_max_D, self.accommodation_step_D))
+
+    @property
+    def wavelength_grid_nm(self) -> np.ndarray:
+        start, stop, step = self.wavelengths_nm
+        return np.asarray(_grid(start, stop, step))
+
+    def as_attrs(self) -> dict:
+        """Flat, netCDF-safe description (numbers and strings)."""
+        out = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name == "options":
+                continue
+            if isinstance(value, bool):
+                value = str(value)
+            elif isinstance(value, tuple):
+                value = json.dumps(list(value))
+            out[f"config_{f.name}"] = value
+        return out
+
+
+
+# ----------------------------------------------------------------------------- eyes
+
+
+def study_eyes(config: StudyConfig) -> tuple[Eyes, list[str]]:
+    """The virtual eyes and the average eye in one batch (average last), with labels."""
+    eyes = sample_eyes(int(config.seed), int(config.n_eyes))
+    avg = average_eye(eyes.measured_pupil_mm)
+    both = Eyes(jnp.concatenate([eyes.zernike_um, avg.zernike_um.astype(eyes.zernike_um.dtype)]),
+                eyes.measured_pupil_mm, eyes.orientation)
+    labels = [f"eye{i + 1:02d}" for i in range(config.n_eyes)] + ["average"]
+    return both, labels
+
+
+
+# ----------------------------------------------------------------------------- sampling
+
+
+def _planned_sampling(eyes, layout, depths, config, options) -> Sampling:
+    """The frequency step :func:`lfjax.planner.plan_sampling`'s field guard allows for this
+    scene (the largest ladder step whose PSF field holds the blur; milliseconds). The
+    accuracy proxy is skipped: it takes 9–27 s per layout on the paper's grid, and for a
+    1e-3 VSOTF target it asks the 3×3/4×4 layouts for about half the guard's step (~4× the
+    compute); at the guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7)."""
+    from ..planner import plan_sampling
+
+    plan = plan_sampling(
+        layout=layout, pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
+        depths_D=np.asarray(depths, float), accommodation_D=config.accommodation_D,
+        accommodation_window_D=config.window_D,
+        wavelengths_nm=config.wavelength_grid_nm, eyes_zernike_um=np.asarray(eyes.zernike_um),
+        measured_pupil_mm=eyes.measured_pupil_mm, options=options, estimate_accuracy=False,
+    )
+    return plan.sampling
+
+
+__all__ = [
+    "LF_LAYOUTS",
+    "METRICS",
+    "StudyConfig",
+    "study_eyes",
+]

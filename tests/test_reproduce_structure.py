@@ -1,0 +1,110 @@
+"""`lfjax.reproduce` imports in one direction: config/study ← claims ← report/figures ← entry.
+
+Parsed with ``ast`` (nothing is imported or run), so a future import cycle between the parts
+of the reproduction — or between the reproduction and the library it uses — fails here
+rather than as a lazy import that happens to work.
+"""
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+LFJAX = ROOT / "lfjax"
+PACKAGE = LFJAX / "reproduce"
+
+LAYERS = {
+    "config": 0,
+    "study": 1,
+    "claims": 2,
+    "alternatives": 3,
+    "report": 3,
+    "figures": 3,
+    "__init__": 4,
+}
+"""Each part may import only parts of a strictly lower layer (lower: closer to the data)."""
+
+
+def _imported_modules(path: Path, package: str) -> set[str]:
+    """Absolute names of every module ``path`` imports, at any depth (lazy imports too).
+
+    ``package`` is the package ``path`` belongs to (for relative imports)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                parts = package.split(".")
+                base = parts[: len(parts) - node.level + 1]
+                prefix = ".".join(base + ([node.module] if node.module else []))
+            else:
+                prefix = node.module
+            found.add(prefix)
+            # `from pkg import name` may import the submodule pkg.name
+            found.update(f"{prefix}.{alias.name}" for alias in node.names)
+    return found
+
+
+def _part_graph() -> dict[str, set[str]]:
+    """{part: parts of lfjax.reproduce it imports} for every module of the package."""
+    graph = {}
+    for path in sorted(PACKAGE.glob("*.py")):
+        names = _imported_modules(path, "lfjax.reproduce")
+        graph[path.stem] = {
+            n.split(".")[2] for n in names
+            if n.startswith("lfjax.reproduce.") and n.split(".")[2] in LAYERS
+        } - {path.stem}
+    return graph
+
+
+def test_every_part_has_a_layer():
+    parts = {p.stem for p in PACKAGE.glob("*.py")}
+    assert parts == set(LAYERS), (
+        f"give each module of lfjax/reproduce a layer in LAYERS: {sorted(parts ^ set(LAYERS))}"
+    )
+
+
+def test_parts_import_only_lower_layers():
+    wrong = [f"{part} (layer {LAYERS[part]}) imports {dep} (layer {LAYERS[dep]})"
+             for part, deps in _part_graph().items() for dep in sorted(deps)
+             if LAYERS[dep] >= LAYERS[part]]
+    assert not wrong, "; ".join(wrong)
+
+
+def test_part_graph_is_acyclic():
+    graph = _part_graph()
+    state: dict[str, str] = {}
+
+    def visit(node, path):
+        state[node] = "open"
+        for dep in sorted(graph.get(node, ())):
+            if state.get(dep) == "open":
+                raise AssertionError("import cycle: " + " -> ".join([*path, node, dep]))
+            if dep not in state:
+                visit(dep, [*path, node])
+        state[node] = "done"
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node, [])
+
+
+def test_library_does_not_import_the_reproduction():
+    """Only the command line (the top) imports lfjax.reproduce; the library it builds on
+    never does, so no cycle can close through a module outside the package."""
+    importers = sorted(
+        path.stem for path in LFJAX.glob("*.py")
+        if any(n == "lfjax.reproduce" or n.startswith("lfjax.reproduce.")
+               for n in _imported_modules(path, "lfjax"))
+    )
+    assert importers == ["cli"]
+
+
+def test_the_check_sees_a_cycle(tmp_path):
+    """The parser resolves relative imports, lazy ones included (guards the guard)."""
+    module = tmp_path / "claims.py"
+    module.write_text("def f():\n    from . import report\n    from .study import x\n")
+    names = _imported_modules(module, "lfjax.reproduce")
+    assert {"lfjax.reproduce.report", "lfjax.reproduce.study"} <= names
+    assert "lfjax.eyes" in _imported_modules(PACKAGE / "config.py", "lfjax.reproduce")
