@@ -156,7 +156,6 @@ def _embed_half_plane(otf_half, n_fft: int):
 def _elemental_otfs(
     coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
     centres_mm, diameters_mm, spectrum: Spectrum, bands, sampling: Sampling, sa_params,
-    wavelength_normalisation: str = "transmitted_energy",
 ):
     """Spectrally weighted elemental OTFs of one eye.
 
@@ -164,7 +163,7 @@ def _elemental_otfs(
     band of wavelengths is transformed on its own window and embedded in the largest.
     Returns complex (n_acc, n_sub, L, L//2+1), the half plane f_x ≥ 0 of
     Σ_λ w_λ OTF_{λ,n,a}, each OTF carrying the energy its pupil transmits
-    (OTF(0) = ∫|P|² dA in mm²) or, with ``wavelength_normalisation="unit_sum"``, that energy
+    (OTF(0) = ∫|P|² dA in mm²) or, with ``spectrum.unit_sum`` = 1, that energy
     divided by the energy all subapertures transmit at λ (each wavelength's PSF summed over
     the views then has unit volume, as ISETBio normalises; the views keep their ratios).
     """
@@ -174,8 +173,7 @@ def _elemental_otfs(
         part = _elemental_otfs_band(
             coefficients_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
             centres_mm, diameters_mm,
-            jax.tree_util.tree_map(lambda x: x[start:stop], spectrum),
-            band_fft, sampling, sa_params, wavelength_normalisation,
+            spectrum.band(start, stop), band_fft, sampling, sa_params,
         )
         part = _embed_half_plane(part, n_fft)
         total = part if total is None else total + part
@@ -185,7 +183,6 @@ def _elemental_otfs(
 def _elemental_otfs_band(
     coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
     centres_mm, diameters_mm, spectrum: Spectrum, n_fft: int, sampling: Sampling, sa_params,
-    wavelength_normalisation: str = "transmitted_energy",
 ):
     """One band of :func:`_elemental_otfs`: every wavelength's PSFs lie on the same angular
     grid (the pupil step is λ·Δf), so the band's weighted PSFs are summed first and
@@ -220,8 +217,9 @@ def _elemental_otfs_band(
             )
         )(centres_mm, diameters_mm)
         amp, w_eye, z20, z40, energy = parts  # (n_sub, n_pupil, n_pupil) and (n_sub,)
-        if wavelength_normalisation == "unit_sum":
-            weight = weight / jnp.sum(energy)
+        # ModelOptions.wavelength_normalisation as data: unit_sum = 1 divides by the energy
+        # all views transmit at this wavelength, 0 leaves the weight as it is
+        weight = weight * jnp.power(jnp.sum(energy), -spectrum.unit_sum)
         c20 = dioptres_to_c20_um(accommodation_D - cdp_D + lca_D, pupil_diameter_mm)
         w = (
             w_eye[None]

@@ -137,8 +137,6 @@ class PipelineConfig:
     ncsf : NCSF model name (:mod:`lfjax.metrics`)
     vsotf_reference : "paper" (same layout, aberration-free) or "open_pupil"
     zero_piston_tilt : drop j = 0, 1, 2 from the eyes' coefficients
-    wavelength_normalisation : how each wavelength's PSF enters the polychromatic sum
-        (``ModelOptions.wavelength_normalisation``)
     eye_chunk : eyes evaluated together inside the map over eyes (None: one at a time)
     """
 
@@ -149,7 +147,6 @@ class PipelineConfig:
     vsotf_reference: str = "paper"
     zero_piston_tilt: bool = True
     eye_chunk: int | None = None
-    wavelength_normalisation: str = "transmitted_energy"
 
     @property
     def n_fft(self) -> int:
@@ -175,7 +172,7 @@ class PipelineConfig:
             wavelength_bands(wl, float(window_diameter_mm), pupil, sampling),
             wavelength_bands(wl, float(reference_window), pupil, sampling),
             options.ncsf, options.vsotf_reference, options.zero_piston_tilt,
-            None if eye_chunk is None else int(eye_chunk), options.wavelength_normalisation,
+            None if eye_chunk is None else int(eye_chunk),
         )
 
     def replace(self, **changes) -> PipelineConfig:
@@ -236,15 +233,13 @@ def _eye_coefficients(eyes: Eyes, config: PipelineConfig):
 
 
 def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
-                   accommodation: Accommodation, bands, sampling: Sampling,
-                   wavelength_normalisation: str = "transmitted_energy"):
+                   accommodation: Accommodation, bands, sampling: Sampling):
     """Spectrally weighted elemental OTFs of one eye, (n_states, n_sub, L, L//2+1), each
     carrying the energy its pupil transmits (stages 1–5 of DESIGN.md §2)."""
     return _elemental_otfs(
         zernike_um, measured_pupil_mm, scene.pupil_diameter_mm, scene.cdp_D, accommodation.states_D,
         scene.centres_mm, scene.diameters_mm, spectrum, bands, sampling,
         jnp.stack([accommodation.sa_c40_um_per_D, accommodation.sa_radius_mm]),
-        wavelength_normalisation,
     )
 
 
@@ -293,8 +288,7 @@ def reference_normalisers(scene: Scene, spectrum: Spectrum, accommodation: Accom
                            accommodation.sa_radius_mm)
     n_fft = max(b[2] for b in config.reference_bands)
     elemental = elemental_otfs(jnp.zeros((1,), cdp.dtype), 1.0, reference_scene, spectrum, on_cdp,
-                               config.reference_bands, config.sampling,
-                               config.wavelength_normalisation)
+                               config.reference_bands, config.sampling)
     otf = render(elemental, reference_scene, on_cdp.pair_index, n_fft, config.freq_step_cpd)[0, 0]
     weighted_ncsf = ncsf_half_plane(n_fft, config.freq_step_cpd, config.ncsf)
     return vsotf_numerator(otf, weighted_ncsf), psf_peak(otf, n_fft, config.freq_step_cpd)
@@ -310,8 +304,7 @@ def otf_stack(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accom
 
     def one_eye(zernike_um):
         elemental = elemental_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum,
-                                   accommodation, config.bands, config.sampling,
-                                   config.wavelength_normalisation)
+                                   accommodation, config.bands, config.sampling)
         return render(elemental, scene, accommodation.pair_index, config.n_fft, config.freq_step_cpd)
 
     return jax.lax.map(one_eye, _eye_coefficients(eyes, config), batch_size=config.eye_chunk)
@@ -344,8 +337,7 @@ def retinal_metrics(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation:
 
     def one_eye(zernike_um):
         elemental = elemental_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum,
-                                   accommodation, config.bands, config.sampling,
-                                   config.wavelength_normalisation)
+                                   accommodation, config.bands, config.sampling)
         otf = render(elemental, scene, accommodation.pair_index, n_fft, df)
         return RetinalMetrics(
             vsotf=vsotf_numerator(otf, weighted_ncsf) / reference_vsotf,
@@ -368,7 +360,7 @@ def pair_metric(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Sp
     """
     n_fft, df = config.n_fft, config.freq_step_cpd
     elemental = elemental_otfs(zernike_um, measured_pupil_mm, scene, spectrum, accommodation,
-                               config.bands, config.sampling, config.wavelength_normalisation)
+                               config.bands, config.sampling)
     otf = render(elemental, scene, accommodation.pair_index, n_fft, df)
     if metric == "vsotf":
         return vsotf_numerator(otf, ncsf_half_plane(n_fft, df, config.ncsf)) / reference[0]

@@ -97,18 +97,23 @@ def sce_rho_per_mm2(wavelengths_nm, table: str = "isetbio_berendschot_data") -> 
 class Spectrum(eqx.Module):
     """Sampled spectrum with the chromatic properties of the eye at each wavelength.
 
-    Attributes (all shape ``(n_wavelengths,)``)
+    Attributes (shape ``(n_wavelengths,)`` unless stated)
     ----------
     wavelengths_nm : wavelengths, nm.
     weights : spectral weights, V(λ)·Δλ normalised to sum 1 (unitless).
     lca_D : LCA defocus at each wavelength, dioptres.
     sce_rho_per_mm2 : Stiles–Crawford ρ(λ), mm⁻² (0 when SCE is off).
+    unit_sum : () 0 or 1: 1 scales each wavelength's PSF (all views) to unit volume before
+        weighting (``ModelOptions.wavelength_normalisation="unit_sum"``, ISETBio's
+        convention); 0 keeps the energy its apodised pupil transmits (default). Data, not
+        a code path, so switching it does not recompile.
     """
 
     wavelengths_nm: jnp.ndarray = eqx.field(converter=as_real_array)
     weights: jnp.ndarray = eqx.field(converter=as_real_array)
     lca_D: jnp.ndarray = eqx.field(converter=as_real_array)
     sce_rho_per_mm2: jnp.ndarray = eqx.field(converter=as_real_array)
+    unit_sum: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
 
     def __check_init__(self):
         shape = self.wavelengths_nm.shape
@@ -122,6 +127,11 @@ class Spectrum(eqx.Module):
     @property
     def n_wavelengths(self) -> int:
         return int(self.wavelengths_nm.shape[0])
+
+    def band(self, start: int, stop: int) -> Spectrum:
+        """The wavelengths ``start:stop`` (weights not renormalised)."""
+        return Spectrum(self.wavelengths_nm[start:stop], self.weights[start:stop],
+                        self.lca_D[start:stop], self.sce_rho_per_mm2[start:stop], self.unit_sum)
 
 
 def make_spectrum(
@@ -176,6 +186,7 @@ def make_spectrum(
         weights=jnp.asarray(w),
         lca_D=jnp.asarray(lca_dioptres(wl, options)),
         sce_rho_per_mm2=jnp.asarray(rho),
+        unit_sum=float(options.wavelength_normalisation == "unit_sum"),
     )
 
 

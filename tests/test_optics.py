@@ -330,7 +330,7 @@ def test_wavelength_normalisation_unit_sum_is_mean_of_normalised_otfs(layout_nam
     energy = lfjax.ModelOptions()
     spectrum = lfjax.make_spectrum(wavelengths, unit)
     w = np.asarray(spectrum.weights, np.float64)
-    singles = [otf(unit, jax.tree_util.tree_map(lambda x, i=i: x[i:i + 1], spectrum))
+    singles = [otf(unit, spectrum.band(i, i + 1))
                for i in range(len(wavelengths))]
     expected = sum(wi * s for wi, s in zip(w, singles)) / w.sum()
     got_unit, got_energy = otf(unit), otf(energy)
