@@ -1,10 +1,10 @@
 """Time `lfjax reproduce` (the paper's full default study) against its FFT floor.
 
-The floor is the bare batched FFT work of the main study (all eyes, all layouts, every
-accommodation state used, every wavelength on its band's window, every subaperture):
-fft2 of the complex pupil field, |.|², rfft2 of the PSF — the transforms lfjax performs —
-in one jitted call per band, timed warm. The modelling alternatives in the report are extra
-work on top of that (listed separately by the CLI's own stage timings in REPORT.md).
+Three runs of the command line in fresh processes (cold compilation cache, warm, warm without
+alternatives), then the floor: the bare batched transforms, timed warm, in one jitted call
+per band. The floor counts what the job cannot avoid computing: per wavelength an fft2 of each pupil
+field (and |.|^2), per wavelength band one rfft2 of the band's summed PSF, for the main study
+and for the modelling alternatives on the states they evaluate (near the main study's peaks).
 
 Run:  .venv/bin/python benchmarks/bench_reproduce.py
 """
@@ -25,47 +25,89 @@ import jax.numpy as jnp
 import numpy as np
 
 
-def floor_seconds() -> tuple[float, list[str]]:
+def _band_floor(eyes_n: int, n_states: int, n_sub: int, bands) -> float:
+    """Seconds of the bare transforms for one layout: per wavelength an fft2 of each complex
+    pupil field and |.|^2 summed over the band; per band one rfft2 of the summed PSF per
+    (eye, state, view) — what optics._elemental_otfs_band does, without anything else."""
+    total = 0.0
+    for start, stop, n in bands:
+        n_wl = stop - start
+        fields = eyes_n * n_states * n_sub  # one summed PSF per (eye, state, view)
+        chunk = min(fields, 64)
+
+        @jax.jit
+        def work(x):
+            def one(acc, i):
+                # the field depends on the wavelength index, or XLA hoists the transform out
+                # of the loop (computing it once)
+                spec = jnp.fft.fft2(x * (1.0 + 1e-3 * i).astype(x.dtype))
+                return acc + jnp.real(spec) ** 2 + jnp.imag(spec) ** 2, None
+
+            psf, _ = jax.lax.scan(one, jnp.zeros(x.shape, jnp.float32),
+                                  jnp.arange(n_wl, dtype=jnp.float32))
+            return jnp.fft.rfft2(psf)
+
+        x = jnp.ones((chunk, n, n), jnp.complex64)
+        work(x).block_until_ready()
+        best = min(_timed(lambda: work(x).block_until_ready()) for _ in range(3))
+        total += best * fields / chunk
+    return total
+
+
+def floor_seconds(results_nc: Path | None = None) -> tuple[float, float, list[str]]:
+    """FFT floor of the main study and, given the study's results (for its peaks), of the
+    pruned modelling alternatives (baseline + each alternative, on their planned sampling)."""
+    import xarray as xr
+
     import lfjax
+    from lfjax.reproduce.alternatives import ALTERNATIVES, _layout_depths, peak_masks
     from lfjax.reproduce.config import StudyConfig, _planned_sampling, study_eyes
+    from lfjax.reproduce.study import mask_pairs
     from lfjax.sampling import wavelength_bands
 
     config = StudyConfig()
     eyes, _ = study_eyes(config)
-    wl = np.asarray(config.wavelength_grid_nm, float)
-    total, lines = 0.0, []
-    for name, layout in lfjax.layouts.paper_layouts(config.pupil_diameter_mm).items():
-        depths = np.array([config.cdp_D]) if name == "natural" else (
-            config.cdp_D + np.asarray(config.depth_offsets_D, float))
+    layouts = lfjax.layouts.paper_layouts(config.pupil_diameter_mm)
+    main, lines = 0.0, []
+    for name, layout in layouts.items():
+        depths = _layout_depths(name, config)
         sampling = _planned_sampling(eyes, layout, depths, config, config.options)
         grid = np.asarray(config.accommodation_D, float)
         used = np.any(np.abs(grid[None, :] - depths[:, None]) <= config.window_D + 1e-9, axis=0)
-        n_states = int(used.sum())
-        bands = wavelength_bands(wl, layout.window_diameter_mm, config.pupil_diameter_mm, sampling)
-        t_layout = 0.0
-        for start, stop, n in bands:
-            batch = eyes.n_eyes * n_states * layout.n_subapertures * (stop - start)
+        bands = wavelength_bands(config.wavelength_grid_nm, layout.window_diameter_mm,
+                                 config.pupil_diameter_mm, sampling)
+        t = _band_floor(eyes.n_eyes, int(used.sum()), layout.n_subapertures, bands)
+        lines.append(f"main {name}: df {sampling.freq_step_cpd:.4g} cpd, bands {bands}, "
+                     f"{int(used.sum())} states, {layout.n_subapertures} views: {t:.2f} s")
+        main += t
+    alternatives = 0.0
+    if results_nc is not None:
+        ds = xr.load_dataset(results_nc, engine="h5netcdf")
+        reduced = config.reduced()
+        masks = peak_masks(ds, reduced)
+        n_variants = 1 + len(ALTERNATIVES)
+        for name, mask in masks.items():
+            layout = layouts[name]
+            depths = _layout_depths(name, reduced)
+            # the sampling the alternatives plan (margin of two more grid steps, as there)
+            from lfjax.reproduce.alternatives import _in_window, _widen
 
-            @jax.jit
-            def work(x):
-                spec = jnp.fft.fft2(x)
-                psf = jnp.real(spec) ** 2 + jnp.imag(spec) ** 2
-                return jnp.sum(jnp.fft.rfft2(psf), axis=0)
-
-            # chunks of at most 256 fields keep memory bounded; time scales linearly
-            chunk = min(batch, 256)
-            x = jnp.ones((chunk, n, n), jnp.complex64)
-            work(x).block_until_ready()
-            best = min(
-                _timed(lambda: work(x).block_until_ready()) for _ in range(3)
-            )
-            t_layout += best * batch / chunk
-        lines.append(
-            f"{name}: df {sampling.freq_step_cpd} cpd, bands {bands}, {n_states} states, "
-            f"{layout.n_subapertures} subapertures, floor {t_layout:.1f} s"
-        )
-        total += t_layout
-    return total, lines
+            acc = np.asarray(reduced.accommodation_D, float)
+            margin = mask.copy()
+            for j in range(depths.size):
+                _widen(margin[j], acc, acc[mask[j]])
+            margin &= _in_window(reduced, depths)
+            sampling = _planned_sampling(eyes, layout, depths, reduced, reduced.options,
+                                         pairs=mask_pairs(margin, depths, reduced))
+            bands = wavelength_bands(reduced.wavelength_grid_nm, layout.window_diameter_mm,
+                                     reduced.pupil_diameter_mm, sampling)
+            n_states = int(mask.any(axis=0).sum())
+            t = n_variants * _band_floor(eyes.n_eyes, n_states, layout.n_subapertures, bands)
+            lines.append(f"alternatives {name} ({n_variants} variants): df "
+                         f"{sampling.freq_step_cpd:.4g} cpd, bands {bands}, {n_states} states: "
+                         f"{t:.2f} s")
+            alternatives += t
+    return main, alternatives, lines
 
 
 def _timed(fn) -> float:
@@ -74,7 +116,8 @@ def _timed(fn) -> float:
     return time.perf_counter() - t0
 
 
-def run_cli(cache_dir: Path, extra: list[str]) -> float:
+def run_cli(cache_dir: Path, extra: list[str], keep: Path | None = None) -> tuple[float, str]:
+    """Wall time of ``lfjax reproduce`` in a fresh process, and its REPORT.md timing line."""
     out = Path(tempfile.mkdtemp()) / "study"
     env = dict(os.environ, LFJAX_CACHE_DIR=str(cache_dir))
     env.pop("XLA_FLAGS", None)
@@ -83,24 +126,39 @@ def run_cli(cache_dir: Path, extra: list[str]) -> float:
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
     elapsed = time.perf_counter() - t0
+    report = (out / "REPORT.md").read_text()
+    timings = next((line for line in report.splitlines() if line.startswith("Timings")), "")
+    if keep is not None:
+        shutil.copy(out / "results.nc", keep)
     shutil.rmtree(out.parent, ignore_errors=True)
-    return elapsed
+    return elapsed, timings
 
 
 def main():
+    if len(sys.argv) == 3 and sys.argv[1] == "--floor-only":  # re-measure the floor of a run
+        main_floor, alt_floor, lines = floor_seconds(Path(sys.argv[2]))
+        print("\n".join(lines))
+        print(f"FFT floor: main {main_floor:.1f} s + alternatives {alt_floor:.1f} s")
+        return
     print("command: .venv/bin/python benchmarks/bench_reproduce.py")
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"jax {jax.__version__}, {time.strftime('%Y-%m-%d %H:%M')}")
-    floor, lines = floor_seconds()
-    for line in lines:
-        print("  floor", line)
-    print(f"FFT floor of the main study: {floor:.1f} s")
     cache = Path(tempfile.mkdtemp())
+    results = Path(tempfile.mkdtemp()) / "results.nc"
+    runs = {}
     for label, extra in (("cold cache, full", []), ("warm cache, full", []),
                          ("warm cache, --no-alternatives", ["--no-alternatives"])):
-        t = run_cli(cache, extra)
-        print(f"lfjax reproduce ({label}): {t:.1f} s = {t / floor:.2f} x floor")
+        runs[label] = run_cli(cache, extra, keep=results if label.startswith("cold") else None)
     shutil.rmtree(cache, ignore_errors=True)
+    main_floor, alt_floor, lines = floor_seconds(results)
+    for line in lines:
+        print("  floor", line)
+    floor = main_floor + alt_floor
+    print(f"FFT floor: main study {main_floor:.1f} s + pruned alternatives {alt_floor:.1f} s "
+          f"= {floor:.1f} s")
+    for label, (t, timings) in runs.items():
+        print(f"lfjax reproduce ({label}): {t:.1f} s = {t / floor:.2f} x floor")
+        print(f"  {timings}")
 
 
 if __name__ == "__main__":

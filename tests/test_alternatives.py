@@ -9,7 +9,7 @@ from lfjax.reproduce.alternatives import BASELINE, run_alternatives
 def test_pruned_alternatives_give_the_full_curves_verdicts():
     """Quick study (2 eyes + the average eye, depths CDP−2/CDP/CDP+2, 0.5 D states, 30 nm),
     natural view, 2×2 and 3×3, baseline and one alternative: the claims under pruned states
-    (two grid steps around the main study's peaks, their own sampling) equal those of the
+    (each peak and its grid neighbours in the main study, their own sampling) equal those of the
     whole ±2 D window, and fewer states are computed."""
     config = StudyConfig.quick(layouts=("natural", "2x2", "3x3"))
     variants = {"accommodation_sa=unscaled": {"accommodation_sa": "unscaled"}}

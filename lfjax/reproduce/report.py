@@ -193,7 +193,7 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
         if layouts_pruned:
             add("")
             add("The claims read only peaks, so the alternatives and their baseline evaluate only "
-                "the accommodation states within two grid steps of the main study's peaks (states per "
+                "the accommodation states next to the main study's peaks (states per "
                 "depth: " + "; ".join(
                     f"{k} {'/'.join(map(str, v['states_per_depth']))} at df "
                     f"{v['freq_step_cpd']:.3g} cpd" for k, v in layouts_pruned.items())
