@@ -41,9 +41,12 @@ BASELINE = "baseline (reduced)"
 
 PRUNE_STEPS = 1
 """States within this many accommodation grid steps of a known peak are evaluated (the peak
-and its neighbours: 0.2 D on the paper's grid). Elemental OTFs are computed per state and
-shared by the depths, so the cost is the union over depths: with depths 1 D apart, two
-steps kept 25 of the 26 states of the paper's grid, one step keeps about 15."""
+and its neighbours: 0.2 D on the paper's grid). Elemental OTFs are computed per state for
+all eyes and shared by the depths, so the cost follows the union over eyes, metrics and
+depths: on the paper's default (10 eyes, depths 1 D apart) the peaks spread enough that the
+union still holds 25 of the 26 states for each LF layout (8 of 21 for the natural view).
+What the pruning saves there is field: the pairs it keeps need a smaller PSF field, so a
+coarser frequency step (benchmarks/RESULTS.md §9). Per-eye state sets would save states too."""
 
 MAX_WIDENINGS = 4
 
