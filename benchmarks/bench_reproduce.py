@@ -4,7 +4,7 @@ Three runs of the command line in fresh processes (cold compilation cache, warm,
 alternatives), then the floor: the bare batched transforms, timed warm, in one jitted call
 per band. The floor counts what the job cannot avoid computing: per wavelength an fft2 of each pupil
 field (and |.|^2), per wavelength band one rfft2 of the band's summed PSF, for the main study
-and for the modelling alternatives on the states they evaluate (near the main study's peaks).
+and for the modelling alternatives (the reduced study, once per variant and for its baseline).
 
 Run:  .venv/bin/python benchmarks/bench_reproduce.py
 """
@@ -54,60 +54,41 @@ def _band_floor(eyes_n: int, n_states: int, n_sub: int, bands) -> float:
     return total
 
 
-def floor_seconds(results_nc: Path | None = None) -> tuple[float, float, list[str]]:
-    """FFT floor of the main study and, given the study's results (for its peaks), of the
-    pruned modelling alternatives (baseline + each alternative, on their planned sampling)."""
-    import xarray as xr
-
+def _study_floor(config, label: str, repeat: int = 1) -> tuple[float, list[str]]:
+    """Floor of one study configuration (every layout, every state of each depth's window)."""
     import lfjax
-    from lfjax.reproduce.alternatives import ALTERNATIVES, _layout_depths, peak_masks
-    from lfjax.reproduce.config import StudyConfig, _planned_sampling, study_eyes
-    from lfjax.reproduce.study import mask_pairs
+    from lfjax.reproduce.config import _planned_sampling, study_eyes
     from lfjax.sampling import wavelength_bands
 
-    config = StudyConfig()
     eyes, _ = study_eyes(config)
-    layouts = lfjax.layouts.paper_layouts(config.pupil_diameter_mm)
-    main, lines = 0.0, []
-    for name, layout in layouts.items():
-        depths = _layout_depths(name, config)
+    total, lines = 0.0, []
+    for name, layout in lfjax.layouts.paper_layouts(config.pupil_diameter_mm).items():
+        depths = (np.array([config.cdp_D]) if name == "natural"
+                  else np.asarray(config.depths_D, float))
         sampling = _planned_sampling(eyes, layout, depths, config, config.options)
         grid = np.asarray(config.accommodation_D, float)
         used = np.any(np.abs(grid[None, :] - depths[:, None]) <= config.window_D + 1e-9, axis=0)
         bands = wavelength_bands(config.wavelength_grid_nm, layout.window_diameter_mm,
                                  config.pupil_diameter_mm, sampling)
-        t = _band_floor(eyes.n_eyes, int(used.sum()), layout.n_subapertures, bands)
-        lines.append(f"main {name}: df {sampling.freq_step_cpd:.4g} cpd, bands {bands}, "
-                     f"{int(used.sum())} states, {layout.n_subapertures} views: {t:.2f} s")
-        main += t
-    alternatives = 0.0
-    if results_nc is not None:
-        ds = xr.load_dataset(results_nc, engine="h5netcdf")
-        reduced = config.reduced()
-        masks = peak_masks(ds, reduced)
-        n_variants = 1 + len(ALTERNATIVES)
-        for name, mask in masks.items():
-            layout = layouts[name]
-            depths = _layout_depths(name, reduced)
-            # the sampling the alternatives plan (margin of two more grid steps, as there)
-            from lfjax.reproduce.alternatives import _in_window, _widen
+        t = repeat * _band_floor(eyes.n_eyes, int(used.sum()), layout.n_subapertures, bands)
+        lines.append(f"{label} {name}: df {sampling.freq_step_cpd:.4g} cpd, bands {bands}, "
+                     f"{int(used.sum())} states, {layout.n_subapertures} views"
+                     + (f", x {repeat} runs" if repeat > 1 else "") + f": {t:.2f} s")
+        total += t
+    return total, lines
 
-            acc = np.asarray(reduced.accommodation_D, float)
-            margin = mask.copy()
-            for j in range(depths.size):
-                _widen(margin[j], acc, acc[mask[j]])
-            margin &= _in_window(reduced, depths)
-            sampling = _planned_sampling(eyes, layout, depths, reduced, reduced.options,
-                                         pairs=mask_pairs(margin, depths, reduced))
-            bands = wavelength_bands(reduced.wavelength_grid_nm, layout.window_diameter_mm,
-                                     reduced.pupil_diameter_mm, sampling)
-            n_states = int(mask.any(axis=0).sum())
-            t = n_variants * _band_floor(eyes.n_eyes, n_states, layout.n_subapertures, bands)
-            lines.append(f"alternatives {name} ({n_variants} variants): df "
-                         f"{sampling.freq_step_cpd:.4g} cpd, bands {bands}, {n_states} states: "
-                         f"{t:.2f} s")
-            alternatives += t
-    return main, alternatives, lines
+
+def floor_seconds() -> tuple[float, float, list[str]]:
+    """FFT floor of the main study and of the modelling alternatives (the reduced study,
+    once for the baseline and once per alternative)."""
+    from lfjax.reproduce.alternatives import ALTERNATIVES
+    from lfjax.reproduce.config import StudyConfig
+
+    config = StudyConfig()
+    main, lines = _study_floor(config, "main")
+    alternatives, more = _study_floor(config.reduced(), "alternatives",
+                                      repeat=1 + len(ALTERNATIVES))
+    return main, alternatives, lines + more
 
 
 def _timed(fn) -> float:
@@ -116,7 +97,7 @@ def _timed(fn) -> float:
     return time.perf_counter() - t0
 
 
-def run_cli(cache_dir: Path, extra: list[str], keep: Path | None = None) -> tuple[float, str]:
+def run_cli(cache_dir: Path, extra: list[str]) -> tuple[float, str]:
     """Wall time of ``lfjax reproduce`` in a fresh process, and its REPORT.md timing line."""
     out = Path(tempfile.mkdtemp()) / "study"
     env = dict(os.environ, LFJAX_CACHE_DIR=str(cache_dir))
@@ -128,15 +109,13 @@ def run_cli(cache_dir: Path, extra: list[str], keep: Path | None = None) -> tupl
     elapsed = time.perf_counter() - t0
     report = (out / "REPORT.md").read_text()
     timings = next((line for line in report.splitlines() if line.startswith("Timings")), "")
-    if keep is not None:
-        shutil.copy(out / "results.nc", keep)
     shutil.rmtree(out.parent, ignore_errors=True)
     return elapsed, timings
 
 
 def main():
-    if len(sys.argv) == 3 and sys.argv[1] == "--floor-only":  # re-measure the floor of a run
-        main_floor, alt_floor, lines = floor_seconds(Path(sys.argv[2]))
+    if len(sys.argv) == 2 and sys.argv[1] == "--floor-only":
+        main_floor, alt_floor, lines = floor_seconds()
         print("\n".join(lines))
         print(f"FFT floor: main {main_floor:.1f} s + alternatives {alt_floor:.1f} s")
         return
@@ -144,17 +123,16 @@ def main():
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"jax {jax.__version__}, {time.strftime('%Y-%m-%d %H:%M')}")
     cache = Path(tempfile.mkdtemp())
-    results = Path(tempfile.mkdtemp()) / "results.nc"
     runs = {}
     for label, extra in (("cold cache, full", []), ("warm cache, full", []),
                          ("warm cache, --no-alternatives", ["--no-alternatives"])):
-        runs[label] = run_cli(cache, extra, keep=results if label.startswith("cold") else None)
+        runs[label] = run_cli(cache, extra)
     shutil.rmtree(cache, ignore_errors=True)
-    main_floor, alt_floor, lines = floor_seconds(results)
+    main_floor, alt_floor, lines = floor_seconds()
     for line in lines:
         print("  floor", line)
     floor = main_floor + alt_floor
-    print(f"FFT floor: main study {main_floor:.1f} s + pruned alternatives {alt_floor:.1f} s "
+    print(f"FFT floor: main study {main_floor:.1f} s + alternatives {alt_floor:.1f} s "
           f"= {floor:.1f} s")
     for label, (t, timings) in runs.items():
         print(f"lfjax reproduce ({label}): {t:.1f} s = {t / floor:.2f} x floor")

@@ -188,7 +188,6 @@ def through_focus(
     continuous_peaks: tuple = (),
     peak_method: str = "auto",
     refine_second_peaks: bool = True,
-    accommodation_mask=None,
 ) -> ThroughFocus:
     """VSOTF, Strehl and radial MTF through focus for eyes × depths × accommodation states.
 
@@ -219,10 +218,6 @@ def through_focus(
         VSOTF, golden section for the Strehl ratio)
     refine_second_peaks : refine second local maxima too (default; see
         :func:`lfjax.peaks.accommodation_peaks`); False halves the refinement's cost
-    accommodation_mask : (n_depth, n_acc) bool, optional, with ``accommodation_D``: evaluate
-        only these (depth, state) pairs (combined with ``window_D``). States no depth uses
-        are not computed, and the sampling is planned for the pairs kept — how a study that
-        only needs the states near known peaks pays for those alone.
 
     Elemental OTFs are computed once per distinct absolute state and reused by every depth.
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
@@ -254,21 +249,8 @@ def through_focus(
                 raise ValueError(
                     f"window_D={window_D} leaves no accommodation state for some rendered depths"
                 )
-        if accommodation_mask is not None:
-            mask = np.asarray(accommodation_mask)
-            if mask.shape != index.shape or mask.dtype != bool:
-                raise ValueError(
-                    f"accommodation_mask must be a bool array of shape (n_depth, n_acc) = "
-                    f"{index.shape}, got {mask.dtype} {mask.shape}"
-                )
-            allowed = allowed & mask
-            if not np.all(allowed.any(axis=1)):
-                raise ValueError("accommodation_mask (with window_D) leaves no accommodation "
-                                 "state for some rendered depths")
         absolute = grid[index]
     else:
-        if accommodation_mask is not None:
-            raise ValueError("accommodation_mask needs accommodation_D (a shared absolute grid)")
         offsets = (
             np.round(np.arange(-5, 6) * 0.2, 9)
             if accommodation_offsets_D is None

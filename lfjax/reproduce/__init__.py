@@ -156,9 +156,7 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         ds = run_study(config, stage=lambda n: stage(f"through-focus {n}"))
         examples = compute_examples(ds, config, stage=stage)
         claims = evaluate_claims(ds, config.dof_fraction)
-        pruning: dict = {}
-        alternatives = (run_alternatives(config, stage=stage, baseline=ds, record=pruning)
-                        if config.alternatives else {})
+        alternatives = run_alternatives(config, stage=stage) if config.alternatives else {}
         stage("tables")
         files = [RESULTS_FILE, EXAMPLES_FILE]
         ds.to_netcdf(tmp / RESULTS_FILE, engine="h5netcdf")
@@ -181,7 +179,7 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         timings_now["total"] = time.perf_counter() - t_start
         files.append("REPORT.md")
         write_report(tmp / "REPORT.md", ds, claims, alternatives, config, timings_now,
-                     sorted(files), pruning=pruning)
+                     sorted(files))
         (tmp / MARKER_FILE).write_text("")
         bar.update(1)
         bar.close()

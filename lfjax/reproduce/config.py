@@ -184,14 +184,12 @@ def study_eyes(config: StudyConfig) -> tuple[Eyes, list[str]]:
 # ----------------------------------------------------------------------------- sampling
 
 
-def _planned_sampling(eyes, layout, depths, config, options, pairs=None) -> Sampling:
+def _planned_sampling(eyes, layout, depths, config, options) -> Sampling:
     """The frequency step :func:`lfjax.planner.plan_sampling`'s field guard allows for this
     scene (the largest ladder step whose PSF field holds the blur; milliseconds). The
     accuracy proxy is skipped: it takes 9–27 s per layout on the paper's grid, and for a
     1e-3 VSOTF target it asks the 3×3/4×4 layouts for about half the guard's step (~4× the
-    compute); at the guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7).
-    ``pairs`` = (accommodation_D, depths_D) arrays: plan for exactly these pairs instead of
-    every state within the window (a study that evaluates only the states near its peaks)."""
+    compute); at the guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7)."""
     from ..planner import plan_sampling
 
     plan = plan_sampling(
@@ -200,7 +198,6 @@ def _planned_sampling(eyes, layout, depths, config, options, pairs=None) -> Samp
         accommodation_window_D=config.window_D,
         wavelengths_nm=config.wavelength_grid_nm, eyes_zernike_um=np.asarray(eyes.zernike_um),
         measured_pupil_mm=eyes.measured_pupil_mm, options=options, estimate_accuracy=False,
-        pairs=pairs,
     )
     return plan.sampling
 

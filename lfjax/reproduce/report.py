@@ -144,7 +144,7 @@ def _md_escape(text: str) -> str:
 
 
 def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timings: dict,
-                 files: list[str], pruning: dict | None = None) -> None:
+                 files: list[str]) -> None:
     """REPORT.md: claims with numbers and verdicts, modelling-choice flips, settings."""
     lines = []
     add = lines.append
@@ -189,19 +189,6 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
             f"{red.wavelengths_nm[2]:g} nm wavelength steps — next to a baseline on the same "
             "set; a verdict in bold differs from that baseline (the choice changes the "
             "conclusion).")
-        layouts_pruned = {k: v for k, v in (pruning or {}).items() if k != "widened"}
-        if layouts_pruned:
-            add("")
-            add("The claims read only peaks, so the alternatives and their baseline evaluate only "
-                "the accommodation states next to the main study's peaks (states per "
-                "depth: " + "; ".join(
-                    f"{k} {'/'.join(map(str, v['states_per_depth']))} at df "
-                    f"{v['freq_step_cpd']:.3g} cpd" for k, v in layouts_pruned.items())
-                + "), on a sampling planned for those pairs. A peak beside an unevaluated state "
-                "would have the states around it added and its variant recomputed"
-                + (": done for " + ", ".join(f"{w['variant']} ({', '.join(w['layouts'])})"
-                                             for w in pruning["widened"]) + "."
-                   if pruning.get("widened") else " (not needed).") )
         add("")
         variants = list(alternatives)
         add("| claim | full study | " + " | ".join(variants) + " |")

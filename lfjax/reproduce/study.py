@@ -54,33 +54,19 @@ def _finer_step(message: str, current: float) -> float:
 
 
 
-def mask_pairs(mask, depths_D, config: StudyConfig):
-    """(accommodation_D, depths_D) arrays of the pairs a (n_depth, n_acc) mask keeps inside
-    the study's window."""
-    acc = np.asarray(config.accommodation_D, float)
-    depths = np.asarray(depths_D, float)
-    keep = np.asarray(mask, bool) & (np.abs(acc[None] - depths[:, None]) <= config.window_D + 1e-9)
-    a, d = np.meshgrid(acc, depths)
-    return a[keep], d[keep]
-
-
 def layout_through_focus(
     eyes: Eyes, layout: Layout, depths_D, config: StudyConfig, spectrum=None,
-    options: ModelOptions | None = None, mask=None, sampling: Sampling | None = None,
+    options: ModelOptions | None = None,
 ) -> tuple[ThroughFocus, Sampling]:
     """Through-focus of all eyes for one layout in one call, on the shared accommodation grid.
 
     The frequency step is :func:`lfjax.planner.plan_sampling`'s choice for the scene (the
     largest step whose PSF field holds the blur), made finer only if
     :func:`lfjax.through_focus.through_focus` still reports that the field would alias.
-    ``mask`` (n_depth, n_acc) bool: evaluate only these (depth, state) pairs (the sampling
-    is then planned for them); ``sampling``: use this one instead of planning.
     """
     options = config.options if options is None else options
     spectrum = make_spectrum(config.wavelength_grid_nm, options) if spectrum is None else spectrum
-    if sampling is None:
-        sampling = _planned_sampling(eyes, layout, depths_D, config, options,
-                                     pairs=None if mask is None else mask_pairs(mask, depths_D, config))
+    sampling = _planned_sampling(eyes, layout, depths_D, config, options)
     for _ in range(16):
         try:
             tf = through_focus(
@@ -92,7 +78,6 @@ def layout_through_focus(
                 # (five-point refinement, no solver loop) agrees with Newton to < 4e-4 D and
                 # compiles like the grid (Newton's loop added ~25 s per layout).
                 continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
-                accommodation_mask=mask,
             )
             return jax.block_until_ready(tf), sampling
         except ValueError as err:
@@ -137,16 +122,12 @@ def run_study(
     config: StudyConfig = StudyConfig(),  # noqa: B008 (frozen dataclass)
     options: ModelOptions | None = None,
     stage: Callable[[str], None] | None = None,
-    masks: dict | None = None,
-    samplings: dict | None = None,
 ):
     """Run the through-focus study; returns an :class:`xarray.Dataset`.
 
     One :func:`~lfjax.through_focus.through_focus` call per layout evaluates every eye
     (the virtual eyes and the average eye in one batch). ``stage(name)`` is called before
-    each layout (progress reporting). ``masks`` {layout: (n_depth, n_acc) bool over the
-    layout's depths (natural view: the CDP only)} restricts a layout to those pairs (the rest
-    are NaN); ``samplings`` {layout: Sampling} fixes a layout's sampling.
+    each layout (progress reporting).
 
     Dataset (dims ``layout, eye, depth, accommodation, frequency, metric``):
     ``vsotf``, ``strehl`` (NaN outside the evaluated window and, for natural view, at
@@ -185,10 +166,8 @@ def run_study(
             stage(name)
         t0 = time.perf_counter()
         layout_depths = np.array([config.cdp_D]) if name == "natural" else depths
-        tf, sampling = layout_through_focus(
-            eyes, layouts[name], layout_depths, config, spectrum, options,
-            mask=None if masks is None else masks.get(name),
-            sampling=None if samplings is None else samplings.get(name))
+        tf, sampling = layout_through_focus(eyes, layouts[name], layout_depths, config, spectrum,
+                                            options)
         times.append(time.perf_counter() - t0)
         slots = [cdp_index] if name == "natural" else list(range(n_depth))
         vs[li][:, slots] = np.asarray(tf.vsotf, float)
