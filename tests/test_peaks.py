@@ -269,3 +269,23 @@ def test_flat_curves_of_strongly_aberrated_eyes_are_not_reported_as_successes():
         assert np.all(np.asarray(peaks.at_grid_edge)), method
         assert not np.any(np.asarray(peaks.success)), method
         assert np.all(np.abs(np.abs(np.asarray(peaks.accommodation_D) - 2.0) - 1.0) < 1e-3)
+
+
+def test_non_smooth_peak_newton_reports_failure_golden_and_bfgs_find_it():
+    """A peak with a kink (the Strehl ratio is a maximum over PSF samples, so its curve has
+    corners; benchmarks/peak_failure_cases.json "non_smooth_strehl"): V = 1 − 0.3|a − c| −
+    0.5(a − c)². Newton on dV/da cannot converge (the slope jumps at the peak) and must say
+    so rather than return a point; golden section (``"auto"`` for the Strehl ratio) and BFGS
+    find the corner."""
+    def kinked(a, args):
+        x = a - args[0]
+        return 1.0 - 0.3 * jnp.abs(x) - 0.5 * x**2
+
+    centre = 2.037
+    args = (jnp.asarray(centre),)
+    newton = refine_peak(kinked, 1.8, 2.2, 2.0, args, "newton", 1e-5, 32)
+    assert not bool(newton.success) and int(newton.result) != 0
+    for method in ("golden", "bfgs"):
+        peak = refine_peak(kinked, 1.8, 2.2, 2.0, args, method, 1e-5, 32)
+        assert bool(peak.success), method
+        assert abs(float(peak.accommodation_D) - centre) < 1e-4, method
