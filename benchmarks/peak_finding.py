@@ -251,8 +251,19 @@ def run_reference(args):
         curves = {k: np.full(shape, -np.inf) for k in METRICS}
         states_out = {k: np.full(shape, np.nan) for k in METRICS}
         allowed_out = {k: np.zeros(shape, bool) for k in METRICS}
-        t0 = time.perf_counter()
-        for start in range(0, n_eyes, args.chunk):
+        done, seconds_before = 0, 0.0
+        if out.exists():  # extend a reference made for fewer eyes (the same eyes first)
+            old = np.load(out)
+            done = int(old["vsotf"].shape[0])
+            assert str(old["sampling"]) == sampling_key(setup["sampling"])
+            for k in METRICS:
+                curves[k][:done] = old[k]
+                states_out[k][:done] = old[f"states_{k}"]
+                allowed_out[k][:done] = old[f"allowed_{k}"]
+            seconds_before = float(old["seconds"])
+            print(f"reference {name}: extending {done} -> {n_eyes} eyes", flush=True)
+        t0 = time.perf_counter() - seconds_before
+        for start in range(done, n_eyes, args.chunk):
             eyes = eyes_all[start:start + args.chunk]
             sl = slice(start, start + eyes.n_eyes)
             for g in setup["groups"]:
