@@ -156,6 +156,35 @@ def relative_accommodation_grid(depths_D, offsets_D, hyperopic_limit: bool = Tru
     return grid, index
 
 
+def _windowed_grid(accommodation_D, depths, window_D=None):
+    """A shared absolute grid (D) seen by every depth, restricted to ±window_D (D) of it.
+
+    Returns (grid (n_acc,), index (n_depth, n_acc), allowed (n_depth, n_acc) bool,
+    absolute (n_depth, n_acc) D).
+    """
+    grid = np.atleast_1d(np.asarray(accommodation_D, float))
+    _check_states(grid, depths)
+    if grid.size > 1 and np.any(np.diff(grid) <= 0):
+        raise ValueError("accommodation_D must be strictly increasing")
+    index = np.broadcast_to(np.arange(grid.size), (depths.size, grid.size))
+    allowed = np.ones(index.shape, bool)
+    if window_D is not None:
+        allowed = np.abs(grid[None, :] - depths[:, None]) <= float(window_D) + 1e-9
+        if not np.all(allowed.any(axis=1)):
+            raise ValueError(
+                f"window_D={window_D} leaves no accommodation state for some rendered depths"
+            )
+    return grid, index, allowed, grid[index]
+
+
+def _used_states(grid, index, allowed):
+    """Keep each absolute state once, and only those some allowed pair uses: (grid, index)."""
+    used = np.zeros(grid.size, bool)
+    used[index[allowed]] = True
+    remap = np.cumsum(used) - 1
+    return grid[used], np.where(allowed, remap[index], 0)
+
+
 def _planned_sampling(eyes: Eyes, layout: Layout, depths, pairs, pupil_diameter_mm, cdp_D,
                       spectrum: Spectrum, options: ModelOptions) -> Sampling:
     """The planner's field guard for this scene (milliseconds; no accuracy proxy)."""
@@ -237,19 +266,7 @@ def through_focus(
     if peak_method not in PEAK_METHODS:
         raise ValueError(f"peak_method must be one of {PEAK_METHODS}, got {peak_method!r}")
     if accommodation_D is not None:
-        grid = np.atleast_1d(np.asarray(accommodation_D, float))
-        _check_states(grid, depths)
-        if grid.size > 1 and np.any(np.diff(grid) <= 0):
-            raise ValueError("accommodation_D must be strictly increasing")
-        index = np.broadcast_to(np.arange(grid.size), (depths.size, grid.size))
-        allowed = np.ones(index.shape, bool)
-        if window_D is not None:
-            allowed = np.abs(grid[None, :] - depths[:, None]) <= float(window_D) + 1e-9
-            if not np.all(allowed.any(axis=1)):
-                raise ValueError(
-                    f"window_D={window_D} leaves no accommodation state for some rendered depths"
-                )
-        absolute = grid[index]
+        grid, index, allowed, absolute = _windowed_grid(accommodation_D, depths, window_D)
     else:
         offsets = (
             np.round(np.arange(-5, 6) * 0.2, 9)
@@ -262,12 +279,7 @@ def through_focus(
         index = np.where(allowed, index, 0)
         # true state of every entry, also those beyond the hyperopic limit (not computed)
         absolute = np.where(allowed, grid[index], depths[:, None] + offsets[None, :])
-    # Compute each absolute state once, and only the states some depth uses.
-    used = np.zeros(grid.size, bool)
-    used[index[allowed]] = True
-    remap = np.cumsum(used) - 1
-    grid = grid[used]
-    index = np.where(allowed, remap[index], 0)
+    grid, index = _used_states(grid, index, allowed)
     _validate_coefficients(eyes.zernike_um)
     pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
     if sampling is None:

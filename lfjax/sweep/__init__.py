@@ -1,0 +1,39 @@
+"""Population sweeps: thousands of eyes × pupils × layouts × depths, chunked and resumable.
+
+``lfjax sweep CONFIG.toml --out STORE [--resume]`` and :func:`run_sweep` compute a sweep
+described by a TOML file (:mod:`lfjax.sweep.config`) into a Zarr store of one labelled
+xarray Dataset (:mod:`lfjax.sweep.store`), a chunk of eyes per compiled call
+(:mod:`lfjax.sweep.compute`), sharded over the local devices and, with
+``jax.distributed``, over processes and hosts.
+
+Layers (imports go one way): config → compute → store → run.
+"""
+
+from .compute import ChunkEvaluator, Task, build_tasks, population
+from .config import (
+    SweepConfig,
+    SweepConfigError,
+    config_from_dict,
+    config_to_toml,
+    load_config,
+)
+from .run import SweepRun, run_sweep
+from .store import StoreMismatchError, completed_chunks, open_store, study_view
+
+__all__ = [
+    "ChunkEvaluator",
+    "StoreMismatchError",
+    "SweepConfig",
+    "SweepConfigError",
+    "SweepRun",
+    "Task",
+    "build_tasks",
+    "completed_chunks",
+    "config_from_dict",
+    "config_to_toml",
+    "load_config",
+    "open_store",
+    "population",
+    "run_sweep",
+    "study_view",
+]

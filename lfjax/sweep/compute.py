@@ -1,0 +1,308 @@
+"""A sweep's numerics: one compiled call per (pupil, layout) and chunk of eyes.
+
+:func:`build_tasks` turns a :class:`~lfjax.sweep.config.SweepConfig` into one
+:class:`Task` per (pupil, layout): the scene, the accommodation grid, the sampling (planned
+once on the whole population, so every chunk sees the same grid) and the static pipeline
+configuration. :class:`ChunkEvaluator` compiles each task's chunk function once — the
+pipeline (:func:`lfjax.pipeline.retinal_metrics`), the grid and continuous peaks
+(:func:`lfjax.peaks.peaks_from_grid`) and the MTF cut-off, all inside one ``jit`` — and
+re-uses it for every chunk of the same size; it counts traces, so a recompilation per chunk
+is caught, not merely slow. With several local devices the eye axis is split over them with
+``shard_map`` over a one-axis :class:`jax.sharding.Mesh` (each device runs its eyes' FFTs;
+plain ``jit`` with a ``NamedSharding`` would all-gather the FFT batch, see NOTES-deps).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..eyes import Eyes, average_eye, sample_eyes
+from ..layout_opt import load_layout_json
+from ..layouts import Layout, paper_layouts
+from ..metrics import cutoff_frequency
+from ..optics import _field_check
+from ..peaks import METRICS, peaks_from_grid
+from ..pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
+from ..sampling import Sampling
+from ..spectral import Spectrum, make_spectrum
+from ..through_focus import _used_states, _windowed_grid
+from .config import SweepConfig
+
+FREQUENCIES_CPD = np.arange(0.0, 61.0, 1.0)
+"""Frequency axis (cpd) of the stored MTF at the predicted accommodation (claim 5 reads
+0–60 cpd)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Task:
+    """One (pupil, layout) of a sweep: what its compiled chunk function computes.
+
+    Attributes
+    ----------
+    pupil_index, layout_index : positions on the store's ``pupil`` and ``layout`` axes
+    pupil_mm : calculation pupil, mm
+    layout_label : the entry of ``SweepConfig.layouts`` (a paper name or a JSON path)
+    layout : the Layout, mm
+    depth_slots : indices of the store's ``depth`` axis this task fills (natural view: the
+        CDP only)
+    depths_D : (n_depth,) rendered depths, D
+    allowed : (n_depth, n_acc) bool, states within the window (and ≥ 0 D)
+    scene, accommodation : pipeline pytrees
+    sampling : Sampling used (planned on the whole population or given)
+    pipeline_config : static configuration of the compiled function
+    """
+
+    pupil_index: int
+    layout_index: int
+    pupil_mm: float
+    layout_label: str
+    layout: Layout
+    depth_slots: tuple[int, ...]
+    depths_D: np.ndarray
+    allowed: np.ndarray
+    scene: Scene
+    accommodation: Accommodation
+    sampling: Sampling
+    pipeline_config: PipelineConfig
+
+    @property
+    def key(self) -> tuple[int, int]:
+        return self.pupil_index, self.layout_index
+
+
+def population(config: SweepConfig) -> tuple[Eyes, np.ndarray]:
+    """All eyes of a sweep in store order (virtual eyes, then the average eye if asked), and
+    the ``is_average`` flag of each."""
+    eyes = sample_eyes(int(config.seed), int(config.n_eyes), config.fit_pupil_mm)
+    flags = np.zeros(config.n_eyes, bool)
+    if config.average_eye:
+        avg = average_eye(config.fit_pupil_mm)
+        eyes = Eyes(jnp.concatenate([eyes.zernike_um, avg.zernike_um.astype(eyes.zernike_um.dtype)]),
+                    eyes.measured_pupil_mm, eyes.orientation)
+        flags = np.concatenate([flags, [True]])
+    return eyes, flags
+
+
+def sweep_spectrum(config: SweepConfig) -> Spectrum:
+    return make_spectrum(config.wavelength_grid_nm, config.options)
+
+
+def resolve_layout(config: SweepConfig, entry: str, pupil_mm: float) -> Layout:
+    """A paper layout sized to ``pupil_mm`` (mm), or the layout of a JSON file."""
+    path = config.layout_path(entry)
+    if path is None:
+        return paper_layouts(pupil_mm)[entry]
+    return load_layout_json(path)[0]
+
+
+def layout_name(entry: str) -> str:
+    """The store's label of a layout entry (a paper name, or the JSON file's stem)."""
+    return entry if not entry.endswith(".json") else entry.rsplit("/", 1)[-1][: -len(".json")]
+
+
+def _plan(config: SweepConfig, eyes: Eyes, layout: Layout, pupil_mm: float, depths, pairs,
+          spectrum: Spectrum) -> Sampling:
+    from ..planner import plan_sampling
+
+    plan = plan_sampling(
+        layout=layout, pupil_diameter_mm=pupil_mm, cdp_D=config.cdp_D,
+        depths_D=np.asarray(depths, float), accommodation_window_D=None,
+        wavelengths_nm=config.wavelength_grid_nm, eyes_zernike_um=np.asarray(eyes.zernike_um),
+        measured_pupil_mm=eyes.measured_pupil_mm, options=config.options,
+        estimate_accuracy=config.vsotf_tolerance is not None,
+        vsotf_tolerance=config.vsotf_tolerance or 1e-3, pairs=pairs,
+        freq_step_cpd=config.freq_step_cpd,
+    )
+    return plan.sampling
+
+
+def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = None,
+                samplings: dict | None = None) -> list[Task]:
+    """One :class:`Task` per (pupil, layout), sampling checked against the whole population.
+
+    ``samplings`` maps (pupil_index, layout_index) to a :class:`~lfjax.Sampling` to use
+    instead of planning (a resumed store's); otherwise the planner's field guard (or its
+    accuracy target, ``vsotf_tolerance``) picks the step, made finer while the aliasing
+    guard still refuses it.
+    """
+    from ..reproduce.study import _finer_step
+
+    spectrum = sweep_spectrum(config) if spectrum is None else spectrum
+    all_depths = config.depths_D
+    cdp_slot = int(np.argmin(np.abs(all_depths - config.cdp_D)))
+    tasks = []
+    for pi, pupil in enumerate(config.pupil_diameters_mm):
+        for li, entry in enumerate(config.layouts):
+            layout = resolve_layout(config, entry, pupil)
+            slots = (cdp_slot,) if entry == "natural" else tuple(range(all_depths.size))
+            depths = all_depths[list(slots)]
+            grid, index, allowed, absolute = _windowed_grid(config.accommodation_D, depths,
+                                                            config.window_D)
+            pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
+            grid_used, index_used = _used_states(grid, index, allowed)
+            if samplings is not None and (pi, li) in samplings:
+                sampling = samplings[(pi, li)]
+            else:
+                sampling = _plan(config, eyes, layout, pupil, depths, pairs, spectrum)
+                for _ in range(16):
+                    try:
+                        _field_check(np.asarray(eyes.zernike_um), eyes.measured_pupil_mm, pupil,
+                                     config.cdp_D, grid_used, depths, layout, spectrum, sampling,
+                                     pairs=pairs)
+                        break
+                    except ValueError as err:
+                        if "aliasing" not in str(err) or config.freq_step_cpd is not None:
+                            raise
+                        sampling = dataclasses.replace(
+                            sampling, freq_step_cpd=_finer_step(str(err), sampling.freq_step_cpd))
+            pipeline_config = PipelineConfig.build(
+                spectrum.wavelengths_nm, layout.window_diameter_mm, pupil, sampling,
+                config.options)
+            tasks.append(Task(
+                pi, li, float(pupil), entry, layout, slots, depths, allowed,
+                Scene.from_layout(layout, depths, config.cdp_D, pupil),
+                Accommodation.shared(grid_used, index_used, config.options, pupil),
+                sampling, pipeline_config,
+            ))
+    return tasks
+
+
+# --------------------------------------------------------------------------- one chunk
+
+
+def _chunk_metrics(zernike_um, scene: Scene, spectrum: Spectrum, accommodation: Accommodation, *,
+                   config: PipelineConfig, measured_pupil_mm: float, allowed: np.ndarray,
+                   continuous: tuple[str, ...], peak_method: str, cutoff_threshold: float):
+    """Everything a sweep stores for a batch of eyes of one (pupil, layout), as arrays with
+    the eye axis first. Pure; the caller jits (and shards) it."""
+    eyes = Eyes(zernike_um, measured_pupil_mm)
+    reference = reference_normalisers(scene, spectrum, accommodation, config)
+    metrics = retinal_metrics(eyes, scene, spectrum, accommodation, config, reference)
+    mask = jnp.asarray(allowed)
+    n_fft, df = config.n_fft, config.freq_step_cpd
+    native_f = jnp.arange(n_fft // 2 + 1) * df
+    out = {}
+    indices, values, cutoffs, mtfs = [], [], [], []
+    for name in METRICS:
+        curve = getattr(metrics, name)
+        index = jnp.argmax(jnp.where(mask, curve, -jnp.inf), axis=-1)  # (n_eyes, n_depth)
+        indices.append(index.astype(jnp.int32))
+        values.append(jnp.take_along_axis(curve, index[..., None], -1)[..., 0])
+        mtf = jnp.take_along_axis(metrics.radial_mtf, index[..., None, None], axis=2)[:, :, 0]
+        cutoffs.append(cutoff_frequency(mtf, native_f, cutoff_threshold))
+        # 0 beyond the native grid, which ends past the optical cut-off
+        mtfs.append(_interp_last(FREQUENCIES_CPD, native_f, mtf))
+    out["vsotf"] = jnp.where(mask, metrics.vsotf, jnp.nan)
+    out["strehl"] = jnp.where(mask, metrics.strehl, jnp.nan)
+    out["grid_index"] = jnp.stack(indices, -1)
+    out["peak_value"] = jnp.stack(values, -1)
+    out["cutoff_frequency"] = jnp.stack(cutoffs, -1)
+    out["mtf_at_peak"] = jnp.stack(mtfs, -2)
+    cont_acc, cont_ok = [], []
+    for name in METRICS:
+        if name in continuous:
+            peaks = peaks_from_grid(getattr(metrics, name), eyes, scene, spectrum, accommodation,
+                                    config, reference, name, peak_method, mask,
+                                    refine_second=False)
+            cont_acc.append(peaks.accommodation_D)
+            cont_ok.append(peaks.success)
+        else:
+            cont_acc.append(jnp.full(metrics.vsotf.shape[:2], jnp.nan, metrics.vsotf.dtype))
+            cont_ok.append(jnp.zeros(metrics.vsotf.shape[:2], bool))
+    out["continuous"] = jnp.stack(cont_acc, -1)
+    out["continuous_success"] = jnp.stack(cont_ok, -1)
+    return out
+
+
+def _interp_last(x_new, x, y):
+    """Linear interpolation of y (…, n) sampled at x (n,) onto x_new (host constant); 0
+    beyond x[-1]."""
+    x_new = jnp.asarray(x_new, y.dtype)
+    idx = jnp.clip(jnp.searchsorted(x, x_new, side="right") - 1, 0, x.shape[0] - 2)
+    w = jnp.clip((x_new - x[idx]) / (x[idx + 1] - x[idx]), 0.0, 1.0)
+    out = y[..., idx] * (1.0 - w) + y[..., idx + 1] * w
+    return jnp.where(x_new <= x[-1] + 1e-6, out, 0.0)
+
+
+class ChunkEvaluator:
+    """Compiled chunk functions of a sweep's tasks, sharded over ``devices``.
+
+    ``evaluate(task, zernike_um)`` runs one chunk (``chunk_size`` eyes; a shorter last chunk
+    is padded by repeating its last eye, so it re-uses the compiled function) and returns
+    host numpy arrays. ``traces`` counts how often each task's function was traced: one per
+    task for a whole sweep, which :meth:`assert_no_retrace` checks.
+    """
+
+    def __init__(self, config: SweepConfig, measured_pupil_mm: float, spectrum: Spectrum,
+                 devices=None):
+        self.config = config
+        self.measured_pupil_mm = float(measured_pupil_mm)
+        self.spectrum = spectrum
+        self.devices = list(jax.local_devices() if devices is None else devices)
+        n_dev = len(self.devices)
+        if int(config.chunk_size) % n_dev:
+            raise ValueError(
+                f"run.chunk_size ({config.chunk_size}) must be a multiple of the number of local "
+                f"devices ({n_dev}) to shard the eye axis over them")
+        self.traces: dict[tuple[int, int], int] = {}
+        self._compiled: dict[tuple[int, int], object] = {}
+
+    def _function(self, task: Task):
+        if task.key in self._compiled:
+            return self._compiled[task.key]
+        body = partial(
+            _chunk_metrics, config=task.pipeline_config, measured_pupil_mm=self.measured_pupil_mm,
+            allowed=task.allowed, continuous=tuple(self.config.continuous_peaks),
+            peak_method=self.config.peak_method, cutoff_threshold=self.config.cutoff_threshold)
+
+        def counted(zernike_um, scene, spectrum, accommodation):
+            self.traces[task.key] = self.traces.get(task.key, 0) + 1
+            return body(zernike_um, scene, spectrum, accommodation)
+
+        if len(self.devices) > 1:
+            from jax.sharding import Mesh, PartitionSpec as P
+
+            mesh = Mesh(np.asarray(self.devices), ("eye",))
+            counted = jax.shard_map(counted, mesh=mesh, in_specs=(P("eye"), P(), P(), P()),
+                                    out_specs=P("eye"), check_vma=False)
+        function = jax.jit(counted)
+        self._compiled[task.key] = function
+        return function
+
+    def evaluate(self, task: Task, zernike_um) -> dict[str, np.ndarray]:
+        """One chunk of eyes (n ≤ chunk_size, n_modes) µm → stored quantities (host arrays,
+        eye axis first, n rows)."""
+        z = np.asarray(zernike_um)
+        n = z.shape[0]
+        size = int(self.config.chunk_size)
+        if n > size:
+            raise ValueError(f"a chunk holds at most {size} eyes, got {n}")
+        if n < size:
+            z = np.concatenate([z, np.repeat(z[-1:], size - n, axis=0)])
+        out = self._function(task)(jnp.asarray(z), task.scene, self.spectrum, task.accommodation)
+        return {k: np.asarray(v)[:n] for k, v in out.items()}
+
+    def assert_no_retrace(self) -> None:
+        """Raise if any task's function was traced more than once (a recompilation)."""
+        again = {k: v for k, v in self.traces.items() if v > 1}
+        if again:
+            raise RuntimeError(f"sweep chunk functions were recompiled: traces per "
+                               f"(pupil, layout) {again}")
+
+
+__all__ = [
+    "FREQUENCIES_CPD",
+    "Task",
+    "ChunkEvaluator",
+    "build_tasks",
+    "population",
+    "resolve_layout",
+    "layout_name",
+    "sweep_spectrum",
+]

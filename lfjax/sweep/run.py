@@ -1,0 +1,170 @@
+"""Running a sweep: chunks of eyes through the compiled pipeline into the store.
+
+:func:`run_sweep` is what ``lfjax sweep CONFIG.toml`` calls. It draws the population,
+plans each (pupil, layout)'s sampling once on all of it, creates the store (or checks that
+an existing one was made by the same configuration when resuming), then computes the
+chunks that are not yet complete — in several processes, each its own share
+(``chunk % process_count == process_index``) — with a progress bar in eyes per second.
+"""
+
+from __future__ import annotations
+
+import resource
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .compute import ChunkEvaluator, build_tasks, population, sweep_spectrum
+from .config import SweepConfig
+from .store import (
+    check_store_matches,
+    chunk_dataset,
+    completed_chunks,
+    create_store,
+    stored_samplings,
+    template,
+    write_chunk,
+)
+
+
+@dataclass
+class SweepRun:
+    """What one call of :func:`run_sweep` did.
+
+    Attributes
+    ----------
+    store : path of the Zarr store
+    computed_chunks : chunk indices this process computed (in order)
+    skipped_chunks : chunk indices already complete when it started (resume)
+    eyes_computed : eyes in the computed chunks (the average eye counts as one)
+    seconds : wall time of the chunk loop (excludes planning and store creation), s
+    setup_seconds : drawing the eyes, planning the sampling and creating the store, s
+    traces : {(pupil_index, layout_index): traces} of the compiled chunk functions
+    peak_rss_mb : peak resident memory of this process, MiB
+    process_index, process_count : this process among the sweep's
+    """
+
+    store: Path
+    computed_chunks: list[int] = field(default_factory=list)
+    skipped_chunks: list[int] = field(default_factory=list)
+    eyes_computed: int = 0
+    seconds: float = 0.0
+    setup_seconds: float = 0.0
+    traces: dict = field(default_factory=dict)
+    peak_rss_mb: float = 0.0
+    process_index: int = 0
+    process_count: int = 1
+
+    @property
+    def eyes_per_second(self) -> float:
+        return self.eyes_computed / self.seconds if self.seconds > 0 else float("nan")
+
+
+def _process() -> tuple[int, int]:
+    import jax
+
+    return jax.process_index(), jax.process_count()
+
+
+def _barrier(name: str) -> None:
+    import jax
+
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        multihost_utils.sync_global_devices(name)
+
+
+def peak_rss_mb() -> float:
+    """Peak resident set size of this process, MiB (Linux reports KiB, macOS bytes)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 1024.0 if sys.platform != "darwin" else peak / 2**20
+
+
+def run_sweep(
+    config: SweepConfig,
+    store,
+    resume: bool = False,
+    progress: bool = True,
+    devices=None,
+    max_chunks: int | None = None,
+) -> SweepRun:
+    """Compute a population sweep into a Zarr store (see :mod:`lfjax.sweep`).
+
+    Parameters
+    ----------
+    config : a validated :class:`~lfjax.sweep.config.SweepConfig`
+    store : path of the Zarr store to create (or, with ``resume``, to complete)
+    resume : continue an existing store made by the same configuration: finished chunks
+        are skipped, the rest computed. Without it an existing path is refused.
+    progress : show a progress bar (eyes, eyes/s, ETA) on stderr
+    devices : local devices to shard the eye axis over (default: all local devices)
+    max_chunks : stop after computing this many chunks (the rest stays for ``resume``)
+
+    In a multi-process run (``jax.distributed.initialize`` called first), process 0 creates
+    the store and each process computes the chunks ``i`` with ``i % process_count ==
+    process_index``, writing them into the shared store.
+    """
+    t0 = time.perf_counter()
+    store = Path(store)
+    pid, nproc = _process()
+    exists = store.exists()
+    if exists and not resume:
+        raise FileExistsError(
+            f"{store} already exists: pass --resume (resume=True) to complete it, or choose "
+            f"another --out")
+    if exists:
+        check_store_matches(store, config)
+    eyes, is_average = population(config)
+    spectrum = sweep_spectrum(config)
+    samplings = stored_samplings(store) if exists else None
+    tasks = build_tasks(config, eyes, spectrum, samplings)
+    if not exists and pid == 0:
+        create_store(store, template(config, tasks, np.asarray(eyes.zernike_um), is_average),
+                     config.chunk_size)
+    _barrier("lfjax-sweep-store-created")
+    if not exists and pid != 0:
+        check_store_matches(store, config)
+    evaluator = ChunkEvaluator(config, eyes.measured_pupil_mm, spectrum, devices)
+    done = completed_chunks(store)
+    mine = [i for i in range(config.n_chunks) if i % nproc == pid]
+    todo = [i for i in mine if not done[i]]
+    if max_chunks is not None:
+        todo = todo[: int(max_chunks)]
+    run = SweepRun(store, skipped_chunks=[i for i in mine if done[i]], process_index=pid,
+                   process_count=nproc, setup_seconds=time.perf_counter() - t0)
+    zernike = np.asarray(eyes.zernike_um)
+    size = int(config.chunk_size)
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        total = sum(min(size, config.n_total_eyes - i * size) for i in todo)
+        bar = tqdm(total=total, unit="eye", desc=f"sweep {store.name}"
+                   + (f" [process {pid}/{nproc}]" if nproc > 1 else ""),
+                   dynamic_ncols=True, file=sys.stderr)
+    t1 = time.perf_counter()
+    try:
+        for i in todo:
+            start, stop = i * size, min((i + 1) * size, config.n_total_eyes)
+            results = {task.key: evaluator.evaluate(task, zernike[start:stop]) for task in tasks}
+            write_chunk(store, i, chunk_dataset(config, tasks, results, start, stop), start, stop)
+            run.computed_chunks.append(i)
+            run.eyes_computed += stop - start
+            if bar is not None:
+                bar.update(stop - start)
+    finally:
+        if bar is not None:
+            bar.close()
+        run.seconds = time.perf_counter() - t1
+        run.traces = dict(evaluator.traces)
+        run.peak_rss_mb = peak_rss_mb()
+    evaluator.assert_no_retrace()
+    _barrier("lfjax-sweep-chunks-done")
+    return run
+
+
+__all__ = ["SweepRun", "run_sweep", "peak_rss_mb"]

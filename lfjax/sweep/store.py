@@ -1,0 +1,373 @@
+"""A sweep's results on disk: one labelled xarray Dataset in a Zarr store, written by chunks.
+
+The store is created whole before any compute (NaN where nothing is computed yet; empty
+Zarr chunks take no space), in a temporary folder renamed into place, so a store either
+exists with its full metadata or not at all. Each chunk of eyes is then written into its
+own region of the ``eye`` axis — the Zarr chunking along ``eye`` equals the compute chunk,
+so no two writers (processes) ever touch the same file — and only after its data is written
+is the chunk marked in ``chunk_complete``. A chunk interrupted half-way is therefore
+unmarked and recomputed on resume, and a finished one is never recomputed.
+
+Dataset (dims ``eye, pupil, layout, depth, accommodation, metric, frequency, zernike_j,
+chunk``), see :func:`template` for every variable's units. :func:`study_view` presents one
+pupil of a store as the reproduction's study Dataset, so the paper's claims
+(:func:`lfjax.reproduce.claims.evaluate_claims`) run on any subset of its eyes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import time
+import uuid
+from pathlib import Path
+
+import numpy as np
+
+from ..peaks import METRICS
+from .compute import FREQUENCIES_CPD, Task, layout_name
+from .config import SweepConfig, config_differences, config_to_toml
+
+STORE_FORMAT = "lfjax-sweep-store/1"
+ZARR_FORMAT = 2  # strings (layout names) have no stable Zarr v3 encoding yet (zarr 3.1 warns)
+
+_EYE_VARIABLES = (
+    "vsotf", "strehl", "predicted_accommodation", "accommodation_error",
+    "predicted_accommodation_continuous", "continuous_error", "continuous_peak_success",
+    "peak_value", "cutoff_frequency", "mtf_at_peak",
+)
+
+
+class StoreMismatchError(ValueError):
+    """A store made by another configuration (``differences``: one line each)."""
+
+    def __init__(self, path, differences: list[str]):
+        self.differences = differences
+        lines = "\n".join(f"  - {d}" for d in differences)
+        super().__init__(
+            f"{path} was made by another sweep configuration; refusing to resume it. "
+            f"Differences:\n{lines}\nRun with the store's own config (its attribute "
+            f"'config_toml'), or write to another --out.")
+
+
+def _stored_record(config: SweepConfig) -> dict:
+    import lfjax
+
+    return {"config": config.as_dict(), "lfjax_version": lfjax.__version__}
+
+
+def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> "xr.Dataset":  # noqa: F821
+    """The whole store as an xarray Dataset before any chunk is computed."""
+    import jax
+    import xarray as xr
+
+    n_eye = config.n_total_eyes
+    n_pupil, n_layout = len(config.pupil_diameters_mm), len(config.layouts)
+    depths = config.depths_D
+    acc = config.accommodation_D
+    base = (n_eye, n_pupil, n_layout, depths.size)
+    dims5 = ("eye", "pupil", "layout", "depth")
+    nan = lambda shape, dtype=np.float32: np.full(shape, np.nan, dtype)  # noqa: E731
+    per_metric = base + (len(METRICS),)
+    steps = np.full((n_pupil, n_layout), np.nan)
+    n_fft = np.zeros((n_pupil, n_layout), np.int32)
+    n_sub = np.zeros((n_pupil, n_layout), np.int32)
+    sub_diam = np.full((n_pupil, n_layout), np.nan)
+    samplings = {}
+    for t in tasks:
+        steps[t.key] = t.sampling.freq_step_cpd
+        n_fft[t.key] = t.pipeline_config.n_fft
+        n_sub[t.key] = t.layout.n_subapertures
+        sub_diam[t.key] = float(np.max(np.asarray(t.layout.diameters_mm)))
+        samplings[f"{t.pupil_index},{t.layout_index}"] = _sampling_dict(t.sampling)
+    record = _stored_record(config)
+    attrs = {
+        "title": "lfjax population sweep: eyes viewing a light-field display",
+        "format": STORE_FORMAT,
+        "lfjax_version": record["lfjax_version"],
+        "jax_version": jax.__version__,
+        "config_json": json.dumps(record["config"], sort_keys=True),
+        "config_toml": config_to_toml(config),
+        "model_options_json": json.dumps(config.options.as_dict(), sort_keys=True),
+        "sampling_json": json.dumps(samplings, sort_keys=True),
+        "units": "depths and accommodation in dioptres (D, absolute 1/m; 0 D = infinity); "
+                 "frequency in cycles per degree (cpd); pupils and subapertures in mm; "
+                 "Zernike coefficients in um",
+        "eyes_source": "Thibos, Bradley & Hong (2002) statistics, lfjax.sample_eyes(seed, n) "
+                       "on the measured pupil; the average eye (if any) is the last eye",
+        # what the reproduction's claims read (lfjax.reproduce.claims)
+        "cdp_D": float(config.cdp_D),
+        "measured_pupil_mm": float(config.fit_pupil_mm),
+        "config_cutoff_threshold": float(config.cutoff_threshold),
+        "config_dof_fraction": float(config.dof_fraction),
+        "wavelengths_nm": json.dumps([float(w) for w in config.wavelength_grid_nm]),
+        "n_chunks": int(config.n_chunks),
+        "chunk_size": int(config.chunk_size),
+    }
+    metric_note = "metric axis: vsotf, strehl"
+    ds = xr.Dataset(
+        data_vars=dict(
+            vsotf=(dims5 + ("accommodation",), nan(base + (acc.size,)), {
+                "long_name": "visual Strehl ratio computed from the OTF (VSOTF); NaN outside "
+                             "each depth's window and, for natural view, off the CDP",
+                "units": "1"}),
+            strehl=(dims5 + ("accommodation",), nan(base + (acc.size,)), {
+                "long_name": "Strehl ratio (PSF peak / reference PSF peak)", "units": "1"}),
+            predicted_accommodation=(dims5 + ("metric",), nan(per_metric, np.float64), {
+                "long_name": f"accommodation state maximising the metric on the grid "
+                             f"({metric_note})", "units": "D"}),
+            accommodation_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
+                "long_name": "grid predicted accommodation minus rendered depth (negative: "
+                             "focused farther than the image)", "units": "D"}),
+            predicted_accommodation_continuous=(dims5 + ("metric",), nan(per_metric, np.float64), {
+                "long_name": f"continuous peak refined from the grid (lfjax.peaks "
+                             f"{config.peak_method!r}); NaN for metrics not in "
+                             f"continuous_peaks", "units": "D"}),
+            continuous_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
+                "long_name": "continuous predicted accommodation minus rendered depth",
+                "units": "D"}),
+            continuous_peak_success=(dims5 + ("metric",), np.zeros(per_metric, bool), {
+                "long_name": "the continuous peak converged inside its bracket"}),
+            peak_value=(dims5 + ("metric",), nan(per_metric), {
+                "long_name": "metric value at its grid peak", "units": "1"}),
+            cutoff_frequency=(dims5 + ("metric",), nan(per_metric), {
+                "long_name": f"frequency where the radial MTF at the grid-predicted "
+                             f"accommodation falls to {config.cutoff_threshold:g}",
+                "units": "cpd"}),
+            mtf_at_peak=(dims5 + ("metric", "frequency"), nan(per_metric + (FREQUENCIES_CPD.size,)), {
+                "long_name": "radial (meridian-averaged) MTF at the grid-predicted "
+                             "accommodation", "units": "1"}),
+            zernike_um=(("eye", "zernike_j"), np.asarray(zernike_um, float), {
+                "long_name": "OSA/ANSI Zernike coefficients on the measured pupil "
+                             "(piston and tilt zeroed)", "units": "um"}),
+            freq_step_cpd=(("pupil", "layout"), steps, {
+                "long_name": "frequency step of the OTF grid (PSF field 60/df arcmin)",
+                "units": "cpd"}),
+            n_fft=(("pupil", "layout"), n_fft, {"long_name": "FFT size of the OTF grid"}),
+            chunk_complete=(("chunk",), np.zeros(config.n_chunks, bool), {
+                "long_name": "the chunk's eyes are written (eyes chunk*chunk_size …)"}),
+        ),
+        coords=dict(
+            eye=("eye", np.arange(n_eye)),
+            is_average=("eye", np.asarray(is_average, bool),
+                        {"long_name": "the Thibos et al. (2002) average eye"}),
+            pupil=("pupil", np.asarray(config.pupil_diameters_mm, float),
+                   {"long_name": "calculation pupil diameter", "units": "mm"}),
+            layout=("layout", [layout_name(e) for e in config.layouts]),
+            layout_entry=("layout", list(config.layouts)),
+            n_subapertures=(("pupil", "layout"), n_sub),
+            subaperture_diameter_mm=(("pupil", "layout"), sub_diam, {"units": "mm"}),
+            depth=("depth", depths, {"long_name": "rendered depth (absolute)", "units": "D"}),
+            depth_rel_cdp=("depth", np.round(depths - config.cdp_D, 9), {
+                "long_name": "rendered depth relative to the CDP", "units": "D"}),
+            accommodation=("accommodation", acc, {
+                "long_name": "absolute accommodation state 1/z_acc", "units": "D"}),
+            metric=("metric", list(METRICS)),
+            frequency=("frequency", FREQUENCIES_CPD, {"long_name": "spatial frequency",
+                                                      "units": "cpd"}),
+            zernike_j=("zernike_j", np.arange(np.shape(zernike_um)[1])),
+            chunk=("chunk", np.arange(config.n_chunks)),
+        ),
+        attrs=attrs,
+    )
+    return ds
+
+
+def _sampling_dict(sampling) -> dict:
+    import dataclasses
+
+    return dataclasses.asdict(sampling)
+
+
+def stored_samplings(path) -> dict:
+    """{(pupil_index, layout_index): Sampling} recorded in a store."""
+    from ..sampling import Sampling
+
+    attrs = _open_group(path).attrs
+    out = {}
+    for key, value in json.loads(attrs["sampling_json"]).items():
+        pi, li = (int(x) for x in key.split(","))
+        out[(pi, li)] = Sampling(**value)
+    return out
+
+
+def _encoding(ds, chunk_size: int) -> dict:
+    enc = {}
+    for name, var in ds.data_vars.items():
+        if "eye" in var.dims:
+            enc[name] = {"chunks": tuple(chunk_size if d == "eye" else n
+                                         for d, n in zip(var.dims, var.shape))}
+        elif name == "chunk_complete":
+            enc[name] = {"chunks": (1,)}
+    return enc
+
+
+def create_store(path, ds, chunk_size: int) -> Path:
+    """Write the template ``ds`` at ``path`` atomically (temporary folder, then rename)."""
+    path = Path(path)
+    if path.exists():
+        raise FileExistsError(f"{path} already exists")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.creating-{uuid.uuid4().hex[:8]}")
+    try:
+        ds.to_zarr(tmp, mode="w-", encoding=_encoding(ds, chunk_size), zarr_format=ZARR_FORMAT,
+                   consolidated=False)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    return path
+
+
+def _open_group(path):
+    import zarr
+
+    return zarr.open_group(str(path), mode="r", zarr_format=ZARR_FORMAT)
+
+
+def is_store(path) -> bool:
+    path = Path(path)
+    if not path.is_dir():
+        return False
+    try:
+        return _open_group(path).attrs.get("format") == STORE_FORMAT
+    except Exception:  # noqa: BLE001 - any unreadable folder is "not a sweep store"
+        return False
+
+
+def check_store_matches(path, config: SweepConfig) -> None:
+    """Raise :class:`StoreMismatchError` unless ``path`` was made by ``config`` and this
+    lfjax version."""
+    if not is_store(path):
+        raise ValueError(f"{path} exists but is not an lfjax sweep store (format "
+                         f"{STORE_FORMAT!r}); choose another --out")
+    attrs = _open_group(path).attrs
+    stored = {"config": json.loads(attrs["config_json"]), "lfjax_version": attrs["lfjax_version"]}
+    current = json.loads(json.dumps(_stored_record(config), sort_keys=True))
+    differences = config_differences(stored, current)
+    if differences:
+        raise StoreMismatchError(path, differences)
+
+
+def completed_chunks(path) -> np.ndarray:
+    """(n_chunks,) bool: which chunks are written."""
+    import zarr
+
+    group = zarr.open_group(str(path), mode="r", zarr_format=ZARR_FORMAT)
+    return np.asarray(group["chunk_complete"][:], bool)
+
+
+def chunk_dataset(config: SweepConfig, tasks: list[Task], results: dict, start: int, stop: int):
+    """The store's eye-dimensioned variables for eyes ``start:stop`` from each task's
+    chunk results (``results[task.key]``: :meth:`ChunkEvaluator.evaluate`)."""
+    import xarray as xr
+
+    n = stop - start
+    n_pupil, n_layout = len(config.pupil_diameters_mm), len(config.layouts)
+    depths = config.depths_D
+    acc = config.accommodation_D
+    base = (n, n_pupil, n_layout, depths.size)
+    m = len(METRICS)
+    arrays = {
+        "vsotf": np.full(base + (acc.size,), np.nan, np.float32),
+        "strehl": np.full(base + (acc.size,), np.nan, np.float32),
+        "predicted_accommodation": np.full(base + (m,), np.nan),
+        "predicted_accommodation_continuous": np.full(base + (m,), np.nan),
+        "continuous_peak_success": np.zeros(base + (m,), bool),
+        "peak_value": np.full(base + (m,), np.nan, np.float32),
+        "cutoff_frequency": np.full(base + (m,), np.nan, np.float32),
+        "mtf_at_peak": np.full(base + (m, FREQUENCIES_CPD.size), np.nan, np.float32),
+    }
+    for task in tasks:
+        r = results[task.key]
+        pi, li, slots = task.pupil_index, task.layout_index, list(task.depth_slots)
+        # grid states are the shared absolute grid: index k of the window is acc[k]
+        arrays["vsotf"][:, pi, li, slots] = r["vsotf"]
+        arrays["strehl"][:, pi, li, slots] = r["strehl"]
+        arrays["predicted_accommodation"][:, pi, li, slots] = acc[r["grid_index"]]
+        arrays["predicted_accommodation_continuous"][:, pi, li, slots] = r["continuous"]
+        arrays["continuous_peak_success"][:, pi, li, slots] = r["continuous_success"]
+        arrays["peak_value"][:, pi, li, slots] = r["peak_value"]
+        arrays["cutoff_frequency"][:, pi, li, slots] = r["cutoff_frequency"]
+        arrays["mtf_at_peak"][:, pi, li, slots] = r["mtf_at_peak"]
+    depth_b = depths[None, None, None, :, None]
+    arrays["accommodation_error"] = arrays["predicted_accommodation"] - depth_b
+    arrays["continuous_error"] = arrays["predicted_accommodation_continuous"] - depth_b
+    dims = {
+        "vsotf": ("eye", "pupil", "layout", "depth", "accommodation"),
+        "strehl": ("eye", "pupil", "layout", "depth", "accommodation"),
+        "mtf_at_peak": ("eye", "pupil", "layout", "depth", "metric", "frequency"),
+    }
+    return xr.Dataset({name: (dims.get(name, ("eye", "pupil", "layout", "depth", "metric")), a)
+                       for name, a in arrays.items()})
+
+
+def write_chunk(path, chunk_index: int, part, start: int, stop: int) -> None:
+    """Write one chunk's variables into its region, then mark the chunk complete."""
+    import xarray as xr
+
+    part.to_zarr(str(path), region={"eye": slice(start, stop)}, mode="r+", consolidated=False,
+                 zarr_format=ZARR_FORMAT)
+    xr.Dataset({"chunk_complete": (("chunk",), np.ones(1, bool))}).to_zarr(
+        str(path), region={"chunk": slice(chunk_index, chunk_index + 1)}, mode="r+",
+        consolidated=False, zarr_format=ZARR_FORMAT)
+
+
+def open_store(path, complete_only: bool = False):
+    """The sweep's Dataset (loaded into memory). ``complete_only``: keep only the eyes of
+    completed chunks (a partial sweep read while it runs, or after an interruption)."""
+    import xarray as xr
+
+    path = Path(path)
+    if not is_store(path):
+        raise ValueError(f"{path} is not an lfjax sweep store")
+    ds = xr.open_zarr(str(path), consolidated=False, zarr_format=ZARR_FORMAT).load()
+    if complete_only:
+        size = int(ds.attrs["chunk_size"])
+        done = np.repeat(ds.chunk_complete.values, size)[: ds.sizes["eye"]]
+        ds = ds.isel(eye=np.flatnonzero(done))
+    return ds
+
+
+def study_view(ds, pupil_mm: float | None = None):
+    """One pupil of a sweep store as the reproduction's study Dataset: dims ``layout, eye,
+    depth, accommodation, metric, frequency``, eyes labelled ``eye00001`` … and
+    ``average`` — what :func:`lfjax.reproduce.claims.evaluate_claims` reads."""
+    if pupil_mm is None:
+        if ds.sizes["pupil"] != 1:
+            raise ValueError(f"the store holds pupils {ds.pupil.values.tolist()} mm: name one")
+        pupil_mm = float(ds.pupil.values[0])
+    if not np.any(np.isclose(ds.pupil.values, pupil_mm)):
+        raise ValueError(f"pupil_mm={pupil_mm} is not in the store (pupils "
+                         f"{ds.pupil.values.tolist()} mm)")
+    view = ds.sel(pupil=pupil_mm, method="nearest").drop_vars(
+        ["chunk_complete"], errors="ignore")
+    labels = [("average" if avg else f"eye{int(e) + 1:05d}")
+              for e, avg in zip(view.eye.values, view.is_average.values)]
+    view = view.assign_coords(eye=("eye", labels))
+    order = [d for d in ("layout", "eye", "depth", "accommodation", "metric", "frequency",
+                         "zernike_j") if d in view.dims]
+    view = view.transpose(*order, ...)
+    view.attrs = dict(ds.attrs, pupil_diameter_mm=float(pupil_mm))
+    return view
+
+
+def created_utc() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+
+
+__all__ = [
+    "STORE_FORMAT",
+    "StoreMismatchError",
+    "check_store_matches",
+    "chunk_dataset",
+    "completed_chunks",
+    "create_store",
+    "is_store",
+    "open_store",
+    "stored_samplings",
+    "study_view",
+    "template",
+    "write_chunk",
+]
