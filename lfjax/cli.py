@@ -1,5 +1,6 @@
 """Command line: ``lfjax reproduce`` (the paper's study: results, tables, figures, report)
-and ``lfjax optimise`` (fit a subaperture layout to virtual eyes, report it on held-out eyes).
+``lfjax optimise`` (fit a subaperture layout to virtual eyes, report it on held-out eyes)
+and ``lfjax sweep`` (a population sweep into a resumable Zarr store).
 
 Usage errors print one line and exit with status 2; failures during the run print one line
 and exit with status 1, leaving no partial output.
@@ -179,8 +180,87 @@ def build_parser() -> argparse.ArgumentParser:
                           "'lfjax reproduce' (other non-empty folders are never replaced)")
     rep.add_argument("--no-progress", action="store_true",
                      help="do not show the progress bar (on stderr)")
+    rep.add_argument("--population", metavar="STORE", default=None,
+                     help="a population sweep store (lfjax sweep): REPORT.md adds 'What ten "
+                          "eyes cannot tell', how often random samples of N eyes from it "
+                          "reproduce each claim, and ten_eyes.csv")
     _add_optimise_parser(sub)
+    _add_sweep_parser(sub)
+    _add_sweep_report_parser(sub)
     return parser
+
+
+def _add_sweep_report_parser(sub) -> None:
+    rp = sub.add_parser(
+        "sweep-report",
+        help="pictures, percentiles and a summary of a sweep store; what ten eyes cannot tell",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Report on a population sweep store (lfjax sweep), counting only the eyes of\n"
+            "complete chunks; the Thibos average eye is left out of every population\n"
+            "statistic. Outputs in DIR: accommodation_error.png (VSOTF accommodation error,\n"
+            "D, per layout against rendered depth - CDP: median and 25-75 %, 5-95 % bands),\n"
+            "cutoff_frequency.png (cpd, the same way), layouts.png (subapertures in each\n"
+            "pupil), percentiles.csv (5/25/50/75/95 %, mean and n per pupil x layout x depth\n"
+            "of grid and continuous accommodation error, cut-off frequency, VSOTF peak),\n"
+            "summary.md, and - with more than 10 virtual eyes, the average eye and natural\n"
+            "view plus two of 2x2, 3x3, 4x4 - ten_eyes.md / ten_eyes.csv: how often a random\n"
+            "sample of 10 eyes reproduces each of the paper's claims (95 % Wilson interval)."
+        ),
+    )
+    rp.add_argument("store", metavar="STORE", help="sweep store (a Zarr folder)")
+    rp.add_argument("--out", metavar="DIR", default=None,
+                    help="output folder (default: STORE's name with -report, beside it); "
+                         "files of the same names in it are replaced")
+    rp.add_argument("--draws", metavar="N", type=_positive_int, default=1000,
+                    help="samples of 10 eyes drawn for the ten-eye table, >= 1 (default 1000)")
+    rp.add_argument("--seed", metavar="S", type=_seed, default=0,
+                    help="seed of the samples (default 0)")
+    rp.add_argument("--no-progress", action="store_true",
+                    help="do not show the progress bar of the draws (on stderr)")
+
+
+def _add_sweep_parser(sub) -> None:
+    sw = sub.add_parser(
+        "sweep",
+        help="population sweep from a TOML config into a resumable Zarr store",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Compute through-focus VSOTF and Strehl ratio, grid and continuous predicted\n"
+            "accommodation and MTF cut-off frequencies for a population of virtual eyes\n"
+            "(Thibos et al. 2002) x pupils x layouts x rendered depths, as described by\n"
+            "CONFIG (TOML; see the README's 'Population sweeps' for every key and its unit).\n"
+            "The whole config is validated first and every problem listed.\n\n"
+            "Results go to STORE, a Zarr store of one xarray Dataset (open it with\n"
+            "lfjax.sweep.open_store or xarray.open_zarr), written one chunk of eyes at a time;\n"
+            "an interrupted sweep continues with --resume and recomputes no finished chunk.\n"
+            "The eye axis is sharded over all local JAX devices (run.chunk_size must be a\n"
+            "multiple of their number). Several processes or hosts: start one process per\n"
+            "host with --distributed (jax.distributed.initialize; the coordinator is found\n"
+            "from the cluster environment, or give --coordinator, --num-processes and\n"
+            "--process-id); each computes its share of the chunks into the shared STORE."
+        ),
+    )
+    sw.add_argument("config", metavar="CONFIG.toml", help="sweep configuration (TOML)")
+    sw.add_argument("--out", metavar="STORE", default=None,
+                    help="Zarr store to write (default: CONFIG's name with .zarr, in the "
+                         "current folder); must not exist unless --resume")
+    sw.add_argument("--resume", action="store_true",
+                    help="complete an existing STORE made by the same config (finished chunks "
+                         "are skipped; a store of another config is refused, listing the "
+                         "differences)")
+    sw.add_argument("--max-chunks", metavar="N", type=_positive_int, default=None,
+                    help="stop after computing N chunks (continue later with --resume)")
+    sw.add_argument("--no-progress", action="store_true",
+                    help="do not show the progress bar (on stderr)")
+    sw.add_argument("--distributed", action="store_true",
+                    help="call jax.distributed.initialize first (one process per host)")
+    sw.add_argument("--coordinator", metavar="HOST:PORT", default=None,
+                    help="with --distributed: address of process 0's coordinator service")
+    sw.add_argument("--num-processes", metavar="N", type=_positive_int, default=None,
+                    help="with --distributed: total number of processes")
+    sw.add_argument("--process-id", metavar="I", type=_count, default=None,
+                    help="with --distributed: this process's index, 0 ... N-1")
 
 
 def _add_optimise_parser(sub) -> None:
@@ -274,12 +354,17 @@ def _reproduce(args, t_start: float) -> int:
             config = StudyConfig(n_eyes=args.eyes or 10, seed=args.seed)
         if args.no_alternatives:
             config = config.replace(alternatives=False)
+        if args.population is not None:
+            from .reproduce import check_population
+
+            check_population(args.population, config)
     except (OutputError, ValueError) as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     enable_compilation_cache()
     try:
-        result = reproduce(args.out, config, force=args.force, progress=not args.no_progress)
+        result = reproduce(args.out, config, force=args.force, progress=not args.no_progress,
+                           population_store=args.population)
     except KeyboardInterrupt:
         print(f"{prog}: interrupted; nothing written", file=sys.stderr)
         return 130
@@ -425,6 +510,95 @@ def run_optimise(args, objective, constraints, depths, out: Path, start) -> dict
     return {"fit": fit, "files": files, "summary": fit.summary()}
 
 
+def _sweep(args, t_start: float) -> int:
+    prog = f"{PROG} sweep"
+    explicit = [args.coordinator, args.num_processes, args.process_id]
+    if any(x is not None for x in explicit) and not args.distributed:
+        print(f"{prog}: error: --coordinator, --num-processes and --process-id need "
+              f"--distributed", file=sys.stderr)
+        return 2
+    if args.distributed:
+        import jax
+
+        # before anything touches a JAX device (loading a layout file does)
+        kwargs = {k: v for k, v in (("coordinator_address", args.coordinator),
+                                    ("num_processes", args.num_processes),
+                                    ("process_id", args.process_id)) if v is not None}
+        try:
+            jax.distributed.initialize(**kwargs)
+        except Exception as err:  # noqa: BLE001 - report any start-up failure in one line
+            print(f"{prog}: error: jax.distributed.initialize failed: {err}", file=sys.stderr)
+            return 2
+    from .sweep import SweepConfigError, StoreMismatchError, load_config, run_sweep
+
+    try:
+        config = load_config(args.config)
+    except SweepConfigError as err:
+        print(f"{prog}: error: {err}", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else Path(Path(args.config).stem + ".zarr")
+    if out.exists() and not args.resume:
+        print(f"{prog}: error: --out {out} already exists: pass --resume to complete it, or "
+              f"choose another --out", file=sys.stderr)
+        return 2
+    enable_compilation_cache()
+    try:
+        run = run_sweep(config, out, resume=args.resume, progress=not args.no_progress,
+                        max_chunks=args.max_chunks)
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted; finished chunks are kept in {out} (continue with "
+              f"--resume)", file=sys.stderr)
+        return 130
+    except StoreMismatchError as err:
+        print(f"{prog}: error: {err}", file=sys.stderr)
+        return 2
+    except Exception as err:  # one line, no traceback
+        message = " ".join(str(err).split()) or type(err).__name__
+        print(f"{prog}: error: {type(err).__name__}: {message}", file=sys.stderr)
+        if os.environ.get("LFJAX_DEBUG"):
+            raise
+        return 1
+    who = f" (process {run.process_index} of {run.process_count})" if run.process_count > 1 else ""
+    print(f"{prog}: {run.eyes_computed} eyes in {len(run.computed_chunks)} chunks computed"
+          f"{who}, {len(run.skipped_chunks)} chunks already complete; "
+          f"{run.eyes_per_second:.2f} eyes/s, peak memory {run.peak_rss_mb:.0f} MiB")
+    print(f"{prog}: store {out} ({time.perf_counter() - t_start:.1f} s)")
+    return 0
+
+
+def _sweep_report(args) -> int:
+    from .sweep.report import default_out_dir, sweep_report
+    from .sweep.store import is_store
+
+    prog = f"{PROG} sweep-report"
+    if not is_store(args.store):
+        print(f"{prog}: error: STORE {args.store} is not an lfjax sweep store (a folder written "
+              f"by 'lfjax sweep')", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else default_out_dir(args.store)
+    if out.exists() and not out.is_dir():
+        print(f"{prog}: error: --out {out} exists and is not a folder", file=sys.stderr)
+        return 2
+    try:
+        files = sweep_report(args.store, out, draws=args.draws, seed=args.seed,
+                             progress=not args.no_progress)
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except ValueError as err:
+        print(f"{prog}: error: {err}", file=sys.stderr)
+        return 2
+    except Exception as err:  # one line, no traceback
+        message = " ".join(str(err).split()) or type(err).__name__
+        print(f"{prog}: error: {type(err).__name__}: {message}", file=sys.stderr)
+        if os.environ.get("LFJAX_DEBUG"):
+            raise
+        return 1
+    print(f"{prog}: wrote {len(files)} files to {out}: "
+          + ", ".join(sorted(p.name for p in files.values())))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``lfjax`` console script; returns the exit status."""
     t_start = time.perf_counter()
@@ -441,6 +615,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "optimise":
         args.argv = list(sys.argv[1:] if argv is None else argv)
         return _optimise(args, t_start)
+    if args.command == "sweep-report":
+        return _sweep_report(args)
+    if args.command == "sweep":
+        return _sweep(args, t_start)
     return 2  # pragma: no cover - argparse rejects unknown commands
 
 

@@ -138,6 +138,11 @@ class PipelineConfig:
     vsotf_reference : "paper" (same layout, aberration-free) or "open_pupil"
     zero_piston_tilt : drop j = 0, 1, 2 from the eyes' coefficients
     eye_chunk : eyes evaluated together inside the map over eyes (None: one at a time)
+    traced_checks : check traced inputs inside the program with ``eqx.error_if`` (default).
+        False only where every input was checked on the host first (the public wrappers on
+        concrete values do): ``eqx.error_if`` is a host callback, and JAX's persistent
+        compilation cache does not store programs with host callbacks, so a checked program
+        is recompiled by every new process.
     """
 
     sampling: Sampling
@@ -147,6 +152,7 @@ class PipelineConfig:
     vsotf_reference: str = "paper"
     zero_piston_tilt: bool = True
     eye_chunk: int | None = None
+    traced_checks: bool = True
 
     @property
     def n_fft(self) -> int:
@@ -160,6 +166,7 @@ class PipelineConfig:
     def build(
         cls, wavelengths_nm, window_diameter_mm: float, pupil_diameter_mm: float,
         sampling: Sampling, options: ModelOptions = ModelOptions(), eye_chunk: int | None = None,
+        traced_checks: bool = True,
     ) -> PipelineConfig:
         """Bands for a spectrum (nm) and a layout whose largest window is
         ``window_diameter_mm`` (mm), on a calculation pupil of ``pupil_diameter_mm`` (mm);
@@ -172,7 +179,7 @@ class PipelineConfig:
             wavelength_bands(wl, float(window_diameter_mm), pupil, sampling),
             wavelength_bands(wl, float(reference_window), pupil, sampling),
             options.ncsf, options.vsotf_reference, options.zero_piston_tilt,
-            None if eye_chunk is None else int(eye_chunk),
+            None if eye_chunk is None else int(eye_chunk), bool(traced_checks),
         )
 
     def replace(self, **changes) -> PipelineConfig:
@@ -300,7 +307,8 @@ def reference_normalisers(scene: Scene, spectrum: Spectrum, accommodation: Accom
 def otf_stack(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
               config: PipelineConfig):
     """Rendered polychromatic OTFs, (n_eyes, n_depth, n_k, L, L//2+1) half planes, OTF(0) = 1."""
-    eyes, scene, accommodation = checked_inputs(eyes, scene, accommodation)
+    if config.traced_checks:
+        eyes, scene, accommodation = checked_inputs(eyes, scene, accommodation)
 
     def one_eye(zernike_um):
         elemental = elemental_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum,
@@ -328,7 +336,8 @@ def retinal_metrics(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation:
     :func:`reference_normalisers` of this scene, when the caller evaluates it once for many
     calls (solvers). Returns arrays of shape (n_eyes, n_depth, n_k[, L//2+1]).
     """
-    eyes, scene, accommodation = checked_inputs(eyes, scene, accommodation)
+    if config.traced_checks:
+        eyes, scene, accommodation = checked_inputs(eyes, scene, accommodation)
     n_fft, df = config.n_fft, config.freq_step_cpd
     if reference is None:
         reference = reference_normalisers(scene, spectrum, accommodation, config)

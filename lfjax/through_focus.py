@@ -156,6 +156,16 @@ def relative_accommodation_grid(depths_D, offsets_D, hyperopic_limit: bool = Tru
     return grid, index
 
 
+def _check_layout(layout: Layout) -> None:
+    """Host check of a concrete layout: finite centres, diameters > 0 mm."""
+    c = np.asarray(layout.centres_mm, float)
+    d = np.asarray(layout.diameters_mm, float)
+    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(d))):
+        raise ValueError("layout centres_mm and diameters_mm must be finite")
+    if np.any(d <= 0):
+        raise ValueError(f"layout diameters_mm must be > 0 mm, got {d[d <= 0].tolist()}")
+
+
 def _windowed_grid(accommodation_D, depths, window_D=None):
     """A shared absolute grid (D) seen by every depth, restricted to ±window_D (D) of it.
 
@@ -290,8 +300,12 @@ def through_focus(
             eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D, grid, depths,
             layout, spectrum, sampling, pairs=pairs,
         )
+    _check_layout(layout)
+    # Every input was checked here on the host: the compiled program needs no traced checks
+    # (host callbacks), so JAX's persistent compilation cache can keep it across processes.
     config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
-                                  float(pupil_diameter_mm), sampling, options, eye_chunk)
+                                  float(pupil_diameter_mm), sampling, options, eye_chunk,
+                                  traced_checks=False)
     metrics, peaks = _metrics_and_peaks(
         eyes, Scene.from_layout(layout, depths, cdp_D, pupil_diameter_mm), spectrum,
         Accommodation.shared(grid, index, options, pupil_diameter_mm), config, allowed,

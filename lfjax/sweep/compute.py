@@ -15,8 +15,8 @@ plain ``jit`` with a ``NamedSharding`` would all-gather the FFT batch, see NOTES
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
-from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -26,7 +26,7 @@ from ..eyes import Eyes, average_eye, sample_eyes
 from ..layout_opt import load_layout_json
 from ..layouts import Layout, paper_layouts
 from ..metrics import cutoff_frequency
-from ..optics import _field_check
+from ..optics import _field_check, _validate_coefficients
 from ..peaks import METRICS, peaks_from_grid
 from ..pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
 from ..sampling import Sampling
@@ -134,6 +134,7 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
     from ..reproduce.study import _finer_step
 
     spectrum = sweep_spectrum(config) if spectrum is None else spectrum
+    _validate_coefficients(np.asarray(eyes.zernike_um))
     all_depths = config.depths_D
     cdp_slot = int(np.argmin(np.abs(all_depths - config.cdp_D)))
     tasks = []
@@ -161,9 +162,12 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
                             raise
                         sampling = dataclasses.replace(
                             sampling, freq_step_cpd=_finer_step(str(err), sampling.freq_step_cpd))
+            # inputs are checked here on the host (config, population, layout files), so the
+            # program carries no traced checks: JAX's persistent cache can then keep it for
+            # the next process (a resumed sweep, another host)
             pipeline_config = PipelineConfig.build(
                 spectrum.wavelengths_nm, layout.window_diameter_mm, pupil, sampling,
-                config.options)
+                config.options, traced_checks=False)
             tasks.append(Task(
                 pi, li, float(pupil), entry, layout, slots, depths, allowed,
                 Scene.from_layout(layout, depths, config.cdp_D, pupil),
@@ -230,13 +234,43 @@ def _interp_last(x_new, x, y):
     return jnp.where(x_new <= x[-1] + 1e-6, out, 0.0)
 
 
+# Compiled chunk functions live for the process, keyed by everything static about them, so
+# a second sweep (or a resumed one) of the same scene re-uses them; TRACES counts traces per
+# key, which is how a recompilation is detected.
+TRACES: dict[tuple, int] = {}
+
+
+@functools.lru_cache(maxsize=64)
+def _chunk_function(config: PipelineConfig, measured_pupil_mm: float, allowed: tuple,
+                    continuous: tuple[str, ...], peak_method: str, cutoff_threshold: float,
+                    devices: tuple):
+    key = (config, measured_pupil_mm, allowed, continuous, peak_method, cutoff_threshold, devices)
+    body = functools.partial(
+        _chunk_metrics, config=config, measured_pupil_mm=measured_pupil_mm,
+        allowed=np.asarray(allowed, bool), continuous=continuous, peak_method=peak_method,
+        cutoff_threshold=cutoff_threshold)
+
+    def counted(zernike_um, scene, spectrum, accommodation):
+        TRACES[key] = TRACES.get(key, 0) + 1
+        return body(zernike_um, scene, spectrum, accommodation)
+
+    if len(devices) > 1:
+        from jax.sharding import Mesh, PartitionSpec as P
+
+        mesh = Mesh(np.asarray(devices), ("eye",))
+        counted = jax.shard_map(counted, mesh=mesh, in_specs=(P("eye"), P(), P(), P()),
+                                out_specs=P("eye"), check_vma=False)
+    return key, jax.jit(counted)
+
+
 class ChunkEvaluator:
     """Compiled chunk functions of a sweep's tasks, sharded over ``devices``.
 
     ``evaluate(task, zernike_um)`` runs one chunk (``chunk_size`` eyes; a shorter last chunk
     is padded by repeating its last eye, so it re-uses the compiled function) and returns
-    host numpy arrays. ``traces`` counts how often each task's function was traced: one per
-    task for a whole sweep, which :meth:`assert_no_retrace` checks.
+    host numpy arrays. ``traces`` counts how often each task's function was traced while
+    this evaluator ran: at most once per task for a whole sweep (zero when an earlier sweep
+    in this process compiled it), which :meth:`assert_no_retrace` checks.
     """
 
     def __init__(self, config: SweepConfig, measured_pupil_mm: float, spectrum: Spectrum,
@@ -244,36 +278,23 @@ class ChunkEvaluator:
         self.config = config
         self.measured_pupil_mm = float(measured_pupil_mm)
         self.spectrum = spectrum
-        self.devices = list(jax.local_devices() if devices is None else devices)
+        self.devices = tuple(jax.local_devices() if devices is None else devices)
         n_dev = len(self.devices)
         if int(config.chunk_size) % n_dev:
             raise ValueError(
                 f"run.chunk_size ({config.chunk_size}) must be a multiple of the number of local "
                 f"devices ({n_dev}) to shard the eye axis over them")
         self.traces: dict[tuple[int, int], int] = {}
-        self._compiled: dict[tuple[int, int], object] = {}
+        self._start: dict[tuple[int, int], int] = {}
 
     def _function(self, task: Task):
-        if task.key in self._compiled:
-            return self._compiled[task.key]
-        body = partial(
-            _chunk_metrics, config=task.pipeline_config, measured_pupil_mm=self.measured_pupil_mm,
-            allowed=task.allowed, continuous=tuple(self.config.continuous_peaks),
-            peak_method=self.config.peak_method, cutoff_threshold=self.config.cutoff_threshold)
-
-        def counted(zernike_um, scene, spectrum, accommodation):
-            self.traces[task.key] = self.traces.get(task.key, 0) + 1
-            return body(zernike_um, scene, spectrum, accommodation)
-
-        if len(self.devices) > 1:
-            from jax.sharding import Mesh, PartitionSpec as P
-
-            mesh = Mesh(np.asarray(self.devices), ("eye",))
-            counted = jax.shard_map(counted, mesh=mesh, in_specs=(P("eye"), P(), P(), P()),
-                                    out_specs=P("eye"), check_vma=False)
-        function = jax.jit(counted)
-        self._compiled[task.key] = function
-        return function
+        key, function = _chunk_function(
+            task.pipeline_config, self.measured_pupil_mm,
+            tuple(map(tuple, np.asarray(task.allowed, bool).tolist())),
+            tuple(self.config.continuous_peaks), self.config.peak_method,
+            float(self.config.cutoff_threshold), self.devices)
+        self._start.setdefault(task.key, TRACES.get(key, 0))
+        return key, function
 
     def evaluate(self, task: Task, zernike_um) -> dict[str, np.ndarray]:
         """One chunk of eyes (n ≤ chunk_size, n_modes) µm → stored quantities (host arrays,
@@ -285,7 +306,9 @@ class ChunkEvaluator:
             raise ValueError(f"a chunk holds at most {size} eyes, got {n}")
         if n < size:
             z = np.concatenate([z, np.repeat(z[-1:], size - n, axis=0)])
-        out = self._function(task)(jnp.asarray(z), task.scene, self.spectrum, task.accommodation)
+        key, function = self._function(task)
+        out = function(jnp.asarray(z), task.scene, self.spectrum, task.accommodation)
+        self.traces[task.key] = TRACES.get(key, 0) - self._start[task.key]
         return {k: np.asarray(v)[:n] for k, v in out.items()}
 
     def assert_no_retrace(self) -> None:

@@ -118,6 +118,19 @@ class SweepConfig:
     options: ModelOptions = field(default_factory=ModelOptions)
     base_dir: str = field(default=".", compare=False)
 
+    def __post_init__(self):
+        # Direct construction (the Python API) gets the same checks as a TOML file.
+        for name in ("pupil_diameters_mm", "depth_offsets_D", "wavelengths_nm", "layouts",
+                     "continuous_peaks"):
+            value = getattr(self, name)
+            if isinstance(value, (list, np.ndarray)):
+                object.__setattr__(self, name, tuple(np.asarray(value).tolist()))
+            elif isinstance(value, str):
+                object.__setattr__(self, name, (value,))
+        problems = _range_problems(_flat(self), Path(self.base_dir))
+        if problems:
+            raise SweepConfigError(problems, "SweepConfig")
+
     # --------------------------------------------------------------- derived (host numpy)
     @property
     def fit_pupil_mm(self) -> float:

@@ -1,0 +1,358 @@
+"""Population sweeps (lfjax.sweep): config validation, store contents against
+through_focus, no recompilation per chunk, resume after SIGKILL, sharding over 4 forced CPU
+devices, and two processes through jax.distributed writing one store.
+
+Subprocesses get this session's XLA flags and float64 (``JAX_ENABLE_X64``), so their
+stores are comparable with the in-process reference bit for bit.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lfjax.sweep import (
+    SweepConfigError,
+    StoreMismatchError,
+    completed_chunks,
+    config_from_dict,
+    config_to_toml,
+    load_config,
+    open_store,
+    run_sweep,
+    study_view,
+)
+from lfjax.sweep.compute import build_tasks, population, sweep_spectrum
+
+TINY = {
+    "population": {"n_eyes": 5, "seed": 3},
+    "display": {"layouts": ["natural", "2x2"], "depth_offsets_D": [-1.0, 0.0, 1.0]},
+    "accommodation": {"step_D": 0.5, "window_D": 1.0},
+    "spectrum": {"wavelengths_nm": [400.0, 700.0, 100.0]},
+    "run": {"chunk_size": 2},
+}
+FLOAT_EQUAL = ("vsotf", "strehl", "peak_value", "cutoff_frequency", "mtf_at_peak",
+               "predicted_accommodation_continuous", "continuous_error")
+
+
+def tiny_config(**sections):
+    data = {k: dict(v) for k, v in TINY.items()}
+    for section, body in sections.items():
+        data.setdefault(section, {}).update(body)
+    return config_from_dict(data)
+
+
+def write_toml(path: Path, config) -> Path:
+    path.write_text(config_to_toml(config))
+    return path
+
+
+def subprocess_env(**extra) -> dict:
+    env = dict(os.environ)
+    env["JAX_ENABLE_X64"] = "1"
+    env.update(extra)
+    return env
+
+
+@pytest.fixture(scope="module", autouse=True)
+def persistent_compilation_cache():
+    """The command line's compilation cache, here too: the subprocesses below compile the
+    same programs as this process, and load them from it instead."""
+    from lfjax.cli import enable_compilation_cache
+
+    enable_compilation_cache()
+
+
+def assert_stores_equal(a, b, rtol: float = 0.0, atol: float = 0.0):
+    assert set(a.data_vars) == set(b.data_vars)
+    for name in a.data_vars:
+        x, y = a[name].values, b[name].values
+        if x.dtype.kind == "f":
+            assert np.array_equal(np.isnan(x), np.isnan(y)), name
+            np.testing.assert_allclose(x[~np.isnan(x)], y[~np.isnan(y)], rtol=rtol, atol=atol,
+                                       err_msg=name)
+        else:
+            assert np.array_equal(x, y), name
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The tiny sweep, uninterrupted, in this process: (config, store path, SweepRun)."""
+    config = tiny_config()
+    path = tmp_path_factory.mktemp("sweep") / "reference.zarr"
+    run = run_sweep(config, path, progress=False)
+    return config, path, run
+
+
+# ----------------------------------------------------------------------------- config
+
+
+def test_bad_config_lists_every_problem_before_any_compute(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(
+        '[population]\nn_eyes = 0\nseed = "x"\npupil_diameters_mm = [3.0, 8.0]\n'
+        '[display]\nlayouts = ["2x2", "5x5"]\ndepth_offsets_m = [0.0]\ncdp_D = -1\n'
+        '[sampling]\nfreq_step_cpd = -1\n[model]\nsce = "sideways"\n[extra]\na = 1\n'
+    )
+    with pytest.raises(SweepConfigError) as err:
+        load_config(bad)
+    text = str(err.value)
+    for expected in ("population.n_eyes must be >= 1", "population.seed must be a whole number",
+                     "exceed the measured pupil (7.5 mm)", "'5x5' is neither a paper layout",
+                     "depth_offsets_m: unknown key (did you mean 'depth_offsets_D'?)",
+                     "display.cdp_D must be >= 0 D", "sampling.freq_step_cpd must be > 0 cpd",
+                     "ModelOptions.sce='sideways'", "unknown section [extra]"):
+        assert expected in text, expected
+    assert len(err.value.problems) >= 9
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"accommodation": {"window_D": 0.1}}, "must be >= step_D"),
+    ({"population": {"measured_pupil_mm": 5.0}}, "must be one of [3.0, 4.5, 6.0, 7.5]"),
+    ({"display": {"layouts": ["natural"], "depth_offsets_D": [1.0]}}, "must include 0"),
+    ({"spectrum": {"wavelengths_nm": [380.0, 700.0, 10.0]}}, "must lie in [400, 700] nm"),
+    ({"metrics": {"continuous_peaks": ["mtf"]}}, "metrics.continuous_peaks"),
+    ({"sampling": {"freq_step_cpd": 1.0, "vsotf_tolerance": 1e-3}}, "not both"),
+])
+def test_impossible_values_are_named(changes, message):
+    with pytest.raises(SweepConfigError, match=None) as err:
+        tiny_config(**changes)
+    assert message in str(err.value)
+
+
+def test_config_round_trips_through_toml(tmp_path):
+    config = tiny_config(sampling={"freq_step_cpd": 1.5}, model={"sce": "intensity"})
+    again = load_config(write_toml(tmp_path / "c.toml", config))
+    assert again.as_dict() == config.as_dict()
+    assert again.options.sce == "intensity" and again.freq_step_cpd == 1.5
+
+
+# ----------------------------------------------------------------------------- contents
+
+
+def test_store_metadata_round_trips(reference):
+    config, path, _ = reference
+    ds = open_store(path)
+    again = config_from_dict(tomllib.loads(ds.attrs["config_toml"]))
+    assert again.as_dict() == config.as_dict()
+    import json
+
+    import lfjax
+
+    assert json.loads(ds.attrs["model_options_json"]) == config.options.as_dict()
+    assert ds.attrs["lfjax_version"] == lfjax.__version__
+    assert ds.sizes["eye"] == config.n_eyes + 1 and bool(ds.is_average.values[-1])
+    assert list(ds.layout.values) == ["natural", "2x2"]
+    np.testing.assert_allclose(ds.depth.values, config.depths_D)
+    np.testing.assert_allclose(ds.accommodation.values, config.accommodation_D)
+    eyes, _ = population(config)
+    np.testing.assert_array_equal(ds.zernike_um.values, np.asarray(eyes.zernike_um))
+    assert ds.chunk_complete.values.all()
+    assert ds.vsotf.attrs["units"] == "1" and ds.cutoff_frequency.attrs["units"] == "cpd"
+
+
+def test_store_equals_through_focus_on_the_same_eyes_and_sampling(reference):
+    """Each chunk's compiled function computes what lfjax.through_focus computes for the
+    whole population at once (grid curves, grid and continuous peaks, cut-off)."""
+    from lfjax.through_focus import through_focus
+
+    config, path, _ = reference
+    ds = open_store(path)
+    eyes, _ = population(config)
+    for task in build_tasks(config, eyes, sweep_spectrum(config)):
+        tf = through_focus(
+            eyes, task.layout, task.depths_D, accommodation_D=config.accommodation_D,
+            window_D=config.window_D, pupil_diameter_mm=task.pupil_mm, cdp_D=config.cdp_D,
+            spectrum=sweep_spectrum(config), sampling=task.sampling, options=config.options,
+            continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
+        )
+        sub = ds.isel(pupil=task.pupil_index, layout=task.layout_index,
+                      depth=list(task.depth_slots))
+        np.testing.assert_allclose(sub.vsotf.values, np.asarray(tf.vsotf), rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(sub.strehl.values, np.asarray(tf.strehl), rtol=1e-6, atol=1e-9)
+        for metric in ("vsotf", "strehl"):
+            np.testing.assert_array_equal(
+                sub.predicted_accommodation.sel(metric=metric).values,
+                tf.predicted_accommodation_D(metric))
+            np.testing.assert_allclose(sub.cutoff_frequency.sel(metric=metric).values,
+                                       np.asarray(tf.cutoff_cpd(metric, config.cutoff_threshold)),
+                                       rtol=1e-5)
+        np.testing.assert_allclose(
+            sub.predicted_accommodation_continuous.sel(metric="vsotf").values,
+            tf.continuous_accommodation_D("vsotf"), atol=1e-6)
+    # natural view is evaluated at the CDP only
+    natural = ds.sel(layout="natural", pupil=3.0)
+    off = natural.depth_rel_cdp.values != 0
+    assert np.isnan(natural.vsotf.values[:, off]).all()
+    assert np.isfinite(natural.predicted_accommodation.values[:, ~off]).all()
+
+
+def test_one_compilation_per_pupil_and_layout_for_all_chunks(reference):
+    config, _, run = reference
+    assert config.n_chunks == 3 and run.computed_chunks == [0, 1, 2]  # last chunk padded
+    # at most one trace per (pupil, layout) over three chunks (none if an earlier test in
+    # this process compiled the same scene)
+    assert set(run.traces) == {(0, 0), (0, 1)} and max(run.traces.values()) <= 1
+
+
+def test_study_view_feeds_the_paper_claims(reference):
+    from lfjax.reproduce.claims import evaluate_claims
+
+    _, path, _ = reference
+    view = study_view(open_store(path))
+    assert view.vsotf.dims == ("layout", "eye", "depth", "accommodation")
+    assert list(view.eye.values[-1:]) == ["average"]
+    claims = evaluate_claims(view)
+    assert [c.id for c in claims] == [str(i) for i in range(1, 8)]
+    assert claims[0].holds is not None  # natural view at the CDP is present
+
+
+# ----------------------------------------------------------------------------- refusals
+
+
+def test_existing_store_is_refused_without_resume(reference):
+    config, path, _ = reference
+    with pytest.raises(FileExistsError, match="--resume"):
+        run_sweep(config, path, progress=False)
+
+
+def test_store_of_another_config_is_refused_with_the_differences(reference):
+    config, path, _ = reference
+    other = tiny_config(population={"seed": 4}, accommodation={"window_D": 1.5})
+    with pytest.raises(StoreMismatchError) as err:
+        run_sweep(other, path, resume=True, progress=False)
+    text = str(err.value)
+    assert "config.seed: store has 3, config has 4" in text
+    assert "config.window_D: store has 1.0, config has 1.5" in text
+
+
+def test_resume_of_a_complete_store_computes_nothing(reference):
+    config, path, _ = reference
+    run = run_sweep(config, path, resume=True, progress=False)
+    assert run.computed_chunks == [] and run.skipped_chunks == [0, 1, 2]
+
+
+# ----------------------------------------------------------------------------- interruption
+
+
+def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_path):
+    config, ref_path, _ = reference
+    toml = write_toml(tmp_path / "tiny.toml", config)
+    store = tmp_path / "killed.zarr"
+    log = tmp_path / "killed.log"
+    with open(log, "w") as log_file:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out", str(store),
+             "--no-progress"], env=subprocess_env(), stdout=log_file, stderr=log_file)
+    try:
+        deadline = time.time() + 300
+        done = np.zeros(config.n_chunks, bool)
+        while time.time() < deadline and proc.poll() is None:
+            if store.exists():
+                try:
+                    done = completed_chunks(store)
+                except Exception:  # noqa: BLE001 - the store may be mid-creation
+                    done = np.zeros(config.n_chunks, bool)
+                if done.any():
+                    break
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == -signal.SIGKILL, log.read_text()[-2000:]
+    finished = completed_chunks(store)
+    assert finished.any() and not finished.all(), finished
+    run = run_sweep(config, store, resume=True, progress=False)
+    assert run.computed_chunks == [i for i in range(config.n_chunks) if not finished[i]]
+    assert run.skipped_chunks == [i for i in range(config.n_chunks) if finished[i]]
+    assert_stores_equal(open_store(store), open_store(ref_path))  # bit for bit
+
+
+def test_cli_max_chunks_then_resume(reference, tmp_path, capsys):
+    from lfjax.cli import main
+
+    config, ref_path, _ = reference
+    toml = write_toml(tmp_path / "tiny.toml", config)
+    store = tmp_path / "tiny.zarr"
+    assert main(["sweep", str(toml), "--out", str(store), "--max-chunks", "1",
+                 "--no-progress"]) == 0
+    assert completed_chunks(store).tolist() == [True, False, False]
+    assert main(["sweep", str(toml), "--out", str(store), "--no-progress"]) == 2
+    assert "--resume" in capsys.readouterr().err
+    assert main(["sweep", str(toml), "--out", str(store), "--resume", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "4 eyes in 2 chunks computed" in out and "1 chunks already complete" in out
+    assert_stores_equal(open_store(store), open_store(ref_path))
+
+
+# ----------------------------------------------------------------------------- devices, hosts
+
+SHARDED_SCRIPT = """
+import sys
+import jax
+from lfjax.sweep import load_config, run_sweep
+assert len(jax.local_devices()) == 4, jax.local_devices()
+run = run_sweep(load_config(sys.argv[1]), sys.argv[2], progress=False)
+assert run.traces == {(0, 0): 1, (0, 1): 1}, run.traces  # a fresh process: exactly one
+"""
+
+
+def test_sharded_over_four_devices_equals_unsharded(reference, tmp_path):
+    config, ref_path, _ = reference
+    toml = write_toml(tmp_path / "four.toml", tiny_config(run={"chunk_size": 4}))
+    sharded = tmp_path / "four_devices.zarr"
+    env = subprocess_env(XLA_FLAGS=os.environ.get("XLA_FLAGS", "")
+                         + " --xla_force_host_platform_device_count=4")
+    proc = subprocess.run([sys.executable, "-c", SHARDED_SCRIPT, str(toml), str(sharded)],
+                          env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    # Each device maps its eye alone, the unsharded reference maps two per call: the same
+    # float64 arithmetic up to round-off of the batch shape (stated tolerance 1e-9 relative).
+    a, b = open_store(sharded), open_store(ref_path)
+    assert_stores_equal(a.drop_vars("chunk_complete"), b.drop_vars("chunk_complete"),
+                        rtol=1e-9, atol=1e-12)
+
+
+DISTRIBUTED_SCRIPT = """
+import sys
+import jax
+pid, port, toml, store = int(sys.argv[1]), sys.argv[2], sys.argv[3], sys.argv[4]
+jax.distributed.initialize(coordinator_address=f"localhost:{port}", num_processes=2,
+                           process_id=pid)
+from lfjax.sweep import load_config, run_sweep
+run = run_sweep(load_config(toml), store, progress=False)
+print("computed", run.computed_chunks, flush=True)
+"""
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        return s.getsockname()[1]
+
+
+def test_two_processes_through_jax_distributed_write_one_store(reference, tmp_path):
+    config, ref_path, _ = reference
+    toml = write_toml(tmp_path / "tiny.toml", config)
+    store = tmp_path / "two_processes.zarr"
+    port = str(_free_port())
+    procs = [subprocess.Popen([sys.executable, "-c", DISTRIBUTED_SCRIPT, str(pid), port,
+                               str(toml), str(store)], env=subprocess_env(),
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for pid in (0, 1)]
+    outputs = [p.communicate(timeout=600) for p in procs]
+    for p, (out, err) in zip(procs, outputs):
+        assert p.returncode == 0, err[-3000:]
+    assert "computed [0, 2]" in outputs[0][0] and "computed [1]" in outputs[1][0]
+    assert_stores_equal(open_store(store), open_store(ref_path))
