@@ -19,6 +19,9 @@ The parts, each importing only those listed before it:
 * this module — :func:`reproduce` writes results file, CSV tables, figures and ``REPORT.md``
   into a folder (through a temporary folder moved into place at the end), and re-exports
   the public names of the parts. ``lfjax reproduce`` is its command line (:mod:`lfjax.cli`).
+  Given a population sweep store (``--population``), the report adds "What ten eyes cannot
+  tell" (:mod:`lfjax.sweep.ten_eyes`, imported only then: :mod:`lfjax.sweep` reads the
+  claims from this package, so importing it at the top would close a cycle).
 
 Host-side orchestration (numpy, xarray, files); the numerics are :mod:`lfjax.through_focus`
 and :mod:`lfjax.optics`.
@@ -52,6 +55,8 @@ MARKER_FILE = ".lfjax-reproduce"
 
 RESULTS_FILE = "results.nc"
 EXAMPLES_FILE = "examples.nc"
+POPULATION_TABLE = "ten_eyes.csv"
+"""With a population store: how often samples of the run's size reproduce each claim."""
 
 
 # ----------------------------------------------------------------------------- output folder
@@ -110,10 +115,69 @@ def _move_into_place(tmp: Path, out: Path) -> None:
         tmp.rename(out)
 
 
+def check_population(population_store, config: StudyConfig) -> float:
+    """Check a population sweep store for :func:`reproduce` before any work (metadata only):
+    returns the pupil (mm) whose eyes are drawn — the study's pupil when the store has it,
+    else the store's only pupil. Raises ValueError naming the problem."""
+    from ..sweep.ten_eyes import check_population_store
+
+    try:
+        return check_population_store(population_store, sample_size=config.n_eyes,
+                                      prefer_pupil_mm=config.pupil_diameter_mm)
+    except ValueError as err:
+        raise ValueError(f"--population: {err}") from None
+
+
+def population_section(population_store, config: StudyConfig, claims: list[Claim],
+                       n_draws: int = 1000, progress: bool = False):
+    """The report's section "What ten eyes cannot tell": samples of the study's size
+    (``config.n_eyes``, the paper's 10) drawn from the sweep store, the claims checked on
+    each (:func:`lfjax.sweep.ten_eyes.ten_eye_claims`, seed ``config.seed``).
+
+    Returns (markdown text of the section's body, the per-claim table as a DataFrame,
+    the result Dataset)."""
+    import json
+
+    from ..sweep.store import open_store
+    from ..sweep.ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
+
+    pupil = check_population(population_store, config)
+    ds = open_store(population_store, complete_only=True)
+    result = ten_eye_claims(ds, n_draws=n_draws, sample_size=config.n_eyes, seed=config.seed,
+                            pupil_mm=pupil, progress=progress)
+    stored = json.loads(ds.attrs["config_json"])
+    ours = dict(pupil_diameters_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
+                depth_offsets_D=list(config.depth_offsets_D),
+                accommodation_step_D=config.accommodation_step_D,
+                window_D=config.window_D, wavelengths_nm=list(config.wavelengths_nm),
+                options=config.options.as_dict())
+    theirs = dict(stored, pupil_diameters_mm=pupil)
+    differ = [key for key, value in ours.items() if theirs.get(key) != value]
+    lines = [
+        f"Are this run's verdicts what any {config.n_eyes} eyes would give? The population "
+        f"sweep `{population_store}` (seed {stored.get('seed')}; its own virtual eyes, not "
+        f"this run's) answers with the fraction of random samples of {config.n_eyes} eyes "
+        f"on which each claim holds; the last column is this run's verdict.",
+        "",
+    ]
+    if differ:
+        lines += [f"The sweep's settings differ from this run's in: {', '.join(differ)} "
+                  f"(the sweep has {', '.join(f'{k} = {theirs.get(k)!r}' for k in differ)}); "
+                  f"read the two against each other with that in mind.", ""]
+    lines.append(ten_eye_markdown(result, this_run=claims).rstrip())
+    lines += ["", f"Per claim: `{POPULATION_TABLE}`."]
+    return "\n".join(lines) + "\n", ten_eye_table(result), result
+
+
 def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # noqa: B008
-              progress: bool = True) -> dict:
+              progress: bool = True, population_store=None,
+              population_draws: int = 1000) -> dict:
     """Run the study and write everything into ``out`` (atomically: a temporary folder in
     the same parent, moved into place when complete).
+
+    ``population_store``: a population sweep store (``lfjax sweep``); the report then adds
+    "What ten eyes cannot tell" (:func:`population_section`, ``population_draws`` samples)
+    and ``ten_eyes.csv``. The store is checked before any computation.
 
     Returns a dict with ``out`` (Path), ``files`` (names), ``claims``, ``seconds``.
     """
@@ -121,6 +185,8 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
 
     t_start = time.perf_counter()
     out = check_output_dir(out, force)
+    if population_store is not None:
+        check_population(population_store, config)
     anchor = out.parent if out.parent.exists() else _nearest_existing(out.parent)
     layouts = list(config.layouts)
     stages = ["eyes"] + [f"through-focus {n}" for n in layouts] + ["examples: natural view"]
@@ -129,6 +195,8 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
     if config.alternatives:
         stages += [f"alternative {v}: {n}" for v in ["baseline (reduced)", *ALTERNATIVES]
                    for n in layouts]
+    if population_store is not None:
+        stages.append("population: samples of the study's size")
     stages += ["tables", "figures", "report"]
     bar = tqdm(total=len(stages), unit="stage", disable=not progress, dynamic_ncols=True,
                bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} stages [{elapsed}<{remaining}]")
@@ -157,6 +225,11 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         examples = compute_examples(ds, config, stage=stage)
         claims = evaluate_claims(ds, config.dof_fraction)
         alternatives = run_alternatives(config, stage=stage) if config.alternatives else {}
+        population = None
+        if population_store is not None:
+            stage("population: samples of the study's size")
+            population = population_section(population_store, config, claims,
+                                            population_draws)
         stage("tables")
         files = [RESULTS_FILE, EXAMPLES_FILE]
         ds.to_netcdf(tmp / RESULTS_FILE, engine="h5netcdf")
@@ -172,6 +245,9 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         for key, table in tables.items():
             table.to_csv(tmp / TABLES[key], index=False, float_format="%.6g")
             files.append(TABLES[key])
+        if population is not None:
+            population[1].to_csv(tmp / POPULATION_TABLE, index=False, float_format="%.6g")
+            files.append(POPULATION_TABLE)
         stage("figures")
         files += save_figures(ds, examples, tmp, config)
         stage("report")
@@ -179,7 +255,8 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         timings_now["total"] = time.perf_counter() - t_start
         files.append("REPORT.md")
         write_report(tmp / "REPORT.md", ds, claims, alternatives, config, timings_now,
-                     sorted(files))
+                     sorted(files),
+                     population_markdown=population[0] if population else None)
         (tmp / MARKER_FILE).write_text("")
         bar.update(1)
         bar.close()
@@ -200,6 +277,7 @@ __all__ = [
     "LF_LAYOUTS",
     "MARKER_FILE",
     "METRICS",
+    "POPULATION_TABLE",
     "RESULTS_FILE",
     "TABLES",
     "Claim",
@@ -208,12 +286,14 @@ __all__ = [
     "all_figures",
     "alternatives_table",
     "check_output_dir",
+    "check_population",
     "claims_table",
     "compute_examples",
     "cutoff_table",
     "dof_D",
     "evaluate_claims",
     "layout_through_focus",
+    "population_section",
     "prediction_table",
     "reproduce",
     "run_alternatives",

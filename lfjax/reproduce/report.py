@@ -144,8 +144,11 @@ def _md_escape(text: str) -> str:
 
 
 def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timings: dict,
-                 files: list[str]) -> None:
-    """REPORT.md: claims with numbers and verdicts, modelling-choice flips, settings."""
+                 files: list[str], population_markdown: str | None = None) -> None:
+    """REPORT.md: claims with numbers and verdicts, modelling-choice flips, settings.
+
+    ``population_markdown``: body of the section "What ten eyes cannot tell" (from a
+    population sweep, :func:`lfjax.reproduce.population_section`); None leaves it out."""
     lines = []
     add = lines.append
     add("# Reproduction of Miyanishi, Sahin & Gotchev with lfjax")
@@ -223,6 +226,11 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
             "`wavelength_normalisation=\"unit_sum\"` (ISETBio's per-wavelength PSF "
             "normalisation).")
     add("")
+    if population_markdown:
+        add("## What ten eyes cannot tell")
+        add("")
+        add(population_markdown.rstrip())
+        add("")
     add("## Notes on the method")
     add("")
     add(f"- Accommodation window: the paper does not state its through-focus range. Here each "
