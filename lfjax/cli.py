@@ -1,6 +1,7 @@
 """Command line: ``lfjax reproduce`` (the paper's study: results, tables, figures, report)
-``lfjax optimise`` (fit a subaperture layout to virtual eyes, report it on held-out eyes)
-and ``lfjax sweep`` (a population sweep into a resumable Zarr store).
+``lfjax optimise`` (fit a subaperture layout to virtual eyes, report it on held-out eyes),
+``lfjax sweep`` (a population sweep into a resumable Zarr store) and ``lfjax sweep-report``
+(its distributions, percentiles and what ten eyes cannot tell).
 
 Usage errors print one line and exit with status 2; failures during the run print one line
 and exit with status 1, leaving no partial output.
@@ -529,7 +530,7 @@ def _sweep(args, t_start: float) -> int:
         except Exception as err:  # noqa: BLE001 - report any start-up failure in one line
             print(f"{prog}: error: jax.distributed.initialize failed: {err}", file=sys.stderr)
             return 2
-    from .sweep import SweepConfigError, StoreMismatchError, load_config, run_sweep
+    from .sweep import StoreMismatchError, SweepConfigError, load_config, run_sweep
 
     try:
         config = load_config(args.config)

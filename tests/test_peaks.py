@@ -253,6 +253,13 @@ def test_local_refinement_agrees_with_the_exact_peak():
     assert np.all(np.asarray(local.success))
     np.testing.assert_allclose(np.asarray(local.accommodation_D)[:, 0], exact, atol=5e-4)
     assert np.max(np.abs(np.asarray(parabola.accommodation_D)[:, 0] - exact)) > 1e-3
+    # "vertex": the parabola's location, valued by the parabola itself (no evaluation):
+    # close to the metric there, and not below the grid maximum it interpolates
+    vertex = accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "vertex", allowed)
+    np.testing.assert_array_equal(np.asarray(vertex.accommodation_D),
+                                  np.asarray(parabola.accommodation_D))
+    np.testing.assert_allclose(np.asarray(vertex.value), np.asarray(parabola.value), rtol=2e-2)
+    assert np.all(np.asarray(vertex.value) >= np.asarray(vertex.grid_value) - 1e-12)
 
 
 def test_flat_curves_of_strongly_aberrated_eyes_are_not_reported_as_successes():

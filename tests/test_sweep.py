@@ -356,3 +356,20 @@ def test_two_processes_through_jax_distributed_write_one_store(reference, tmp_pa
         assert p.returncode == 0, err[-3000:]
     assert "computed [0, 2]" in outputs[0][0] and "computed [1]" in outputs[1][0]
     assert_stores_equal(open_store(store), open_store(ref_path))
+
+
+def test_readme_config_lists_every_key_with_its_default():
+    """The README's sweep config is valid and states the defaults (it stays true)."""
+    import re
+
+    from lfjax.sweep import SweepConfig
+    from lfjax.sweep.config import _SCHEMA
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    block = re.search(r"```toml\n(.*?)```", readme, re.S).group(1)
+    data = tomllib.loads(block)
+    assert config_from_dict(data).as_dict() == SweepConfig().as_dict()
+    commented = set(re.findall(r"^# (\w+) =", block, re.M))
+    for section, keys in _SCHEMA.items():
+        missing = [k for k in keys if k not in data.get(section, {}) and k not in commented]
+        assert not missing, (section, missing)

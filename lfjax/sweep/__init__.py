@@ -4,9 +4,11 @@
 described by a TOML file (:mod:`lfjax.sweep.config`) into a Zarr store of one labelled
 xarray Dataset (:mod:`lfjax.sweep.store`), a chunk of eyes per compiled call
 (:mod:`lfjax.sweep.compute`), sharded over the local devices and, with
-``jax.distributed``, over processes and hosts.
+``jax.distributed``, over processes and hosts. ``lfjax sweep-report STORE`` /
+:func:`sweep_report` draws the distributions and writes percentiles and a summary;
+:func:`ten_eye_claims` asks how often ten random eyes reproduce each of the paper's claims.
 
-Layers (imports go one way): config → compute → store → run.
+Layers (imports go one way): config → compute → store → run → report (with ten_eyes).
 """
 
 from .compute import ChunkEvaluator, Task, build_tasks, population
@@ -17,8 +19,10 @@ from .config import (
     config_to_toml,
     load_config,
 )
+from .report import sweep_report
 from .run import SweepRun, run_sweep
 from .store import StoreMismatchError, completed_chunks, open_store, study_view
+from .ten_eyes import ten_eye_claims, ten_eye_markdown
 
 __all__ = [
     "ChunkEvaluator",
@@ -36,4 +40,7 @@ __all__ = [
     "population",
     "run_sweep",
     "study_view",
+    "sweep_report",
+    "ten_eye_claims",
+    "ten_eye_markdown",
 ]

@@ -42,6 +42,7 @@ class SweepRun:
     eyes_computed : eyes in the computed chunks (the average eye counts as one)
     seconds : wall time of the chunk loop (excludes planning and store creation), s
     setup_seconds : drawing the eyes, planning the sampling and creating the store, s
+    chunk_seconds : wall time of each computed chunk, s (the first includes compilation)
     traces : {(pupil_index, layout_index): traces} of the compiled chunk functions
     peak_rss_mb : peak resident memory of this process, MiB
     process_index, process_count : this process among the sweep's
@@ -53,6 +54,7 @@ class SweepRun:
     eyes_computed: int = 0
     seconds: float = 0.0
     setup_seconds: float = 0.0
+    chunk_seconds: list[float] = field(default_factory=list)
     traces: dict = field(default_factory=dict)
     peak_rss_mb: float = 0.0
     process_index: int = 0
@@ -149,9 +151,11 @@ def run_sweep(
     t1 = time.perf_counter()
     try:
         for i in todo:
+            tc = time.perf_counter()
             start, stop = i * size, min((i + 1) * size, config.n_total_eyes)
             results = {task.key: evaluator.evaluate(task, zernike[start:stop]) for task in tasks}
             write_chunk(store, i, chunk_dataset(config, tasks, results, start, stop), start, stop)
+            run.chunk_seconds.append(time.perf_counter() - tc)
             run.computed_chunks.append(i)
             run.eyes_computed += stop - start
             if bar is not None:
