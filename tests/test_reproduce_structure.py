@@ -24,13 +24,14 @@ LAYERS = {
 """Each part may import only parts of a strictly lower layer (lower: closer to the data)."""
 
 
-def _imported_modules(path: Path, package: str) -> set[str]:
-    """Absolute names of every module ``path`` imports, at any depth (lazy imports too).
+def _imported_modules(path: Path, package: str, top_level_only: bool = False) -> set[str]:
+    """Absolute names of every module ``path`` imports, at any depth (lazy imports too), or
+    at module level only.
 
     ``package`` is the package ``path`` belongs to (for relative imports)."""
     tree = ast.parse(path.read_text(), filename=str(path))
     found = set()
-    for node in ast.walk(tree):
+    for node in (tree.body if top_level_only else ast.walk(tree)):
         if isinstance(node, ast.Import):
             found.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -108,3 +109,32 @@ def test_the_check_sees_a_cycle(tmp_path):
     names = _imported_modules(module, "lfjax.reproduce")
     assert {"lfjax.reproduce.report", "lfjax.reproduce.study"} <= names
     assert "lfjax.eyes" in _imported_modules(PACKAGE / "config.py", "lfjax.reproduce")
+
+
+SWEEP = LFJAX / "sweep"
+SWEEP_LAYERS = {"config": 0, "compute": 1, "store": 2, "run": 3, "ten_eyes": 3, "report": 4,
+                "__init__": 5}
+"""lfjax.sweep: config ← compute ← store ← run / ten_eyes ← report ← entry."""
+
+
+def test_sweep_parts_import_only_lower_layers():
+    parts = {p.stem for p in SWEEP.glob("*.py")}
+    assert parts == set(SWEEP_LAYERS), sorted(parts ^ set(SWEEP_LAYERS))
+    wrong = []
+    for path in sorted(SWEEP.glob("*.py")):
+        deps = {n.split(".")[2] for n in _imported_modules(path, "lfjax.sweep")
+                if n.startswith("lfjax.sweep.") and n.split(".")[2] in SWEEP_LAYERS}
+        wrong += [f"{path.stem} imports {d}" for d in sorted(deps - {path.stem})
+                  if SWEEP_LAYERS[d] >= SWEEP_LAYERS[path.stem]]
+    assert not wrong, "; ".join(wrong)
+
+
+def test_sweep_reads_the_reproduction_only_lazily():
+    """lfjax.reproduce imports lfjax.sweep inside functions (--population) and the sweep
+    reads the claims from lfjax.reproduce: neither may do so at module level (a cycle)."""
+    for path in SWEEP.glob("*.py"):
+        names = _imported_modules(path, "lfjax.sweep", top_level_only=True)
+        assert not any(n.startswith("lfjax.reproduce") for n in names), path
+    for path in PACKAGE.glob("*.py"):
+        names = _imported_modules(path, "lfjax.reproduce", top_level_only=True)
+        assert not any(n.startswith("lfjax.sweep") for n in names), path
