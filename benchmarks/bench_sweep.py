@@ -6,18 +6,19 @@ Two parts:
   0.2 D grid within ±2 D) under the settings that trade accuracy for speed — wavelength
   step (10 nm, the paper's; 20 nm, which moved no prediction on the paper's grid, RESULTS
   §6) and the continuous peak (``local`` five-point refinement, ``parabola``: the grid
-  parabola plus one evaluation, ``none``: grid peaks only). Steady-state seconds per eye
+  parabola plus one evaluation, ``vertex``: the grid parabola alone, ``none``: grid peaks
+  only). Steady-state seconds per eye
   come from chunks after the first (the first includes compilation).
-* ``scaling``: ``lfjax sweep`` run as a user runs it (a fresh process, compilation cache
-  off so every run compiles) for N eyes; wall time, eyes/s and peak resident memory from its
+* ``scaling``: ``lfjax sweep`` run as a user runs it (a fresh process with an empty
+  compilation cache, so every run compiles) for N eyes; wall time, eyes/s and peak resident memory from its
   own report. Times for 100 → 1,000 eyes are measured; 10,000 is extrapolated from the
   measured slope (stated as such).
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_sweep.py variants --eyes 12 --chunk-size 4
+    .venv/bin/python benchmarks/bench_sweep.py variants --eyes 11 --chunk-size 4
     .venv/bin/python benchmarks/bench_sweep.py scaling --eyes 100 1000 --wavelength-step 20 \
-        --peak local --chunk-size 8
+        --peak vertex --chunk-size 8 --keep benchmarks/_cache/sweep/paper_1000.zarr
 """
 
 from __future__ import annotations
