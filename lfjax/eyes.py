@@ -139,6 +139,14 @@ def average_eye(
     return eyes.mirrored() if orientation == "right" else eyes
 
 
+def append_average_eye(eyes: Eyes) -> Eyes:
+    """``eyes`` with the Thibos et al. (2002) average eye of their measured pupil appended
+    as the last eye (the batch the reproduction and population sweeps evaluate)."""
+    avg = average_eye(eyes.measured_pupil_mm)
+    return Eyes(jnp.concatenate([eyes.zernike_um, avg.zernike_um.astype(eyes.zernike_um.dtype)]),
+                eyes.measured_pupil_mm, eyes.orientation)
+
+
 def sample_eyes(
     key,
     n_eyes: int,
@@ -186,5 +194,6 @@ __all__ = [
     "aberration_free_eye",
     "thibos_statistics",
     "average_eye",
+    "append_average_eye",
     "sample_eyes",
 ]

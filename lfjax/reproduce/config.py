@@ -17,10 +17,9 @@ import json
 import math
 from dataclasses import dataclass, field
 
-import jax.numpy as jnp
 import numpy as np
 
-from ..eyes import Eyes, average_eye, sample_eyes
+from ..eyes import Eyes, append_average_eye, sample_eyes
 from ..layouts import PAPER_LAYOUTS
 from ..options import ModelOptions
 from ..sampling import Sampling
@@ -172,10 +171,7 @@ class StudyConfig:
 
 def study_eyes(config: StudyConfig) -> tuple[Eyes, list[str]]:
     """The virtual eyes and the average eye in one batch (average last), with labels."""
-    eyes = sample_eyes(int(config.seed), int(config.n_eyes))
-    avg = average_eye(eyes.measured_pupil_mm)
-    both = Eyes(jnp.concatenate([eyes.zernike_um, avg.zernike_um.astype(eyes.zernike_um.dtype)]),
-                eyes.measured_pupil_mm, eyes.orientation)
+    both = append_average_eye(sample_eyes(int(config.seed), int(config.n_eyes)))
     labels = [f"eye{i + 1:02d}" for i in range(config.n_eyes)] + ["average"]
     return both, labels
 

@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..eyes import Eyes, average_eye, sample_eyes
+from ..eyes import Eyes, append_average_eye, sample_eyes
 from ..layout_opt import load_layout_json
 from ..layouts import Layout, paper_layouts
 from ..metrics import cutoff_frequency
@@ -82,9 +82,7 @@ def population(config: SweepConfig) -> tuple[Eyes, np.ndarray]:
     eyes = sample_eyes(int(config.seed), int(config.n_eyes), config.fit_pupil_mm)
     flags = np.zeros(config.n_eyes, bool)
     if config.average_eye:
-        avg = average_eye(config.fit_pupil_mm)
-        eyes = Eyes(jnp.concatenate([eyes.zernike_um, avg.zernike_um.astype(eyes.zernike_um.dtype)]),
-                    eyes.measured_pupil_mm, eyes.orientation)
+        eyes = append_average_eye(eyes)
         flags = np.concatenate([flags, [True]])
     return eyes, flags
 

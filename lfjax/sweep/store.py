@@ -16,10 +16,10 @@ pupil of a store as the reproduction's study Dataset, so the paper's claims
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
-import time
 import uuid
 from pathlib import Path
 
@@ -80,7 +80,7 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         n_fft[t.key] = t.pipeline_config.n_fft
         n_sub[t.key] = t.layout.n_subapertures
         sub_diam[t.key] = float(np.max(np.asarray(t.layout.diameters_mm)))
-        samplings[f"{t.pupil_index},{t.layout_index}"] = _sampling_dict(t.sampling)
+        samplings[f"{t.pupil_index},{t.layout_index}"] = dataclasses.asdict(t.sampling)
     record = _stored_record(config)
     attrs = {
         "title": "lfjax population sweep: eyes viewing a light-field display",
@@ -172,12 +172,6 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         attrs=attrs,
     )
     return ds
-
-
-def _sampling_dict(sampling) -> dict:
-    import dataclasses
-
-    return dataclasses.asdict(sampling)
 
 
 def stored_samplings(path) -> dict:
@@ -351,10 +345,6 @@ def study_view(ds, pupil_mm: float | None = None):
     view = view.transpose(*order, ...)
     view.attrs = dict(ds.attrs, pupil_diameter_mm=float(pupil_mm))
     return view
-
-
-def created_utc() -> str:
-    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
 
 
 __all__ = [
