@@ -392,7 +392,7 @@ def peaks_from_grid(
     def value_fn(a, args):
         zernike_um, depth = args
         one = Scene(scene.centres_mm, scene.diameters_mm, scene.cdp_D, depth[None],
-                    scene.pupil_diameter_mm)
+                    scene.pupil_diameter_mm, scene.display)
         state = Accommodation(a[None], jnp.zeros((1, 1), jnp.int32), grid.sa_c40_um_per_D,
                               grid.sa_radius_mm)
         return pair_metric(zernike_um, eyes.measured_pupil_mm, one, spectrum, state, config,

@@ -6,7 +6,9 @@ recompiling per value):
 
 * :class:`lfjax.eyes.Eyes` — Zernike coefficients (µm), batch axis first;
 * :class:`Scene` — what the display shows and through which pupil: subaperture centres and
-  diameters (mm), the central depth plane (D), rendered depths (D), the calculation pupil (mm);
+  diameters (mm), the central depth plane (D), rendered depths (D), the calculation pupil
+  (mm), and optionally the display's own optics (:class:`lfjax.display.DisplayOptics`:
+  lenslet diffraction, finite pixels);
 * :class:`lfjax.spectral.Spectrum` — wavelengths (nm), weights, LCA (D), Stiles–Crawford ρ;
 * :class:`Accommodation` — the accommodation states (D) and which state each
   (depth, k) pair uses, with the accommodation-dependent spherical aberration.
@@ -35,6 +37,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from ._types import as_index_array, as_real_array as _real
+from .display import DisplayOptics, pixel_transfer
 from .eyes import Eyes
 from .layouts import Layout
 from .metrics import ncsf_half_plane, psf_peak, radial_mtf, vsotf_numerator
@@ -55,6 +58,8 @@ class Scene(eqx.Module):
     cdp_D : () central depth plane of the display, D
     depths_D : (n_depth,) rendered depths, D (0 D = infinity)
     pupil_diameter_mm : () calculation pupil, mm
+    display : :class:`lfjax.display.DisplayOptics` or None (the paper's ideal display:
+        geometric circular subapertures, point emitters)
     """
 
     centres_mm: Float[Array, "n_sub 2"] = eqx.field(converter=_real)
@@ -62,6 +67,7 @@ class Scene(eqx.Module):
     cdp_D: Float[Array, ""] = eqx.field(converter=_real)
     depths_D: Float[Array, " n_depth"] = eqx.field(converter=_real)
     pupil_diameter_mm: Float[Array, ""] = eqx.field(converter=_real)
+    display: DisplayOptics | None = None
 
     def __check_init__(self):
         if self.centres_mm.ndim < 2 or self.centres_mm.shape[-1] != 2:
@@ -73,10 +79,11 @@ class Scene(eqx.Module):
             )
 
     @classmethod
-    def from_layout(cls, layout: Layout, depths_D, cdp_D, pupil_diameter_mm) -> Scene:
+    def from_layout(cls, layout: Layout, depths_D, cdp_D, pupil_diameter_mm,
+                    display: DisplayOptics | None = None) -> Scene:
         """Scene of a :class:`~lfjax.layouts.Layout` rendering ``depths_D`` (D)."""
         return cls(layout.centres_mm, layout.diameters_mm, cdp_D, jnp.atleast_1d(_real(depths_D)),
-                   pupil_diameter_mm)
+                   pupil_diameter_mm, display)
 
     @property
     def n_depths(self) -> int:
@@ -166,14 +173,17 @@ class PipelineConfig:
     def build(
         cls, wavelengths_nm, window_diameter_mm: float, pupil_diameter_mm: float,
         sampling: Sampling, options: ModelOptions = ModelOptions(), eye_chunk: int | None = None,
-        traced_checks: bool = True,
+        traced_checks: bool = True, display: DisplayOptics | None = None,
     ) -> PipelineConfig:
         """Bands for a spectrum (nm) and a layout whose largest window is
         ``window_diameter_mm`` (mm), on a calculation pupil of ``pupil_diameter_mm`` (mm);
-        everything here is concrete host data."""
+        everything here is concrete host data. With lenslet diffraction (``display``) every
+        view's window is the pupil; the reference (an ideal display) keeps the layout's."""
         wl = np.asarray(wavelengths_nm, float)
         pupil = float(pupil_diameter_mm)
         reference_window = window_diameter_mm if options.vsotf_reference == "paper" else pupil
+        if display is not None and display.diffracts:
+            window_diameter_mm = pupil
         return cls(
             sampling,
             wavelength_bands(wl, float(window_diameter_mm), pupil, sampling),
@@ -227,9 +237,10 @@ def checked_inputs(eyes: Eyes, scene: Scene, accommodation: Accommodation):
         accommodation.states_D, ~jnp.all(jnp.isfinite(accommodation.states_D)),
         "accommodation_D must be finite",
     )
+    display = None if scene.display is None else scene.display.checked()
     return (
         eqx.tree_at(lambda e: e.zernike_um, eyes, z),
-        Scene(centres, diameters, cdp, depths, pupil),
+        Scene(centres, diameters, cdp, depths, pupil, display),
         eqx.tree_at(lambda a: a.states_D, accommodation, states),
     )
 
@@ -246,7 +257,7 @@ def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum:
     return _elemental_otfs(
         zernike_um, measured_pupil_mm, scene.pupil_diameter_mm, scene.cdp_D, accommodation.states_D,
         scene.centres_mm, scene.diameters_mm, spectrum, bands, sampling,
-        jnp.stack([accommodation.sa_c40_um_per_D, accommodation.sa_radius_mm]),
+        jnp.stack([accommodation.sa_c40_um_per_D, accommodation.sa_radius_mm]), scene.display,
     )
 
 
@@ -255,7 +266,8 @@ def render(elemental, scene: Scene, pair_index, n_fft: int, freq_step_cpd: float
 
     View n of depth d is displaced by Δθ_n = (D_d − D_CDP)·(p_n, q_n) (rad; D in 1/m, p in
     m), applied as the phase ramp exp(−2πi f·Δθ_n); pair (d, k) sums the views' elemental
-    OTFs of state ``pair_index[d, k]`` (stages 6–7).
+    OTFs of state ``pair_index[d, k]`` (stages 6–7). Finite pixels (``scene.display``)
+    blur every view alike: the sum is multiplied by the emitter's transfer function.
     """
     fy_rad = frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
     fx_rad = half_frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
@@ -276,6 +288,8 @@ def render(elemental, scene: Scene, pair_index, n_fft: int, freq_step_cpd: float
         (jnp.moveaxis(elemental, 1, 0), jnp.moveaxis(ramp_y, 1, 0), jnp.moveaxis(ramp_x, 1, 0)),
     )
     energy = jnp.real(jnp.sum(elemental[:, :, 0, 0], axis=1))[pair_index]
+    if scene.display is not None:
+        otf = otf * pixel_transfer(fx_rad, fy_rad, scene.display)
     return otf / energy[..., None, None]
 
 
@@ -283,14 +297,19 @@ def reference_normalisers(scene: Scene, spectrum: Spectrum, accommodation: Accom
                           config: PipelineConfig):
     """VSOTF denominator Σ NCSF·Re OTF_ref and PSF peak (per arcmin²) of the reference eye:
     no monochromatic aberrations, accommodated on the CDP and the point rendered on it,
-    accommodation SA and LCA kept, through the same layout or the open pupil."""
+    accommodation SA and LCA kept, through the same layout or the open pupil, of an ideal
+    display (no lenslet diffraction, point emitters; the subapertures keep their shape), so
+    VSOTF and Strehl values stay comparable when display effects are switched on."""
     if config.vsotf_reference == "paper":
         centres, diameters = scene.centres_mm, scene.diameters_mm
     else:
         centres = jnp.zeros((1, 2), scene.centres_mm.dtype)
         diameters = jnp.reshape(scene.pupil_diameter_mm, (1,))
     cdp = jnp.reshape(scene.cdp_D, (1,))
-    reference_scene = Scene(centres, diameters, scene.cdp_D, cdp, scene.pupil_diameter_mm)
+    ideal = None
+    if scene.display is not None and scene.display.aperture != "circle" and config.vsotf_reference == "paper":
+        ideal = DisplayOptics("off", scene.display.aperture)
+    reference_scene = Scene(centres, diameters, scene.cdp_D, cdp, scene.pupil_diameter_mm, ideal)
     on_cdp = Accommodation(cdp, jnp.zeros((1, 1), jnp.int32), accommodation.sa_c40_um_per_D,
                            accommodation.sa_radius_mm)
     n_fft = max(b[2] for b in config.reference_bands)

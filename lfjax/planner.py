@@ -57,7 +57,7 @@ from .optics import field_radius_arcmin, pupil_window_size, sa_parameters
 from .options import ModelOptions
 from .sampling import EDGE_EXTENT_SCALES, Sampling, wavelength_bands
 from .spectral import Spectrum, make_spectrum
-from .units import DEGREES_PER_RADIAN
+from .units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
 from .zernike import n_modes_for_order, nm_from_ansi, zernike_basis
 
 STEPS_PER_OCTAVE = 8
@@ -260,6 +260,17 @@ class _Scene:
     pair_acc: np.ndarray  # (n_pairs,) absolute accommodation of every evaluated pair, D
     pair_depth: np.ndarray  # (n_pairs,) rendered depth, D
     options: ModelOptions
+    display: object = None  # lfjax.display.DisplayOptics or None (the ideal display)
+
+    @property
+    def diffracts(self) -> bool:
+        return self.display is not None and self.display.diffracts
+
+    @property
+    def window_mm(self) -> float:
+        """The static window the pipeline sizes its transforms for (the pupil when lenslet
+        diffraction spreads the beams)."""
+        return self.pupil_mm if self.diffracts else float(self.layout.window_diameter_mm)
 
     @property
     def accommodation(self) -> np.ndarray:
@@ -294,6 +305,9 @@ class _Scene:
 
     @property
     def largest_diameter_mm(self) -> float:
+        """Largest beam in the pupil, mm (the pupil when diffraction spreads the beams)."""
+        if self.diffracts:
+            return self.pupil_mm
         d = np.minimum(np.asarray(self.layout.diameters_mm, float), self.pupil_mm)
         return float(d.max())
 
@@ -343,7 +357,7 @@ def _subsample_spectrum(spectrum: Spectrum, n_max: int = _PROXY_WAVELENGTHS):
 
 def _aperture_otfs(view, pupil_mm, defocus_D, sa_c40_um, sa_radius_mm, wavelength_nm, rho,
                    dx_mm, n_fft, edge_samples, mft_samples: int | None = None,
-                   df_cpd: float | None = None):
+                   df_cpd: float | None = None, display=None):
     """Half-plane OTFs (n_states, L, L//2+1), lag step dx, of one view — subaperture
     ``view`` = (centre mm, diameter mm) clipped by the pupil — at each local defocus (D) and
     accommodation SA c(4,0) (µm): the pipeline's aperture (optics._pupil_parts) on one
@@ -351,25 +365,54 @@ def _aperture_otfs(view, pupil_mm, defocus_D, sa_c40_um, sa_radius_mm, wavelengt
 
     With ``mft_samples``: the pipeline's MFT path instead — ``mft_samples``² pupil samples,
     the PSF's point samples on the n_fft angles of a field 60/``df_cpd`` arcmin (truncated,
-    not wrapped), and its OTF at step ``df_cpd``."""
+    not wrapped), and its OTF at step ``df_cpd``.
+
+    With ``display`` (:class:`lfjax.display.DisplayOptics`): square subapertures and lenslet
+    diffraction as the pipeline models them (the window is then the whole pupil and the
+    view's beam its Fresnel pattern, :func:`_fresnel_np`)."""
     centre, d_mm = view
     if mft_samples is not None:
         n_pupil = mft_samples
     else:
         n_pupil = min(n_fft, pupil_window_size(n_fft, Sampling(1.0, edge_width_samples=edge_samples)))
+    diffracts = display is not None and display.diffracts
+    shape = "circle" if display is None else display.aperture
     k = (np.arange(n_pupil) - n_pupil // 2) * dx_mm
-    xl, yl = np.meshgrid(k, k)  # local coordinates about the view's centre
-    r2_local = xl * xl + yl * yl
+    window_centre = np.zeros(2) if diffracts else np.asarray(centre, float)
+    xl, yl = np.meshgrid(k + window_centre[0] - centre[0], k + window_centre[1] - centre[1])
+    r2_local = xl * xl + yl * yl  # about the view's centre
     r2 = (xl + centre[0]) ** 2 + (yl + centre[1]) ** 2
     edge = edge_samples * dx_mm
 
     def edge_distance(r2_, radius):  # optics.disk_edge_distance (area-exact logistic edge)
         return np.sqrt(max(radius**2 - (math.pi**2 / 3.0) * edge * edge, 0.0)) - np.sqrt(r2_)
 
-    inside = np.minimum(edge_distance(r2, 0.5 * pupil_mm), edge_distance(r2_local, 0.5 * d_mm))
-    cover = 0.5 * (1.0 + np.tanh(0.5 * inside / edge))  # logistic, overflow-free
+    def logistic(x):
+        return 0.5 * (1.0 + np.tanh(0.5 * x))  # overflow-free
+
+    if shape == "square":
+        sub_inside = np.minimum(0.5 * d_mm - np.abs(xl), 0.5 * d_mm - np.abs(yl))
+    else:
+        sub_inside = edge_distance(r2_local, 0.5 * d_mm)
     sce = 10.0 ** (-rho * r2)
-    amp = cover * sce
+    if diffracts:
+        source = logistic(sub_inside / edge)
+        z_mm = float(display.fresnel_distance_mm)
+        beam = _fresnel_np(source.astype(complex), dx_mm, wavelength_nm * 1e-6, z_mm, pupil_mm)
+        intensity = np.abs(beam) ** 2
+        if display.diffraction == "modulus":
+            beam = np.sqrt(intensity)
+        pupil_cover = logistic(edge_distance(r2, 0.5 * pupil_mm) / edge)
+        amp = pupil_cover * sce * beam
+        # the edge's energy still on the beam's scale (optics._pupil_parts)
+        spread = wavelength_nm * 1e-6 * z_mm / (math.pi * edge * d_mm)
+        kept = 1.0 / math.sqrt(1.0 + spread * spread)
+        energy = float(np.sum(pupil_cover * sce * sce * (intensity + kept * source * (1.0 - source)))
+                       * dx_mm * dx_mm)
+    else:
+        cover = logistic(np.minimum(edge_distance(r2, 0.5 * pupil_mm), sub_inside) / edge)
+        amp = cover * sce
+        energy = float(np.sum(cover * sce * sce) * dx_mm * dx_mm)
     # Global defocus = local defocus + a tilt; the tilt is the view's shift (in the ramp).
     # D times r² (mm²) / 2 is µm; SA on pupil coordinates: c40·√5(6ρ⁴ − 6ρ² + 1).
     rho2 = r2 / sa_radius_mm**2
@@ -377,7 +420,7 @@ def _aperture_otfs(view, pupil_mm, defocus_D, sa_c40_um, sa_radius_mm, wavelengt
     w_um = (0.5 * np.asarray(defocus_D, float)[:, None, None] * r2_local[None]
             + np.asarray(sa_c40_um, float)[:, None, None] * z40[None])
     phase = ((-2.0 * np.pi / (wavelength_nm * 1e-3)) * w_um).astype(np.float32)
-    field_ = amp.astype(np.float32)[None] * np.exp(1j * phase).astype(np.complex64)
+    field_ = amp.astype(np.complex64)[None] * np.exp(1j * phase).astype(np.complex64)
     if mft_samples is not None:  # as optics._elemental_otfs_band's MFT branch
         wl_mm = wavelength_nm * 1e-6
         pixel_rad = 1.0 / (n_fft * df_cpd * DEGREES_PER_RADIAN)
@@ -390,8 +433,29 @@ def _aperture_otfs(view, pupil_mm, defocus_D, sa_c40_um, sa_radius_mm, wavelengt
         spec = sfft.fft2(field_, s=(n_fft, n_fft), workers=-1)
         psf = (spec.real**2 + spec.imag**2).astype(np.float32)
         otf = sfft.rfft2(psf, workers=-1) * (dx_mm * dx_mm / n_fft**2)
-    otf[:, 0, 0] = float(np.sum(cover * sce * sce) * dx_mm * dx_mm)
+    otf[:, 0, 0] = energy
     return otf
+
+
+def _fresnel_np(field, dx_mm, wavelength_mm, distance_mm, extent_mm):
+    """numpy twin of :func:`lfjax.display.fresnel_propagate` (the same kernel sampling:
+    impulse response in the far field, analytic transfer function in the near field)."""
+    from .sampling import next_fast_size
+
+    n = field.shape[-1]
+    n_pad = next_fast_size(2 * n)
+    lam_z = wavelength_mm * distance_mm
+    if lam_z >= 2.0 * extent_mm * dx_mm:
+        k = np.fft.fftfreq(n_pad, 1.0 / n_pad)
+        h = np.where(np.abs(k * dx_mm) < extent_mm, np.exp(1j * np.pi * (k * dx_mm) ** 2 / lam_z), 0.0)
+        transfer = np.fft.fft(h) * dx_mm * np.exp(-0.25j * np.pi) / np.sqrt(lam_z)
+    else:
+        f = np.fft.fftfreq(n_pad) / dx_mm
+        transfer = np.exp(-1j * np.pi * lam_z * f * f)
+    padded = np.zeros((n_pad, n_pad), complex)
+    padded[:n, :n] = field
+    out = np.fft.ifft2(np.fft.fft2(padded) * transfer[:, None] * transfer[None, :])
+    return out[:n, :n]
 
 
 def _view_ramps(shifts_rad, fx_cpr, fy_cpr):
@@ -442,8 +506,17 @@ class _Proxy:
         acc, dep = pairs
         scene = self.scene
         states, state_of_pair = np.unique(acc, return_inverse=True)
+        # The reference is the ideal display's (pipeline.reference_normalisers): with
+        # display effects it is transformed on its own (diffraction off, the shape kept).
+        reference_otfs = reference_display = None
+        if scene.display is not None and scene.display.diffracts:
+            from .display import DisplayOptics
+
+            reference_otfs = True
+            reference_display = DisplayOptics("off", scene.display.aperture)
         num = np.zeros(acc.size)
         den = 0.0
+        energy_views = energy_reference = 0.0  # transmitted energies (differ with diffraction)
         rendered = [np.zeros((acc.size, n_fft, n_fft // 2 + 1), np.complex64) for _ in self.groups] \
             if keep_otf else None
         for lam, w, lca, rho in zip(self.wl, self.weights, self.lca, self.rho):
@@ -453,23 +526,40 @@ class _Proxy:
             wts = _ncsf_half(n_fft, step, scene.options.ncsf) * step**2
             fy = np.fft.fftfreq(n_fft, 1.0 / n_fft) * step * DEGREES_PER_RADIAN
             fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft) * step * DEGREES_PER_RADIAN
+            pixel = 1.0
+            if scene.display is not None:  # one emitter's transfer function (display.pixel_transfer)
+                a = float(scene.display.pixel_width_arcmin) / ARCMIN_PER_RADIAN
+                pixel = (np.sinc(a * fy)[:, None] * np.sinc(a * fx)[None, :]).astype(np.complex64)
             # state 0: the paper's reference, the same views focused and rendered at the CDP
             all_acc = np.concatenate([[scene.cdp_D], states])
             for g, ((centre, d_mm), maps) in enumerate(self.groups):
                 otfs = _aperture_otfs((centre, d_mm), scene.pupil_mm, all_acc - scene.cdp_D + lca,
                                       self.sa[0] * all_acc, self.sa[1], lam, rho, dx, n_fft, self.edge,
-                                      mft_samples, step)
+                                      mft_samples, step, scene.display)
+                if reference_otfs is not None:  # the ideal display's (diffraction off)
+                    ref_otf = _aperture_otfs((centre, d_mm), scene.pupil_mm, [lca], [self.sa[0] * scene.cdp_D],
+                                             self.sa[1], lam, rho, dx, n_fft, self.edge, mft_samples,
+                                             step, reference_display)[0]
+                else:
+                    ref_otf = otfs[0]
                 # A view at c is displaced by (depth − CDP)·c on the display and by
                 # −(accommodation − CDP + LCA)·c by the tilt of the defocus over it (the
                 # pipeline's phase −2πW/λ moves the PSF against the wavefront slope).
                 # Every member contributes the representative's term (view_groups).
-                ref = otfs[0] * _view_ramps(-lca * centre[None, None] * 1e-3, fx, fy)[0]
+                ref = ref_otf * _view_ramps(-lca * centre[None, None] * 1e-3, fx, fy)[0]
                 den += len(maps) * w * float(np.sum(ref.real * wts))
                 shifts = (dep - acc - lca)[:, None, None] * centre[None, None] * 1e-3
-                part = otfs[1:][state_of_pair] * _view_ramps(shifts, fx, fy)
+                part = otfs[1:][state_of_pair] * _view_ramps(shifts, fx, fy) * pixel
                 num += len(maps) * w * np.einsum("pyx,yx->p", part.real, wts)
+                energy_views += len(maps) * w * float(otfs[-1, 0, 0].real)
+                energy_reference += len(maps) * w * float(ref_otf[0, 0].real)
                 if keep_otf:
                     rendered[g] += w * part
+        if reference_otfs is not None:
+            # The pipeline normalises the rendered and the reference OTFs each by its own
+            # energy; without diffraction the two energies are equal (the views are the same
+            # apertures), with it part of each beam misses the pupil.
+            num *= energy_reference / energy_views
         return num, den, rendered
 
     def vsotf(self, df_cpd: float, pairs, transform: str = "fft", mft_samples: int = 64,
@@ -494,7 +584,7 @@ class _Proxy:
             dx_mft = span / (mft_samples - 2.0 * EDGE_EXTENT_SCALES * self.edge - 2.0)
             sampling = Sampling(df_cpd, edge_width_samples=self.edge, transform="mft",
                                 mft_pupil_samples=mft_samples)
-            bands = wavelength_bands(self.wl, scene.layout.window_diameter_mm, scene.pupil_mm, sampling)
+            bands = wavelength_bands(self.wl, scene.window_mm, scene.pupil_mm, sampling)
             band_n = {float(w): n for a, b, n in bands for w in self.wl[a:b]}
             num, den, rendered = self._sums(
                 pairs, lambda lam: dx_mft, 0, lambda lam: df_cpd, False, mft_samples,
@@ -615,6 +705,7 @@ def plan_sampling(
     max_zernike_order: int | None = None,
     estimate_accuracy: bool = True,
     pairs: tuple | None = None,
+    display=None,
 ) -> Plan:
     """Choose the cheapest sampling that meets an accuracy target for a scene, and say why.
 
@@ -651,6 +742,8 @@ def plan_sampling(
         few milliseconds; errors are reported as NaN)
     pairs : (accommodation_D, depths_D) arrays of the exact pairs to plan for, D; replaces
         the pairs ``depths_D``/``accommodation_D``/``accommodation_window_D`` describe
+    display : :class:`lfjax.display.DisplayOptics` of a real display (lenslet diffraction,
+        pixels): the field guard adds their blur and the proxy models them as the pipeline
 
     Guard parameters: margin (field safety factor ≥ 1), wrap_tolerance (spectral weight
     allowed to wrap), min_samples_per_subaperture (floor on pupil samples).
@@ -665,7 +758,9 @@ def plan_sampling(
         pair_acc, pair_depth = (np.asarray(x, float).reshape(-1) for x in pairs)
     if np.any(pair_acc < -1e-9) or np.any(pair_depth < 0):
         raise ValueError("accommodation and depths must be >= 0 D")
-    scene = _Scene(layout, float(pupil_diameter_mm), float(cdp_D), pair_acc, pair_depth, options)
+    scene = _Scene(layout, float(pupil_diameter_mm), float(cdp_D), pair_acc, pair_depth, options,
+                   display)
+    window_mm = scene.window_mm
     reasons: list[str] = []
 
     # --- spectrum
@@ -708,7 +803,7 @@ def plan_sampling(
     guard_spectrum = make_spectrum(guard_wl, options)
     radius = field_radius_arcmin(
         eyes_zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, scene.accommodation,
-        pair_acc, pair_depth, layout, guard_spectrum, wrap_tolerance,
+        pair_acc, pair_depth, layout, guard_spectrum, wrap_tolerance, display,
     )
     df_guard = 30.0 / (radius * margin)
     reasons.append(
@@ -767,7 +862,7 @@ def plan_sampling(
                 f"freq_step_cpd={df} aliases: the scene's blur ({radius:.1f} arcmin) needs "
                 f"freq_step_cpd <= {df_guard * margin:.3g} cpd")
         sampling = Sampling(df, edge_width_samples=edge_width_samples)
-        bands = wavelength_bands(wl, layout.window_diameter_mm, pupil_diameter_mm, sampling)
+        bands = wavelength_bands(wl, window_mm, pupil_diameter_mm, sampling)
         reasons.append(f"field guard only (estimate_accuracy=False): df {df:.4g} cpd")
         errors.update(pupil=float("nan"), psf_wrap=float("nan"), total=float("nan"))
         return Plan(sampling, tuple(float(x) for x in wl), order_kept, float(radius),
@@ -819,7 +914,7 @@ def plan_sampling(
         n_modes = min(n_modes, n_modes_for_order(order_kept))
     n_states = scene.accommodation.size
     fft_sampling = Sampling(df_fft, edge_width_samples=edge_width_samples)
-    fft_bands = wavelength_bands(wl, layout.window_diameter_mm, pupil_diameter_mm, fft_sampling)
+    fft_bands = wavelength_bands(wl, window_mm, pupil_diameter_mm, fft_sampling)
     cost = {"fft": _cost_s(fft_bands, layout.n_subapertures, n_states, n_modes, fft_sampling)}
     mft_plan = None
     if transform in ("auto", "mft") and mft_field is not None:
@@ -839,7 +934,7 @@ def plan_sampling(
             if e <= mft_budget or mft_pupil_samples is not None:
                 s = Sampling(df_mft, edge_width_samples=edge_width_samples, transform="mft",
                              mft_pupil_samples=m)
-                bands = wavelength_bands(wl, layout.window_diameter_mm, pupil_diameter_mm, s)
+                bands = wavelength_bands(wl, window_mm, pupil_diameter_mm, s)
                 mft_plan = (s, e, mft_field[1], bands)
                 cost["mft"] = _cost_s(bands, layout.n_subapertures, n_states, n_modes, s)
                 break

@@ -161,6 +161,7 @@ def blur_radius_arcmin(
     lf_mismatch_D: np.ndarray,
     max_wavelength_nm: float,
     aberration_slope_rad: float = 0.0,
+    display=None,
 ) -> float:
     """Largest distance (arcmin) from the origin that the rendered PSF reaches.
 
@@ -168,15 +169,28 @@ def blur_radius_arcmin(
     CDP, incl. LCA) images to a disc of radius |D| d_n/2 centred at −(D − D_lf) p_n, where
     D_lf = (depth − CDP) is the display's shift; three Airy radii of the smallest
     subaperture are added, and the eye's largest aberration ray angle.
+
+    A real display (``display``, :class:`lfjax.display.DisplayOptics`) adds: with lenslet
+    diffraction, beams that may fill the pupil (defocus blur over the pupil, not the
+    subaperture) — their angular spread needs nothing more, because Fresnel propagation
+    multiplies the aperture's angular spectrum by a unit-modulus factor, so a diffracted
+    beam holds the angles the geometric subaperture's Airy term already bounds; finite
+    pixels, half the emitter's diagonal.
     """
     centres = np.asarray(centres_mm, float).reshape(-1, 2)
     diam = np.minimum(np.asarray(diameters_mm, float).reshape(-1), pupil_diameter_mm)
     dist = np.minimum(np.hypot(centres[:, 0], centres[:, 1]), 0.5 * pupil_diameter_mm)
     d = np.abs(np.asarray(relative_defocus_D, float)).max(initial=0.0)
     mism = np.abs(np.asarray(lf_mismatch_D, float)).max(initial=0.0)
-    geometric = (mism * dist + d * 0.5 * diam).max() * 1e-3  # rad (D in 1/m, mm → m)
+    beam = diam
+    extra = 0.0
+    if display is not None:
+        if display.diffracts:
+            beam = np.full_like(diam, pupil_diameter_mm)
+        extra = float(display.pixel_width_arcmin) / math.sqrt(2.0) / ARCMIN_PER_RADIAN
+    geometric = (mism * dist + d * 0.5 * beam).max() * 1e-3  # rad (D in 1/m, mm → m)
     airy = 3.0 * 1.22 * max_wavelength_nm * 1e-6 / diam.min()
-    return (geometric + airy + aberration_slope_rad) * ARCMIN_PER_RADIAN
+    return (geometric + airy + aberration_slope_rad + extra) * ARCMIN_PER_RADIAN
 
 
 def check_field(sampling: Sampling, radius_arcmin: float, what: str) -> None:

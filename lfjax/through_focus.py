@@ -13,6 +13,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .display import DisplayOptics
 from .eyes import Eyes
 from .layouts import Layout, open_pupil
 from .metrics import cutoff_frequency
@@ -196,7 +197,7 @@ def _used_states(grid, index, allowed):
 
 
 def _planned_sampling(eyes: Eyes, layout: Layout, depths, pairs, pupil_diameter_mm, cdp_D,
-                      spectrum: Spectrum, options: ModelOptions) -> Sampling:
+                      spectrum: Spectrum, options: ModelOptions, display=None) -> Sampling:
     """The planner's field guard for this scene (milliseconds; no accuracy proxy)."""
     from .planner import plan_sampling
 
@@ -206,7 +207,7 @@ def _planned_sampling(eyes: Eyes, layout: Layout, depths, pairs, pupil_diameter_
         accommodation_window_D=None, wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
         eyes_zernike_um=np.asarray(eyes.zernike_um), measured_pupil_mm=eyes.measured_pupil_mm,
         options=options, estimate_accuracy=False,
-        pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)),
+        pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)), display=display,
     ).sampling
 
 
@@ -227,6 +228,7 @@ def through_focus(
     continuous_peaks: tuple = (),
     peak_method: str = "auto",
     refine_second_peaks: bool = True,
+    display: DisplayOptics | None = None,
 ) -> ThroughFocus:
     """VSOTF, Strehl and radial MTF through focus for eyes × depths × accommodation states.
 
@@ -257,6 +259,9 @@ def through_focus(
         VSOTF, golden section for the Strehl ratio)
     refine_second_peaks : refine second local maxima too (default; see
         :func:`lfjax.peaks.accommodation_peaks`); False halves the refinement's cost
+    display : :class:`lfjax.display.DisplayOptics`, optional — lenslet diffraction and
+        finite pixels of a real display (default: the paper's ideal display). The VSOTF and
+        Strehl reference stays the ideal display's, so values compare across displays.
 
     Elemental OTFs are computed once per distinct absolute state and reused by every depth.
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
@@ -294,20 +299,20 @@ def through_focus(
     pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
     if sampling is None:
         sampling = _planned_sampling(eyes, layout, depths, pairs, pupil_diameter_mm, cdp_D,
-                                     spectrum, options)
+                                     spectrum, options, display)
     elif check_aliasing:
         _field_check(
             eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D, grid, depths,
-            layout, spectrum, sampling, pairs=pairs,
+            layout, spectrum, sampling, pairs=pairs, display=display,
         )
     _check_layout(layout)
     # Every input was checked here on the host: the compiled program needs no traced checks
     # (host callbacks), so JAX's persistent compilation cache can keep it across processes.
     config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
                                   float(pupil_diameter_mm), sampling, options, eye_chunk,
-                                  traced_checks=False)
+                                  traced_checks=False, display=display)
     metrics, peaks = _metrics_and_peaks(
-        eyes, Scene.from_layout(layout, depths, cdp_D, pupil_diameter_mm), spectrum,
+        eyes, Scene.from_layout(layout, depths, cdp_D, pupil_diameter_mm, display), spectrum,
         Accommodation.shared(grid, index, options, pupil_diameter_mm), config, allowed,
         continuous_peaks, peak_method, refine_second_peaks,
     )
@@ -346,14 +351,16 @@ def metrics_at(
     spectrum: Spectrum | None = None,
     sampling: Sampling | None = None,
     options: ModelOptions = ModelOptions(),
+    display: DisplayOptics | None = None,
 ):
     """VSOTF and Strehl at given (depth, accommodation) pairs — differentiable in everything.
 
     Unlike :func:`through_focus` (a host-side grid with the hyperopic limit), this is a pure
     function of arrays: ``jax.jit``, ``jax.vmap`` and ``jax.grad`` apply from outside, and
     gradients flow to the eyes' Zernike coefficients, ``depths_D``, ``accommodation_D``,
-    ``pupil_diameter_mm``, ``cdp_D`` and the layout's centres and diameters — the building
-    block of peak finders and layout optimisers. Window sizes are static: they come from
+    ``pupil_diameter_mm``, ``cdp_D``, the layout's centres and diameters and the display's
+    optics (``display``: Fresnel distance, pixel width; see :mod:`lfjax.display`) — the
+    building block of peak finders and layout optimisers. Window sizes are static: they come from
     ``layout.window_diameter_mm`` and, when ``pupil_diameter_mm`` is traced, the eyes'
     measured pupil. Concrete inputs are checked on the host (values, aliasing); traced ones
     inside the pipeline (``eqx.error_if``).
@@ -385,10 +392,11 @@ def metrics_at(
         pairs = (acc.ravel(), np.broadcast_to(depth[:, None], acc.shape).ravel())
         if sampling is None:
             sampling = _planned_sampling(eyes, layout, depth, pairs, pupil_diameter_mm, cdp_D,
-                                         spectrum, options)
+                                         spectrum, options, display)
         else:
             _field_check(eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
-                         acc.ravel(), depth, layout, spectrum, sampling, pairs=pairs)
+                         acc.ravel(), depth, layout, spectrum, sampling, pairs=pairs,
+                         display=display)
     elif sampling is None:
         raise ValueError(
             "sampling must be given when depths_D, accommodation_D, cdp_D or pupil_diameter_mm "
@@ -398,8 +406,8 @@ def metrics_at(
     pupil_static = (float(pupil_diameter_mm) if _is_concrete(pupil_diameter_mm)
                     else float(eyes.measured_pupil_mm))
     config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
-                                  pupil_static, sampling, options)
-    scene = Scene.from_layout(layout, depths_D, cdp_D, pupil_diameter_mm)
+                                  pupil_static, sampling, options, display=display)
+    scene = Scene.from_layout(layout, depths_D, cdp_D, pupil_diameter_mm, display)
     accommodation = Accommodation.per_depth(accommodation_D, options, pupil_diameter_mm)
     return vsotf_and_strehl(eyes, scene, spectrum, accommodation, config)
 

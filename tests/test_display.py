@@ -1,0 +1,256 @@
+"""Display effects (lfjax.display): lenslet diffraction and finite pixels against their limits,
+analytic Fresnel diffraction, finite-difference gradients and bad input."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.special
+
+import lfjax
+from lfjax import planner
+from lfjax.display import DisplayOptics, LensletArray, fresnel_propagate, lenslets_for_layout
+from lfjax.optics import polychromatic_otf
+from lfjax.through_focus import metrics_at, through_focus
+
+WL = [550.0]
+OPTIONS = lfjax.ModelOptions()
+
+
+def _soft_disc(n, dx, radius, edge):
+    from lfjax.optics import soft_disk
+
+    k = (np.arange(n) - n // 2) * dx
+    xx, yy = np.meshgrid(k, k)
+    return soft_disk(jnp.asarray(xx**2 + yy**2), radius, edge), k
+
+
+@pytest.mark.parametrize("fresnel_number", [0.5, 1.0, 1.5, 2.5])
+def test_pinhole_on_axis_matches_the_analytic_fresnel_integral(fresnel_number):
+    """A circular aperture of radius R at distance z has on-axis field 1 − exp(iπR²/(λz))
+    (Goodman §4.5): zero at even Fresnel numbers N = R²/(λz), a bright spot of amplitude 2
+    at odd ones."""
+    radius, lam = 0.5, 550e-6
+    z = radius**2 / (lam * fresnel_number)
+    n, dx = 256, 1.4 / 256
+    aperture, _ = _soft_disc(n, dx, radius, 0.25 * dx)
+    field = fresnel_propagate(aperture.astype(complex), dx, lam, z)
+    expected = 1.0 - np.exp(1j * math.pi * fresnel_number)
+    np.testing.assert_allclose(complex(field[n // 2, n // 2]), expected, atol=6e-3)
+
+
+def test_square_aperture_matches_the_fresnel_integrals_off_axis():
+    """A square (slit × slit) diffracts separably: a(x)·a(y), a(x) = ([C] + i[S])/√(2i) of the
+    Fresnel integrals between the edges (scipy.special.fresnel), along a whole profile."""
+    half, lam, z = 0.4, 550e-6, 250.0  # Fresnel number 1.16 per half-width
+    n, dx = 256, 1.6 / 256
+    k = (np.arange(n) - n // 2) * dx
+    xx, yy = np.meshgrid(k, k)
+    edge = 0.25 * dx
+    inside = np.minimum(half - np.abs(xx), half - np.abs(yy))
+    aperture = jax.nn.sigmoid(jnp.asarray(inside) / edge)
+    field = np.asarray(fresnel_propagate(aperture.astype(complex), dx, lam, z))
+
+    def slit(x):
+        scale = math.sqrt(2.0 / (lam * z))
+        s2, c2 = scipy.special.fresnel(scale * (half - x))
+        s1, c1 = scipy.special.fresnel(scale * (-half - x))
+        return ((c2 - c1) + 1j * (s2 - s1)) / np.sqrt(2j)
+
+    central = np.abs(k) <= 0.55
+    expected = slit(k[central]) * slit(0.0)
+    np.testing.assert_allclose(field[n // 2, central], expected, atol=8e-3)
+    # and the window keeps the energy the analytic pattern puts inside it (≈ 94.5 %: the rest
+    # leaves the window and is not wrapped back in)
+    inside = (np.sum(np.abs(slit(k)) ** 2) * dx / (2 * half)) ** 2
+    assert inside < 0.96
+    assert np.sum(np.abs(field) ** 2) / np.sum(np.abs(np.asarray(aperture)) ** 2) == pytest.approx(inside, rel=1e-2)
+
+
+def _vsotf(display, layout=None, sampling=lfjax.Sampling(1.2, edge_width_samples=0.25)):
+    layout = lfjax.grid_layout(2, 3.0) if layout is None else layout
+    eye = lfjax.average_eye(3.0)
+    acc = np.array([[0.6, 1.0, 1.4], [1.6, 2.0, 2.4]])
+    return np.asarray(metrics_at(eye, layout, [1.0, 2.0], acc, 3.0, 2.0,
+                                 lfjax.make_spectrum(WL), sampling, OPTIONS, display)[0])
+
+
+def test_large_ideal_lenslet_converges_to_the_geometric_subaperture():
+    """As the Fresnel number grows (a nearer display for the same views), the diffracted
+    views' through-focus VSOTF converges to the paper's geometric subapertures."""
+    ideal = _vsotf(None)
+    errors = []
+    for distance in (300.0, 30.0, 3.0, 0.3):
+        lenslets = lenslets_for_layout(2, 3.0, 2.0, distance)
+        errors.append(np.abs(_vsotf(lenslets.optics()) - ideal).max())
+    assert errors[0] > 0.01  # a desktop display at 30 cm diffracts visibly (N ≈ 1.4)
+    assert all(b < a for a, b in zip(errors, errors[1:])), errors
+    assert errors[-1] < 3e-3, errors
+
+
+def test_diffraction_off_and_zero_pixels_change_nothing():
+    """An ideal DisplayOptics (diffraction off, point emitters) is the paper's display,
+    bit for bit; so is a lenslet array's optics with 0 mm pixels and diffraction off."""
+    ideal = _vsotf(None)
+    np.testing.assert_array_equal(_vsotf(DisplayOptics()), ideal)
+    optics = lenslets_for_layout(2, 3.0, 2.0, 300.0).optics(0.0, diffraction="off")
+    np.testing.assert_array_equal(_vsotf(optics), ideal)
+
+
+def test_pixels_multiply_the_otf_by_the_emitter_sinc():
+    """A square emitter of angular width a multiplies the rendered OTF by sinc(a f_x)·sinc(a f_y)."""
+    eye = lfjax.average_eye(3.0)
+    sampling = lfjax.Sampling(2.0)
+    spectrum = lfjax.make_spectrum(WL)
+    width_arcmin = 1.5
+    base = polychromatic_otf(eye, [2.0], 3.0, 2.0, spectrum, sampling, OPTIONS)
+    blurred = polychromatic_otf(eye, [2.0], 3.0, 2.0, spectrum, sampling, OPTIONS,
+                                display=DisplayOptics(pixel_width_arcmin=width_arcmin))
+    n = base.n_fft
+    a_deg = width_arcmin / 60.0
+    fy = np.fft.fftfreq(n, 1.0 / n) * sampling.freq_step_cpd
+    fx = np.fft.rfftfreq(n, 1.0 / n) * sampling.freq_step_cpd
+    expected = np.sinc(a_deg * fy)[:, None] * np.sinc(a_deg * fx)[None, :]
+    np.testing.assert_allclose(np.asarray(blurred.otf)[0, 0, 0],
+                               np.asarray(base.otf)[0, 0, 0] * expected, atol=1e-12)
+
+
+def test_pixels_and_diffraction_are_differentiable():
+    """d VSOTF / d (Fresnel distance, pixel width) and through a LensletArray d / d (focal
+    length, pitch, distance) against central finite differences (float64)."""
+    eye = lfjax.average_eye(3.0)
+    sampling = lfjax.Sampling(1.3)
+    spectrum = lfjax.make_spectrum(WL)
+    acc = jnp.array([[1.2, 1.6]])
+
+    def from_optics(z_eff, width):
+        display = DisplayOptics("fresnel", "circle", z_eff, width)
+        return jnp.sum(metrics_at(eye, lfjax.grid_layout(2, 3.0), [1.4], acc, 3.0, 2.0, spectrum,
+                                  sampling, OPTIONS, display)[0])
+
+    base = (jnp.asarray(400.0), jnp.asarray(1.0))
+    grads = jax.grad(from_optics, argnums=(0, 1))(*base)
+    for i, h in ((0, 1.0), (1, 1e-3)):
+        plus = list(base)
+        minus = list(base)
+        plus[i] = plus[i] + h
+        minus[i] = minus[i] - h
+        fd = (from_optics(*plus) - from_optics(*minus)) / (2 * h)
+        assert float(grads[i]) == pytest.approx(float(fd), rel=2e-4, abs=1e-9)
+        assert abs(float(grads[i])) > 1e-6
+
+    lenslets = lenslets_for_layout(2, 3.0, 2.0, 300.0)
+
+    def from_array(array):
+        layout = array.layout(3.0, 2)
+        display = array.optics(0.01, 0.8)
+        return jnp.sum(metrics_at(eye, layout, [1.4], acc, 3.0, array.cdp_D, spectrum, sampling,
+                                  OPTIONS, display)[0])
+
+    grad = jax.grad(from_array)(lenslets)
+    for name, h in (("focal_length_mm", 1e-4), ("pitch_mm", 1e-5), ("distance_mm", 1e-2)):
+        value = float(getattr(lenslets, name))
+
+        def at(v, name=name):
+            return from_array(eqx_replace(lenslets, name, v))
+
+        fd = (at(value + h) - at(value - h)) / (2 * h)
+        assert float(getattr(grad, name)) == pytest.approx(float(fd), rel=1e-3, abs=1e-9), name
+
+
+def eqx_replace(module, name, value):
+    import equinox as eqx
+
+    return eqx.tree_at(lambda m: getattr(m, name), module, jnp.asarray(value))
+
+
+def test_lenslet_geometry():
+    """The array built for a layout gives back its CDP and view pitch (Eq. 1 at the CDP);
+    a collimating lenslet (gap = f) puts the CDP at infinity with M = 1; a pinhole (f = ∞)
+    at the panel, with pixel angle w/(z_0·M) = w/L."""
+    lenslets = lenslets_for_layout(3, 3.0, 2.0, 300.0)
+    assert float(lenslets.cdp_D) == pytest.approx(2.0, rel=1e-9)
+    assert float(lenslets.subaperture_pitch_mm) == pytest.approx(1.0, rel=1e-9)
+    assert float(lenslets.fresnel_distance_mm) == pytest.approx(300.0 * 500.0 / 200.0, rel=1e-9)
+    collimating = LensletArray(0.5, 0.5, 2.0, 2.0, 30.0)
+    assert float(collimating.cdp_D) == 0.0 and float(collimating.magnification) == 1.0
+    assert float(collimating.pixel_width_arcmin(0.01)) == pytest.approx(0.01 / 2.0 * 60 * 180 / math.pi)
+    pinhole = LensletArray(0.5, 0.1, jnp.inf, 5.0, 295.0)
+    assert float(pinhole.cdp_D) == pytest.approx(1000.0 / 300.0)
+    assert float(pinhole.pixel_width_arcmin(0.01)) == pytest.approx(0.01 / 300.0 * 60 * 180 / math.pi)
+
+
+def test_the_field_guard_knows_the_display_blur():
+    """Pixels widen the PSF by half their diagonal and diffracted beams defocus over the
+    whole pupil: the planner's field guard asks for a finer step than for the ideal display."""
+    layout = lfjax.grid_layout(4, 3.0)
+    kwargs = dict(layout=layout, depths_D=[1.0, 3.0], wavelengths_nm=[450.0, 550.0, 650.0],
+                  estimate_accuracy=False)
+    ideal = planner.plan_sampling(**kwargs)
+    pixels = planner.plan_sampling(**kwargs, display=DisplayOptics(pixel_width_arcmin=10.0))
+    diffracted = planner.plan_sampling(**kwargs, display=DisplayOptics("fresnel", fresnel_distance_mm=500.0))
+    assert pixels.blur_radius_arcmin == pytest.approx(ideal.blur_radius_arcmin + 10.0 / math.sqrt(2))
+    assert diffracted.blur_radius_arcmin > ideal.blur_radius_arcmin
+    with pytest.raises(ValueError, match="aliasing"):
+        through_focus(lfjax.average_eye(3.0), layout, [1.0, 3.0], spectrum=lfjax.make_spectrum(WL),
+                      sampling=lfjax.Sampling(ideal.sampling.freq_step_cpd * 0.999),
+                      display=DisplayOptics(pixel_width_arcmin=30.0))
+
+
+@pytest.mark.parametrize("display", [
+    DisplayOptics("fresnel", "circle", 400.0, 0.0),
+    DisplayOptics("modulus", "square", 400.0, 2.0),
+    DisplayOptics("off", "square", 1.0, 3.0),
+], ids=["fresnel", "modulus-square-pixels", "square-pixels"])
+def test_proxy_vsotf_equals_the_pipeline_with_display_effects(display):
+    """The planner's proxy models lenslet diffraction, square apertures and pixels exactly as
+    the pipeline does (aberration-free eye), so its error estimates stay the pipeline's."""
+    layout = lfjax.grid_layout(2, 3.0)
+    depths, states = [1.0, 3.0], np.array([0.6, 1.0, 2.6, 3.0])
+    spectrum = lfjax.make_spectrum([500.0, 600.0])
+    df = 1.3
+    tf = through_focus(lfjax.eyes.aberration_free_eye(), layout, depths, states, 3.0,
+                       spectrum=spectrum, sampling=lfjax.Sampling(df), check_aliasing=False,
+                       display=display)
+    acc, dep = np.meshgrid(states, depths)
+    scene = planner._Scene(layout, 3.0, 2.0, acc.ravel(), dep.ravel(), OPTIONS, display)
+    ours = planner._Proxy(scene, spectrum, 0.25).vsotf(df, (acc.ravel(), dep.ravel()))
+    np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), atol=1e-5)
+
+
+@pytest.mark.parametrize("build, match", [
+    (lambda: LensletArray(0.5, 0.5, 0.0, 1.0, 300.0), "focal_length_mm"),
+    (lambda: LensletArray(0.5, 0.5, -2.0, 1.0, 300.0), "focal_length_mm"),
+    (lambda: LensletArray(0.5, 0.6, 2.0, 1.0, 300.0), "aperture_mm"),
+    (lambda: LensletArray(0.5, 0.5, 2.0, 2.5, 300.0), "gap_mm"),
+    (lambda: LensletArray(0.5, 0.5, 2.0, 1.0, 300.0).optics(0.6), "pixel_pitch_mm"),
+    (lambda: LensletArray(0.5, 0.5, 2.0, 1.0, 300.0).optics(0.01, 1.5), "fill_factor"),
+    (lambda: DisplayOptics("fresnel", fresnel_distance_mm=0.0), "fresnel_distance_mm"),
+    (lambda: DisplayOptics(pixel_width_arcmin=-1.0), "pixel_width_arcmin"),
+    (lambda: DisplayOptics("wave"), "diffraction"),
+    (lambda: DisplayOptics(aperture="hexagon"), "aperture"),
+    (lambda: lenslets_for_layout(2, 3.0, 4.0, 300.0), "cdp_D"),
+])
+def test_bad_display_input_names_the_parameter(build, match):
+    with pytest.raises(ValueError, match=match):
+        build()
+
+
+def test_traced_bad_display_values_do_not_pass_silently():
+    """Inside jit the display's values are checked with eqx.error_if, not turned into NaN."""
+    eye = lfjax.average_eye(3.0)
+    spectrum = lfjax.make_spectrum(WL)
+
+    @jax.jit
+    def run(z_eff):
+        display = DisplayOptics("fresnel", "circle", z_eff, 0.0)
+        return metrics_at(eye, lfjax.grid_layout(2, 3.0), [2.0], jnp.array([[2.0]]), 3.0, 2.0,
+                          spectrum, lfjax.Sampling(1.3), OPTIONS, display)[0]
+
+    assert np.all(np.isfinite(np.asarray(run(400.0))))
+    with pytest.raises(Exception, match="fresnel_distance_mm"):
+        jax.block_until_ready(run(-1.0))

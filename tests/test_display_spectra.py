@@ -1,0 +1,107 @@
+"""Display spectra (lfjax.display_spectra): emission × V(λ) on the fewest wavelengths that
+carry it, white balance, the built-in displays' wavelength counts, and bad input."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from lfjax import display_spectra as ds
+from lfjax import spectral
+from lfjax.options import ModelOptions
+
+# The module docstring's table: wavelengths per (display, channel), default options.
+COUNTS = {
+    "crt": (27, 31, 20, 24),
+    "lcd": (25, 18, 17, 14),
+    "oled": (27, 10, 10, 9),
+    "laser": (3, 1, 1, 1),
+}
+
+
+def _spectrum(name, channel, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # CRT red's far-red tail (tested below)
+        return ds.display_spectrum(name, channel, **kwargs)
+
+
+@pytest.mark.parametrize("name", ds.DISPLAY_NAMES)
+def test_builtin_wavelength_counts_match_the_docstring(name):
+    counts = tuple(_spectrum(name, c).n_wavelengths for c in ds.CHANNELS)
+    assert counts == COUNTS[name]
+
+
+@pytest.mark.parametrize("name", ds.DISPLAY_NAMES)
+def test_white_mix_keeps_the_photometric_centroid_and_weight(name):
+    """Σw = 1 and Σwλ within 0.1 nm of the fine grid's emission × V(λ) centroid."""
+    primaries = ds.display_primaries(name)
+    drive = ds.channel_drive(primaries, "white")
+    wl = primaries.wavelengths_nm
+    inside = (wl >= 400.0) & (wl <= 700.0)
+    wl = wl[inside]
+    fine = (primaries.emission @ drive)[inside] * spectral.luminous_efficiency(wl)
+    inside = np.ones(wl.size, bool)
+    centroid = np.sum(fine[inside] * wl[inside]) / np.sum(fine[inside])
+    s = _spectrum(name, "white")
+    w, lam = np.asarray(s.weights), np.asarray(s.wavelengths_nm)
+    assert w.sum() == pytest.approx(1.0, abs=1e-12)
+    assert np.all(np.diff(lam) > 0) and lam.min() >= 400.0 and lam.max() <= 700.0
+    assert np.sum(w * lam) == pytest.approx(centroid, abs=0.1)
+
+
+@pytest.mark.parametrize("name", ["crt", "lcd", "oled"])
+def test_white_drive_has_the_d65_chromaticity(name):
+    primaries = ds.display_primaries(name)
+    drive = ds.channel_drive(primaries, "white")
+    assert np.all(drive > 0)
+    X, Y, Z = ds.emission_XYZ(primaries.wavelengths_nm, primaries.emission @ drive)
+    assert Y == pytest.approx(1.0, rel=1e-9)
+    assert (X / (X + Y + Z), Y / (X + Y + Z)) == pytest.approx(ds.D65_XY, abs=1e-9)
+
+
+def test_laser_lines_are_one_wavelength_each():
+    s = _spectrum("laser", "white")
+    np.testing.assert_allclose(np.sort(np.asarray(s.wavelengths_nm)), sorted(ds.LASER_PEAKS_NM), atol=0.5)
+    for channel, peak in zip(("red", "green", "blue"), ds.LASER_PEAKS_NM):
+        assert float(_spectrum("laser", channel).wavelengths_nm[0]) == pytest.approx(peak, abs=0.5)
+
+
+def test_user_spectrum_on_the_cell_grid_is_kept_unchanged():
+    """Flat emission sampled on 400–700 nm at 10 nm, no tolerance: the paper's V(λ) spectrum."""
+    wl = np.arange(400.0, 701.0, 10.0)
+    s = ds.user_spectrum(wl, np.ones_like(wl), weight_tolerance=0.0, step_nm=10.0)
+    reference = spectral.make_spectrum(wl)
+    np.testing.assert_allclose(np.asarray(s.wavelengths_nm), wl, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(s.weights), np.asarray(reference.weights), rtol=1e-9)
+
+
+def test_narrow_primaries_need_fewer_wavelengths_than_a_broad_spectrum():
+    """"Model no more than a scene needs": a single OLED primary is a third of the paper's 31
+    wavelengths, a laser line one."""
+    assert _spectrum("oled", "green").n_wavelengths <= 10 < spectral.make_spectrum().n_wavelengths
+    assert _spectrum("laser", "green").n_wavelengths == 1
+
+
+def test_weight_outside_the_computed_range_is_merged_with_a_warning():
+    with pytest.warns(UserWarning, match="outside the computed range"):
+        s = ds.display_spectrum("crt", "red")
+    assert float(np.max(np.asarray(s.wavelengths_nm))) <= 700.0
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: ds.user_spectrum([750.0, 760.0, 770.0], [1.0, 1.0, 1.0]), "computed range"),
+    (lambda: ds.user_spectrum([900.0, 910.0], [1.0, 1.0], ModelOptions(sce="off")), "no weight"),
+    (lambda: ds.user_spectrum([500.0, 490.0], [1.0, 1.0]), "strictly increasing"),
+    (lambda: ds.user_spectrum([500.0, 510.0], [1.0, -1.0]), "non-negative"),
+    (lambda: ds.display_spectrum("plasma"), "allowed"),
+    (lambda: ds.display_spectrum("oled", "cyan"), "allowed"),
+    (lambda: ds.display_spectrum("oled", [0.0, 0.0, 0.0]), "not all zero"),
+    (lambda: ds.display_spectrum("oled", weight_tolerance=1.0), "weight_tolerance"),
+    (lambda: ds.gaussian_primaries([620.0, 530.0, 300.0], 30.0), "peaks_nm"),
+    (lambda: ds.gaussian_primaries([620.0, 530.0, 460.0], 0.0), "fwhm_nm"),
+])
+def test_bad_spectrum_input_is_named(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
