@@ -6,11 +6,15 @@ differentiable JAX functions. Stage modules: :mod:`lfjax.zernike`, :mod:`lfjax.e
 :mod:`lfjax.spectral`, :mod:`lfjax.layouts`, :mod:`lfjax.optics`, :mod:`lfjax.metrics`,
 :mod:`lfjax.through_focus`, :mod:`lfjax.images`, :mod:`lfjax.planner`,
 :mod:`lfjax.pipeline` (the pure core), :mod:`lfjax.peaks`, :mod:`lfjax.layout_opt`;
+beyond the paper's ideal display: :mod:`lfjax.display` (lenslet diffraction, pixels),
+:mod:`lfjax.display_spectra` (display spectra), :mod:`lfjax.display_effects` (the study);
 :mod:`lfjax.reproduce` and :mod:`lfjax.cli` run the paper's study.
 """
 
 from importlib.metadata import PackageNotFoundError, version
 
+from . import display as display
+from . import display_spectra as display_spectra
 from . import eyes as eyes
 from . import layout_opt as layout_opt
 from . import layouts as layouts
@@ -24,6 +28,8 @@ from . import spectral as spectral
 from . import through_focus as through_focus
 from . import units as units
 from . import zernike as zernike
+from .display import DisplayOptics as DisplayOptics
+from .display import LensletArray as LensletArray
 from .eyes import Eyes as Eyes
 from .eyes import average_eye as average_eye
 from .eyes import sample_eyes as sample_eyes

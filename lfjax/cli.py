@@ -185,6 +185,15 @@ def build_parser() -> argparse.ArgumentParser:
                      help="a population sweep store (lfjax sweep): REPORT.md adds 'What ten "
                           "eyes cannot tell', how often random samples of N eyes from it "
                           "reproduce each claim, and ten_eyes.csv")
+    rep.add_argument("--display-effects", action="store_true",
+                     help="add the section 'Beyond the ideal display': lenslet diffraction, "
+                          "pixels and an OLED-like spectrum switched on one by one for 2x2, "
+                          "3x3 and 4x4 (on the average eye and the first --display-eyes "
+                          "eyes), and the 2x2 lenslet-size sweep; display_effects.csv, "
+                          "display_lenslet_sweep.csv and two figures")
+    rep.add_argument("--display-eyes", metavar="N", type=_count, default=2,
+                     help="virtual eyes (besides the average eye) in the display-effects "
+                          "section, 0 ... --eyes (default: 2; each costs minutes)")
     _add_optimise_parser(sub)
     _add_sweep_parser(sub)
     _add_sweep_report_parser(sub)
@@ -324,6 +333,14 @@ def _add_optimise_parser(sub) -> None:
     opt.add_argument("--wavelengths", metavar="NM", nargs="+", type=_finite_float,
                      default=[450.0, 550.0, 650.0],
                      help="wavelengths, nm, increasing, 400-700 (default 450 550 650)")
+    opt.add_argument("--display-distance", metavar="MM", type=_finite_float, default=None,
+                     help="optimise for a lenslet-array display at MM from the eye: each view "
+                          "is its lenslet's Fresnel pattern (default: the paper's ideal display)")
+    opt.add_argument("--pixel-arcmin", metavar="A", type=_finite_float, default=0.0,
+                     help="emitters of this angular width, arcmin (default 0: points)")
+    opt.add_argument("--spectrum", metavar="NAME", default=None,
+                     help="a display's white (crt, lcd, oled, laser) instead of the V(lambda)-"
+                          "weighted --wavelengths")
     opt.add_argument("--freq-step", metavar="CPD", type=_finite_float, default=None,
                      help="frequency step, cpd (default: the planner's aliasing guard for every "
                           "feasible layout)")
@@ -359,13 +376,17 @@ def _reproduce(args, t_start: float) -> int:
             from .reproduce import check_population
 
             check_population(args.population, config)
+        if args.display_effects and args.display_eyes > config.n_eyes:
+            raise ValueError(f"--display-eyes must be in 0 ... {config.n_eyes} (the study's eyes), "
+                             f"got {args.display_eyes}")
     except (OutputError, ValueError) as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     enable_compilation_cache()
     try:
         result = reproduce(args.out, config, force=args.force, progress=not args.no_progress,
-                           population_store=args.population)
+                           population_store=args.population,
+                           display_effects_eyes=args.display_eyes if args.display_effects else None)
     except KeyboardInterrupt:
         print(f"{prog}: interrupted; nothing written", file=sys.stderr)
         return 130
@@ -424,6 +445,20 @@ def _optimise_setup(args):
     except ValueError as err:
         raise ValueError(f"--views: {err}") from None
     depths = depth_grid(args.depths[0], args.depths[1], args.n_depths)
+    if not args.pixel_arcmin >= 0:
+        raise ValueError(f"--pixel-arcmin must be >= 0 arcmin, got {args.pixel_arcmin:g}")
+    if args.display_distance is not None:
+        from .display import display_optics_at
+
+        try:
+            display_optics_at(args.display_distance, args.cdp)
+        except ValueError as err:
+            raise ValueError(f"--display-distance: {err}") from None
+    if args.spectrum is not None:
+        from .display_spectra import DISPLAY_NAMES
+
+        if args.spectrum not in DISPLAY_NAMES:
+            raise ValueError(f"--spectrum must be one of {', '.join(DISPLAY_NAMES)}, got {args.spectrum!r}")
     return args.objective, constraints, depths, out
 
 
@@ -476,9 +511,20 @@ def run_optimise(args, objective, constraints, depths, out: Path, start) -> dict
         np.concatenate([np.asarray(train.zernike_um), np.asarray(test.zernike_um)]),
         train.measured_pupil_mm)
     sampling = None if args.freq_step is None else Sampling(args.freq_step)
+    display = spectrum = None
+    if args.display_distance is not None or args.pixel_arcmin > 0:
+        from .display import DisplayOptics, display_optics_at
+
+        display = (display_optics_at(args.display_distance, args.cdp, args.pixel_arcmin)
+                   if args.display_distance is not None
+                   else DisplayOptics(pixel_width_arcmin=args.pixel_arcmin))
+    if args.spectrum is not None:
+        from .display_spectra import display_spectrum
+
+        spectrum = display_spectrum(args.spectrum, "white", lo.ModelOptions(vsotf_reference="open_pupil"))
     problem = lo.make_problem(train, depths, constraints, objective, cdp_D=args.cdp,
                               wavelengths_nm=args.wavelengths, sampling=sampling,
-                              planning_eyes=planning)
+                              planning_eyes=planning, spectrum=spectrum, display=display)
     fit = lo.optimise_layout(start, problem, method=args.solver, max_steps=args.steps,
                              test_eyes=test, progress=not args.no_progress,
                              name=f"optimised-{args.parametrisation}-{args.views}")
@@ -499,7 +545,10 @@ def run_optimise(args, objective, constraints, depths, out: Path, start) -> dict
         "command": "lfjax " + " ".join(getattr(args, "argv", None) or ["optimise", "..."]),
         "seed_train": args.seed, "n_train_eyes": args.train_eyes,
         "seed_test": args.seed + 1 if test is not None else None, "n_test_eyes": args.test_eyes,
-        "depths_D": depths.tolist(), "cdp_D": args.cdp, "wavelengths_nm": list(args.wavelengths),
+        "depths_D": depths.tolist(), "cdp_D": args.cdp,
+        "wavelengths_nm": [float(w) for w in problem.spectrum.wavelengths_nm],
+        "spectrum": args.spectrum or "V(lambda) white",
+        "display_distance_mm": args.display_distance, "pixel_arcmin": args.pixel_arcmin,
         "freq_step_cpd": problem.config.freq_step_cpd, "solver": fit.method,
         "steps": fit.n_steps, "converged": fit.converged, "time_s": round(fit.time_s, 2),
         "constraints": constraints.as_dict(), "model_options": problem.options.as_dict(),

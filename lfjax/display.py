@@ -302,6 +302,25 @@ def lenslets_for_layout(n_per_side: int, pupil_diameter_mm: float, cdp_D: float,
     return LensletArray(pitch, fill * pitch, focal, gap, distance_mm, aperture, diffraction)
 
 
+def display_optics_at(distance_mm: float, cdp_D: float, pixel_width_arcmin: float = 0.0,
+                      diffraction: str = "fresnel", aperture: str = "circle") -> DisplayOptics:
+    """The :class:`DisplayOptics` of any lenslet array at ``distance_mm`` (mm, eye pupil to
+    lenslets) whose CDP lies at ``cdp_D`` (D): its Fresnel distance z_m·M with
+    M = L/(L − z_m), L = 1000/cdp_D mm, depends on neither the lenslets' size nor their
+    pitch, so one DisplayOptics serves every layout such an array can make (the layout
+    optimiser's and the sweep's). ``pixel_width_arcmin``: the emitters' angular width."""
+    if not (math.isfinite(distance_mm) and distance_mm > 0):
+        raise ValueError(f"display distance must be > 0 mm, got {distance_mm}")
+    if not (math.isfinite(cdp_D) and cdp_D >= 0):
+        raise ValueError(f"cdp_D must be >= 0 D, got {cdp_D}")
+    if cdp_D * distance_mm >= 1000.0:
+        raise ValueError(
+            f"a display at {distance_mm:g} mm cannot put its CDP at {cdp_D:g} D: the CDP is a "
+            f"virtual image behind the display, so the distance must be < {1000.0 / cdp_D:.4g} mm")
+    magnification = 1.0 / (1.0 - distance_mm * cdp_D / 1000.0)
+    return DisplayOptics(diffraction, aperture, distance_mm * magnification, pixel_width_arcmin)
+
+
 # ----------------------------------------------------------------------------- in the pipeline
 
 
@@ -389,6 +408,7 @@ __all__ = [
     "IDEAL_DISPLAY",
     "LensletArray",
     "lenslets_for_layout",
+    "display_optics_at",
     "fresnel_propagate",
     "fresnel_transfer_1d",
     "aperture_edge_distance",

@@ -110,6 +110,7 @@ import optimistix as optx
 from jaxtyping import Array, Float
 
 from ._types import as_real_array as _real
+from .display import DisplayOptics
 from .eyes import Eyes
 from .layouts import Layout, make_layout
 from .options import ModelOptions
@@ -790,6 +791,7 @@ class LayoutProblem(eqx.Module):
     reference : open-pupil VSOTF/Strehl normalisers (independent of the layout)
     config, objective, constraints, options : static
     window_D : static, accommodation offsets (± D) the sampling was planned for
+    display : the display's optics (lenslet diffraction, pixels) or None (ideal display)
     """
 
     eyes: Eyes
@@ -803,6 +805,7 @@ class LayoutProblem(eqx.Module):
     constraints: Constraints = eqx.field(static=True)
     options: ModelOptions = eqx.field(static=True)
     window_D: float = eqx.field(static=True)
+    display: DisplayOptics | None = None
 
     @property
     def pupil_diameter_mm(self) -> float:
@@ -824,11 +827,11 @@ class LayoutProblem(eqx.Module):
         return LayoutProblem(self.eyes, self.spectrum, self.depths_D, self.cdp_D,
                              self.accommodation, self.reference, self.config,
                              objective, self.constraints, self.options,
-                             self.window_D)
+                             self.window_D, self.display)
 
     def scene(self, layout) -> Scene:
         return Scene(layout.centres_mm, layout.diameters_mm, self.cdp_D, self.depths_D,
-                     self.pupil_diameter_mm)
+                     self.pupil_diameter_mm, self.display)
 
 
 def depth_grid(low_D: float, high_D: float, n_depths: int) -> np.ndarray:
@@ -873,7 +876,8 @@ def envelope_layout(constraints: Constraints) -> Layout:
 
 def guard_sampling(constraints: Constraints, depths_D, cdp_D: float, wavelengths_nm, eyes_zernike_um=None,
                    measured_pupil_mm: float = 3.0, window_D: float = 0.5,
-                   options: ModelOptions = ModelOptions(vsotf_reference="open_pupil")) -> Sampling:
+                   options: ModelOptions = ModelOptions(vsotf_reference="open_pupil"),
+                   display: DisplayOptics | None = None, spectral_weights=None) -> Sampling:
     """Frequency sampling whose aliasing guard holds for every feasible layout: the
     planner's guard (``estimate_accuracy=False``) on :func:`envelope_layout`, for
     accommodation within ±``window_D`` of each depth."""
@@ -884,6 +888,7 @@ def guard_sampling(constraints: Constraints, depths_D, cdp_D: float, wavelengths
         cdp_D=float(cdp_D), depths_D=_check_depths(depths_D), accommodation_window_D=window_D,
         wavelengths_nm=np.asarray(wavelengths_nm, float), eyes_zernike_um=eyes_zernike_um,
         measured_pupil_mm=measured_pupil_mm, options=options, estimate_accuracy=False,
+        display=display, spectral_weights=spectral_weights,
     )
     return plan.sampling
 
@@ -893,7 +898,8 @@ def make_problem(
     *, cdp_D: float = 2.0, wavelengths_nm=DEFAULT_WAVELENGTHS_NM,
     options: ModelOptions = ModelOptions(vsotf_reference="open_pupil"),
     sampling: Sampling | None = None, window_D: float = 0.5, planning_eyes: Eyes | None = None,
-    eye_chunk: int | None = None,
+    eye_chunk: int | None = None, spectrum: Spectrum | None = None,
+    display: DisplayOptics | None = None,
 ) -> LayoutProblem:
     """A layout-optimisation problem, validated on the host.
 
@@ -911,7 +917,14 @@ def make_problem(
         union with the held-out eyes so one sampling serves both)
     window_D : accommodation offsets (D) the default sampling must cover (≥ the peak bracket)
     eye_chunk : eyes evaluated together inside the pipeline's map (None: one at a time)
+    spectrum : a :class:`~lfjax.spectral.Spectrum` instead of ``wavelengths_nm`` (e.g. a
+        display's, :func:`lfjax.display_spectra.display_spectrum`)
+    display : :class:`~lfjax.display.DisplayOptics` of a real display (lenslet diffraction,
+        pixels; e.g. ``LensletArray.optics()``) the layout is optimised for; default the
+        paper's ideal display. The reference stays the ideal open pupil.
     """
+    if display is not None and not isinstance(display, DisplayOptics):
+        raise ValueError(f"display must be lfjax.display.DisplayOptics or None, got {type(display).__name__}")
     if options.vsotf_reference != "open_pupil":
         raise ValueError(
             "layout objectives need ModelOptions(vsotf_reference='open_pupil'): the paper's "
@@ -931,14 +944,19 @@ def make_problem(
     window_D = _finite_scalar("window_D", window_D, 0.0, None, lo_open=True)
     if "accommodation" in objective.active and objective.bracket_D > window_D + 1e-12:
         raise ValueError(f"window_D = {window_D:g} D must cover the peak bracket ±{objective.bracket_D:g} D")
-    wl = np.atleast_1d(np.asarray(wavelengths_nm, float))
-    spectrum = make_spectrum(wl, options)
+    if spectrum is None:
+        wl = np.atleast_1d(np.asarray(wavelengths_nm, float))
+        spectrum = make_spectrum(wl, options)
+    elif not isinstance(spectrum, Spectrum):
+        raise ValueError(f"spectrum must be lfjax.Spectrum or None, got {type(spectrum).__name__}")
+    wl = np.asarray(spectrum.wavelengths_nm, float)
     if sampling is None:
         plan_eyes = eyes if planning_eyes is None else planning_eyes
         sampling = guard_sampling(constraints, depths, cdp, wl, np.asarray(plan_eyes.zernike_um),
-                                  plan_eyes.measured_pupil_mm, window_D, options)
+                                  plan_eyes.measured_pupil_mm, window_D, options, display,
+                                  np.asarray(spectrum.weights))
     config = PipelineConfig.build(wl, constraints.max_diameter_mm, constraints.pupil_diameter_mm,
-                                  sampling, options, eye_chunk)
+                                  sampling, options, eye_chunk, display=display)
     accommodation = Accommodation.per_depth(depths[:, None], options, constraints.pupil_diameter_mm)
     dtype = jnp.result_type(float)
     cdp_arr, depths_arr = jnp.asarray(cdp, dtype), jnp.asarray(depths, dtype)
@@ -948,7 +966,7 @@ def make_problem(
     reference = _reference_jit(any_layout, spectrum, accommodation, config)
     return LayoutProblem(eyes, spectrum, depths_arr, cdp_arr, accommodation,
                          tuple(jax.lax.stop_gradient(r) for r in reference), config, objective,
-                         constraints, options, window_D)
+                         constraints, options, window_D, display)
 
 
 _reference_jit = eqx.filter_jit(reference_normalisers)
@@ -991,7 +1009,8 @@ def resolution(metrics: RetinalMetrics, problem: LayoutProblem):
 def _peak_vsotf(a, args):
     """VSOTF of one eye (zernike_um) rendering one depth through a layout, at accommodation a."""
     zernike_um, depth, centres, diameters, problem = args
-    scene = Scene(centres, diameters, problem.cdp_D, depth[None], problem.pupil_diameter_mm)
+    scene = Scene(centres, diameters, problem.cdp_D, depth[None], problem.pupil_diameter_mm,
+                  problem.display)
     acc = problem.accommodation
     state = Accommodation(a[None], jnp.zeros((1, 1), jnp.int32), acc.sa_c40_um_per_D, acc.sa_radius_mm)
     eye = Eyes(zernike_um[None], problem.eyes.measured_pupil_mm, problem.eyes.orientation)

@@ -706,6 +706,7 @@ def plan_sampling(
     estimate_accuracy: bool = True,
     pairs: tuple | None = None,
     display=None,
+    spectral_weights=None,
 ) -> Plan:
     """Choose the cheapest sampling that meets an accuracy target for a scene, and say why.
 
@@ -744,6 +745,9 @@ def plan_sampling(
         the pairs ``depths_D``/``accommodation_D``/``accommodation_window_D`` describe
     display : :class:`lfjax.display.DisplayOptics` of a real display (lenslet diffraction,
         pixels): the field guard adds their blur and the proxy models them as the pipeline
+    spectral_weights : weights of ``wavelengths_nm`` when they are not V(λ)'s (a display's
+        spectrum, :mod:`lfjax.display_spectra`): the guard then leaves out the wavelengths
+        this spectrum weighs least, not V(λ)'s
 
     Guard parameters: margin (field safety factor ≥ 1), wrap_tolerance (spectral weight
     allowed to wrap), min_samples_per_subaperture (floor on pupil samples).
@@ -800,7 +804,9 @@ def plan_sampling(
 
     # --- field guard (hard): the pipeline's own rule
     guard_wl = wl if wl is not None else np.arange(wavelength_range_nm[0], wavelength_range_nm[1] + 1e-6, 5.0)
-    guard_spectrum = make_spectrum(guard_wl, options)
+    if spectral_weights is not None and wl is None:
+        raise ValueError("spectral_weights needs wavelengths_nm (the wavelengths they weigh)")
+    guard_spectrum = make_spectrum(guard_wl, options, weights=spectral_weights)
     radius = field_radius_arcmin(
         eyes_zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, scene.accommodation,
         pair_acc, pair_depth, layout, guard_spectrum, wrap_tolerance, display,
@@ -854,7 +860,7 @@ def plan_sampling(
                            "benchmarks/speed_accuracy.py: 50 nm moves a prediction by 0.2 D)")
     if np.isfinite(errors["spectral"]):
         budget -= errors["spectral"]
-    spectrum = make_spectrum(wl, options)
+    spectrum = make_spectrum(wl, options, weights=spectral_weights)
     if not estimate_accuracy:
         df = float(freq_step_cpd) if freq_step_cpd is not None else df_top
         if df > df_guard * margin:

@@ -206,7 +206,7 @@ def _planned_sampling(eyes: Eyes, layout: Layout, depths, pairs, pupil_diameter_
         depths_D=np.asarray(depths, float), accommodation_D=np.unique(np.asarray(pairs[0], float)),
         accommodation_window_D=None, wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
         eyes_zernike_um=np.asarray(eyes.zernike_um), measured_pupil_mm=eyes.measured_pupil_mm,
-        options=options, estimate_accuracy=False,
+        options=options, estimate_accuracy=False, spectral_weights=np.asarray(spectrum.weights),
         pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)), display=display,
     ).sampling
 

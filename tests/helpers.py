@@ -150,3 +150,42 @@ def random_direction(key, tree):
 def layout_from(centres_mm, diameters_mm, window_diameter_mm):
     """Layout from (possibly traced) arrays, bypassing make_layout's host validation."""
     return Layout(centres_mm, diameters_mm, float(window_diameter_mm))
+
+
+# ------------------------------------------------------------------ notebooks
+
+
+def committed_notebook_outputs(notebook_path):
+    """Check that a committed notebook equals its jupytext percent twin (the ``.py`` beside
+    it) and carries outputs without errors; returns those outputs."""
+    import nbformat
+    from test_cli import percent_cells
+
+    nb = nbformat.read(notebook_path, as_version=4)
+    twin = notebook_path.with_suffix(".py").read_text()
+    assert [(c.cell_type, c.source) for c in nb.cells] == percent_cells(twin)
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    assert outputs and not [o for o in outputs if o.output_type == "error"]  # committed with outputs
+    return outputs
+
+
+def execute_notebook_tiny(notebook_path, workdir):
+    """Run a notebook top to bottom at LFJAX_NOTEBOOK_SIZE=tiny in ``workdir``; returns
+    (outputs, images, stream text) after checking that no cell raised."""
+    import os
+
+    import nbformat
+    from nbclient import NotebookClient
+
+    nb = nbformat.read(notebook_path, as_version=4)
+    os.environ["LFJAX_NOTEBOOK_SIZE"] = "tiny"
+    try:
+        NotebookClient(nb, timeout=600, kernel_name="python3",
+                       resources={"metadata": {"path": str(workdir)}}).execute()
+    finally:
+        del os.environ["LFJAX_NOTEBOOK_SIZE"]
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    assert not [o for o in outputs if o.output_type == "error"]
+    images = [o for o in outputs if "image/png" in o.get("data", {})]
+    text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
+    return outputs, images, text

@@ -4,6 +4,7 @@ analytic Fresnel diffraction, finite-difference gradients and bad input."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 import scipy.special
 
+import helpers as H
 import lfjax
 from lfjax import planner
 from lfjax.display import DisplayOptics, LensletArray, fresnel_propagate, lenslets_for_layout
@@ -161,6 +163,16 @@ def test_pixels_and_diffraction_are_differentiable():
         fd = (at(value + h) - at(value - h)) / (2 * h)
         assert float(getattr(grad, name)) == pytest.approx(float(fd), rel=1e-3, abs=1e-9), name
 
+    def from_pixel_pitch(pitch_mm):  # the panel's pixel size, mm
+        display = lenslets.optics(pitch_mm, 0.8)
+        return jnp.sum(metrics_at(eye, lenslets.layout(3.0, 2), [1.4], acc, 3.0, lenslets.cdp_D,
+                                  spectrum, sampling, OPTIONS, display)[0])
+
+    pitch, h = 0.01, 1e-4
+    fd = (from_pixel_pitch(pitch + h) - from_pixel_pitch(pitch - h)) / (2 * h)
+    grad = jax.grad(from_pixel_pitch)(jnp.asarray(pitch))
+    assert float(grad) == pytest.approx(float(fd), rel=1e-3) and float(grad) < 0  # bigger pixels blur
+
 
 def eqx_replace(module, name, value):
     import equinox as eqx
@@ -254,3 +266,56 @@ def test_traced_bad_display_values_do_not_pass_silently():
     assert np.all(np.isfinite(np.asarray(run(400.0))))
     with pytest.raises(Exception, match="fresnel_distance_mm"):
         jax.block_until_ready(run(-1.0))
+
+
+# ------------------------------------------------------------------ study, notebook, CLI
+
+NOTEBOOK = Path(__file__).resolve().parents[1] / "notebooks" / "display_effects.ipynb"
+
+
+def test_notebook_matches_its_script_twin():
+    outputs = H.committed_notebook_outputs(NOTEBOOK)
+    assert len([o for o in outputs if "image/png" in o.get("data", {})]) >= 3
+
+
+def test_notebook_executes(tmp_path):
+    """notebooks/display_effects.ipynb runs top to bottom at its tiny size (the study, the
+    lenslet sweep, the report section and the figures of lfjax.display_effects)."""
+    _, images, text = H.execute_notebook_tiny(NOTEBOOK, tmp_path)
+    assert len(images) >= 3
+    assert "+diffraction" in text and "+spectrum" in text
+    assert {p.name for p in tmp_path.iterdir()} >= {"display_effects.png", "display_lenslet_sweep.png"}
+
+
+def test_display_study_config_rejects_what_it_cannot_model():
+    from lfjax.display_effects import DisplayStudyConfig
+
+    with pytest.raises(ValueError, match="display_distance_mm must be in"):
+        DisplayStudyConfig(display_distance_mm=600.0)
+    with pytest.raises(ValueError, match="layouts"):
+        DisplayStudyConfig(layouts=("5x5",))
+    with pytest.raises(ValueError, match="fill_factor"):
+        DisplayStudyConfig(fill_factor=0.0)
+
+
+def test_reproduce_display_eyes_beyond_the_study_is_refused(capsys, tmp_path):
+    from lfjax import cli
+
+    out = tmp_path / "never"
+    code = cli.main(["reproduce", "--quick", "--display-effects", "--display-eyes", "5",
+                     "--out", str(out), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--display-eyes must be in 0 ... 2" in err
+    assert not out.exists()
+
+
+def test_display_optics_at_is_the_arrays_optics_for_every_lenslet_size():
+    """The Fresnel distance of an array depends on its distance and CDP only."""
+    from lfjax.display import display_optics_at
+
+    for n in (2, 3, 4):
+        array = lenslets_for_layout(n, 3.0, 2.0, 300.0)
+        assert float(display_optics_at(300.0, 2.0).fresnel_distance_mm) == pytest.approx(
+            float(array.fresnel_distance_mm), rel=1e-12)
+    with pytest.raises(ValueError, match="< 500 mm"):
+        display_optics_at(500.0, 2.0)

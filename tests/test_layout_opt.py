@@ -8,7 +8,6 @@ shared by the tests and by the command-line run, so they reuse one compiled obje
 
 import json
 import math
-import os
 from pathlib import Path
 
 import jax
@@ -229,6 +228,32 @@ def test_lbfgsb_fit_beats_the_perturbed_tangent_grid_inside_the_pupil(dl_problem
     assert isinstance(fit.params, lo.FreeParams) and fit.layout.window_diameter_mm == 2.0
 
 
+def test_layout_fits_a_real_lenslet_array_and_display_spectrum():
+    """The optimiser accepts a real display (lenslet diffraction of an array at 300 mm,
+    2-arcmin pixels) and a display's spectrum (laser lines): the objective sees them (it
+    differs from the ideal display's), its gradient is finite, and a fit improves on the
+    perturbed tangent grid inside the pupil."""
+    from lfjax.display import display_optics_at
+    from lfjax.display_spectra import display_spectrum
+
+    eye = lfjax.eyes.aberration_free_eye()
+    options = lfjax.ModelOptions(vsotf_reference="open_pupil")
+    real = lo.make_problem(eye, DEPTHS, CONSTRAINTS, "depth_of_field", sampling=lfjax.Sampling(1.5),
+                           spectrum=display_spectrum("laser", "green", options),
+                           display=display_optics_at(300.0, 2.0, pixel_width_arcmin=2.0))
+    ideal = lo.make_problem(eye, DEPTHS, CONSTRAINTS, "depth_of_field", sampling=lfjax.Sampling(1.5),
+                            wavelengths_nm=[532.0])
+    start = perturbed_tangent_2x2()
+    value, grad = lo.layout_value_and_grad(start, real)
+    assert abs(float(value) - float(lo.layout_value_and_grad(start, ideal)[0])) > 1e-3
+    assert all(np.all(np.isfinite(np.asarray(g))) for g in jax.tree_util.tree_leaves(grad))
+    fit = lo.optimise_layout(start, real, method="lbfgsb", max_steps=4, progress=False)
+    assert fit.train["after"]["depth_of_field"] > fit.train["before"]["depth_of_field"]
+    assert_inside(fit.layout, CONSTRAINTS)
+    with pytest.raises(ValueError, match="display must be"):
+        lo.make_problem(eye, DEPTHS, CONSTRAINTS, display="lenslets")
+
+
 def test_bfgs_free_fit_without_overlap_beats_its_start():
     """Free views that must not overlap, from the tangent lattice moved 2 % inside the
     bounds: BFGS in unconstrained coordinates improves (with the exact nearest-neighbour
@@ -357,6 +382,9 @@ def test_cli_optimise_tiny_case(capsys, tmp_path, monkeypatch):
     (["--objective", "resolution=nan"], "--objective"),
     (["--wavelengths", "600", "500"], "--wavelengths"),
     (["--train-eyes", "0"], "--train-eyes"),
+    (["--display-distance", "600"], "--display-distance"),
+    (["--pixel-arcmin", "-1"], "--pixel-arcmin"),
+    (["--spectrum", "plasma"], "--spectrum"),
 ])
 def test_cli_bad_input_one_line_exit_2(capsys, tmp_path, args, message):
     out = tmp_path / "never"
@@ -371,32 +399,12 @@ def test_cli_bad_input_one_line_exit_2(capsys, tmp_path, args, message):
 
 
 def test_notebook_matches_its_script_twin():
-    import nbformat
-    from test_cli import percent_cells
-
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    twin = NOTEBOOK.with_suffix(".py").read_text()
-    assert [(c.cell_type, c.source) for c in nb.cells] == percent_cells(twin)
-    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
-    assert outputs and not [o for o in outputs if o.output_type == "error"]  # committed with outputs
+    H.committed_notebook_outputs(NOTEBOOK)
 
 
 def test_notebook_executes(tmp_path):
     """notebooks/optimise_layout.ipynb runs top to bottom at its tiny size
     (LFJAX_NOTEBOOK_SIZE=tiny; the committed outputs are from the 'small' size)."""
-    import nbformat
-    from nbclient import NotebookClient
-
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    os.environ["LFJAX_NOTEBOOK_SIZE"] = "tiny"
-    try:
-        NotebookClient(nb, timeout=600, kernel_name="python3",
-                       resources={"metadata": {"path": str(tmp_path)}}).execute()
-    finally:
-        del os.environ["LFJAX_NOTEBOOK_SIZE"]
-    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
-    assert not [o for o in outputs if o.output_type == "error"]
-    images = [o for o in outputs if "image/png" in o.get("data", {})]
+    _, images, text = H.execute_notebook_tiny(NOTEBOOK, tmp_path)
     assert len(images) >= 3
-    text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
     assert "held-out" in text

@@ -122,6 +122,9 @@ def test_bad_config_lists_every_problem_before_any_compute(tmp_path):
     ({"spectrum": {"wavelengths_nm": [380.0, 700.0, 10.0]}}, "must lie in [400, 700] nm"),
     ({"metrics": {"continuous_peaks": ["mtf"]}}, "metrics.continuous_peaks"),
     ({"sampling": {"freq_step_cpd": 1.0, "vsotf_tolerance": 1e-3}}, "not both"),
+    ({"display": {"lenslet_distance_mm": 600.0}}, "display.lenslet_distance_mm must be in (0, 500) mm"),
+    ({"display": {"pixel_width_arcmin": -1.0}}, "display.pixel_width_arcmin must be >= 0"),
+    ({"spectrum": {"display": "plasma"}}, "spectrum.display must be one of crt, lcd, oled, laser"),
 ])
 def test_impossible_values_are_named(changes, message):
     with pytest.raises(SweepConfigError, match=None) as err:
@@ -373,3 +376,31 @@ def test_readme_config_lists_every_key_with_its_default():
     for section, keys in _SCHEMA.items():
         missing = [k for k in keys if k not in data.get(section, {}) and k not in commented]
         assert not missing, (section, missing)
+
+
+def test_a_real_display_sweeps_as_through_focus_computes_it(tmp_path):
+    """Lenslet diffraction, pixels and an OLED spectrum from the config reach every chunk:
+    the store equals through_focus with the same display and spectrum."""
+    from lfjax.through_focus import through_focus
+
+    config = tiny_config(population={"n_eyes": 1}, display={
+        "layouts": ["2x2"], "depth_offsets_D": [0.0, 1.0], "lenslet_distance_mm": 300.0,
+        "pixel_width_arcmin": 2.0}, spectrum={"display": "laser"})
+    display = config.display_optics()
+    assert display.diffraction == "fresnel" and float(display.fresnel_distance_mm) == pytest.approx(750.0)
+    spectrum = sweep_spectrum(config)
+    assert spectrum.n_wavelengths == 3  # the laser's three lines
+    ds = open_store(run_sweep(config, tmp_path / "display.zarr", progress=False).store)
+    eyes, _ = population(config)
+    (task,) = build_tasks(config, eyes, spectrum)
+    assert task.scene.display is not None
+    tf = through_focus(eyes, task.layout, task.depths_D, accommodation_D=config.accommodation_D,
+                       window_D=config.window_D, pupil_diameter_mm=task.pupil_mm, cdp_D=config.cdp_D,
+                       spectrum=spectrum, sampling=task.sampling, options=config.options,
+                       display=display)
+    np.testing.assert_allclose(ds.vsotf.values[:, 0, 0], np.asarray(tf.vsotf), rtol=1e-6, atol=1e-9)
+    ideal = through_focus(eyes, task.layout, task.depths_D, accommodation_D=config.accommodation_D,
+                          window_D=config.window_D, pupil_diameter_mm=task.pupil_mm,
+                          cdp_D=config.cdp_D, spectrum=spectrum, sampling=task.sampling,
+                          options=config.options)
+    assert np.nanmax(np.abs(np.asarray(ideal.vsotf) - np.asarray(tf.vsotf))) > 1e-3

@@ -29,6 +29,7 @@ and :mod:`lfjax.optics`.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 import tempfile
@@ -56,6 +57,38 @@ MARKER_FILE = ".lfjax-reproduce"
 RESULTS_FILE = "results.nc"
 EXAMPLES_FILE = "examples.nc"
 POPULATION_TABLE = "ten_eyes.csv"
+DISPLAY_TABLE = "display_effects.csv"
+DISPLAY_SWEEP_TABLE = "display_lenslet_sweep.csv"
+
+
+def _display_effects(config: StudyConfig, n_eyes: int, stage):
+    """The display-effects study on the average eye and the first ``n_eyes`` study eyes:
+    (study Dataset, 2×2 sweep Dataset, report markdown)."""
+    from ..display_effects import (
+        DisplayStudyConfig, display_effects_markdown, lenslet_sweep, run_display_study,
+    )
+    from ..eyes import Eyes
+
+    eyes, labels = study_eyes(config)
+    keep = list(range(n_eyes)) + [len(labels) - 1]  # the average eye is last
+    subset = Eyes(eyes.zernike_um[keep], eyes.measured_pupil_mm, eyes.orientation)
+    names = [labels[i] for i in keep]
+    offsets = tuple(d for d in config.depth_offsets_D if abs(d - round(d)) < 1e-9)
+    display_config = DisplayStudyConfig(
+        layouts=tuple(n for n in LF_LAYOUTS if n in config.layouts),
+        pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D, depth_offsets_D=offsets,
+        accommodation_step_D=config.accommodation_step_D, options=config.options,
+        cutoff_threshold=config.cutoff_threshold,
+        wavelength_step_nm=max(20.0, float(config.wavelengths_nm[2])),
+    )
+    if config.label == "quick":  # --quick: two sweep distances, 50 nm steps (numbers indicative)
+        display_config = dataclasses.replace(display_config, wavelength_step_nm=50.0,
+                                             sweep_distances_mm=(100.0, 400.0))
+    stage("display effects")
+    study = run_display_study(subset, names, display_config, progress=False)
+    stage("display: 2x2 lenslet sweep")
+    sweep = lenslet_sweep(subset, names, display_config, progress=False)
+    return study, sweep, display_effects_markdown(study, sweep)
 """With a population store: how often samples of the run's size reproduce each claim."""
 
 
@@ -171,13 +204,18 @@ def population_section(population_store, config: StudyConfig, claims: list[Claim
 
 def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # noqa: B008
               progress: bool = True, population_store=None,
-              population_draws: int = 1000) -> dict:
+              population_draws: int = 1000, display_effects_eyes: int | None = None) -> dict:
     """Run the study and write everything into ``out`` (atomically: a temporary folder in
     the same parent, moved into place when complete).
 
     ``population_store``: a population sweep store (``lfjax sweep``); the report then adds
     "What ten eyes cannot tell" (:func:`population_section`, ``population_draws`` samples)
     and ``ten_eyes.csv``. The store is checked before any computation.
+
+    ``display_effects_eyes``: add "Beyond the ideal display" (:mod:`lfjax.display_effects`:
+    lenslet diffraction, pixels and an OLED-like spectrum one by one, and the 2×2
+    lenslet-size sweep) on the average eye and the first ``display_effects_eyes`` eyes;
+    None leaves it out.
 
     Returns a dict with ``out`` (Path), ``files`` (names), ``claims``, ``seconds``.
     """
@@ -197,6 +235,8 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
                    for n in layouts]
     if population_store is not None:
         stages.append("population: samples of the study's size")
+    if display_effects_eyes is not None:
+        stages += ["display effects", "display: 2x2 lenslet sweep"]
     stages += ["tables", "figures", "report"]
     bar = tqdm(total=len(stages), unit="stage", disable=not progress, dynamic_ncols=True,
                bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} stages [{elapsed}<{remaining}]")
@@ -230,6 +270,9 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
             stage("population: samples of the study's size")
             population = population_section(population_store, config, claims,
                                             population_draws)
+        display_parts = None
+        if display_effects_eyes is not None:
+            display_parts = _display_effects(config, display_effects_eyes, stage)
         stage("tables")
         files = [RESULTS_FILE, EXAMPLES_FILE]
         ds.to_netcdf(tmp / RESULTS_FILE, engine="h5netcdf")
@@ -248,15 +291,27 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         if population is not None:
             population[1].to_csv(tmp / POPULATION_TABLE, index=False, float_format="%.6g")
             files.append(POPULATION_TABLE)
+        if display_parts is not None:
+            from ..display_effects import effects_table, sweep_table
+
+            effects_table(display_parts[0]).to_csv(tmp / DISPLAY_TABLE, index=False, float_format="%.6g")
+            sweep_table(display_parts[1]).to_csv(tmp / DISPLAY_SWEEP_TABLE, index=False,
+                                                 float_format="%.6g")
+            files += [DISPLAY_TABLE, DISPLAY_SWEEP_TABLE]
         stage("figures")
         files += save_figures(ds, examples, tmp, config)
+        if display_parts is not None:
+            from ..display_effects import save_display_figures
+
+            files += save_display_figures(*display_parts, tmp)
         stage("report")
         timings_now = dict(timings)
         timings_now["total"] = time.perf_counter() - t_start
         files.append("REPORT.md")
         write_report(tmp / "REPORT.md", ds, claims, alternatives, config, timings_now,
                      sorted(files),
-                     population_markdown=population[0] if population else None)
+                     population_markdown=population[0] if population else None,
+                     display_markdown=display_parts[2] if display_parts else None)
         (tmp / MARKER_FILE).write_text("")
         bar.update(1)
         bar.close()

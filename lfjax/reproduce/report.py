@@ -144,7 +144,8 @@ def _md_escape(text: str) -> str:
 
 
 def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timings: dict,
-                 files: list[str], population_markdown: str | None = None) -> None:
+                 files: list[str], population_markdown: str | None = None,
+                 display_markdown: str | None = None) -> None:
     """REPORT.md: claims with numbers and verdicts, modelling-choice flips, settings.
 
     ``population_markdown``: body of the section "What ten eyes cannot tell" (from a
@@ -226,6 +227,14 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
             "`wavelength_normalisation=\"unit_sum\"` (ISETBio's per-wavelength PSF "
             "normalisation).")
     add("")
+    if display_markdown:
+        add("## Beyond the ideal display")
+        add("")
+        add(display_markdown.rstrip())
+        add("")
+        add("Figures: `display_effects.png`, `display_lenslet_sweep.png`; numbers: "
+            "`display_effects.csv`, `display_lenslet_sweep.csv`.")
+        add("")
     if population_markdown:
         add("## What ten eyes cannot tell")
         add("")

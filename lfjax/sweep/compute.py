@@ -88,6 +88,13 @@ def population(config: SweepConfig) -> tuple[Eyes, np.ndarray]:
 
 
 def sweep_spectrum(config: SweepConfig) -> Spectrum:
+    """V(λ) white on the config's wavelength grid, or the display's white
+    (``display_spectrum``, cells of the grid's step) on the wavelengths that carry it."""
+    if config.display_spectrum is not None:
+        from ..display_spectra import display_spectrum
+
+        return display_spectrum(config.display_spectrum, "white", config.options,
+                                step_nm=max(float(config.wavelengths_nm[2]), 5.0))
     return make_spectrum(config.wavelength_grid_nm, config.options)
 
 
@@ -111,11 +118,12 @@ def _plan(config: SweepConfig, eyes: Eyes, layout: Layout, pupil_mm: float, dept
     plan = plan_sampling(
         layout=layout, pupil_diameter_mm=pupil_mm, cdp_D=config.cdp_D,
         depths_D=np.asarray(depths, float), accommodation_window_D=None,
-        wavelengths_nm=config.wavelength_grid_nm, eyes_zernike_um=np.asarray(eyes.zernike_um),
+        wavelengths_nm=np.asarray(spectrum.wavelengths_nm), eyes_zernike_um=np.asarray(eyes.zernike_um),
         measured_pupil_mm=eyes.measured_pupil_mm, options=config.options,
         estimate_accuracy=config.vsotf_tolerance is not None,
         vsotf_tolerance=config.vsotf_tolerance or 1e-3, pairs=pairs,
-        freq_step_cpd=config.freq_step_cpd,
+        freq_step_cpd=config.freq_step_cpd, display=config.display_optics(),
+        spectral_weights=np.asarray(spectrum.weights),
     )
     return plan.sampling
 
@@ -153,7 +161,7 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
                     try:
                         _field_check(np.asarray(eyes.zernike_um), eyes.measured_pupil_mm, pupil,
                                      config.cdp_D, grid_used, depths, layout, spectrum, sampling,
-                                     pairs=pairs)
+                                     pairs=pairs, display=config.display_optics())
                         break
                     except ValueError as err:
                         if "aliasing" not in str(err) or config.freq_step_cpd is not None:
@@ -165,10 +173,10 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
             # the next process (a resumed sweep, another host)
             pipeline_config = PipelineConfig.build(
                 spectrum.wavelengths_nm, layout.window_diameter_mm, pupil, sampling,
-                config.options, traced_checks=False)
+                config.options, traced_checks=False, display=config.display_optics())
             tasks.append(Task(
                 pi, li, float(pupil), entry, layout, slots, depths, allowed,
-                Scene.from_layout(layout, depths, config.cdp_D, pupil),
+                Scene.from_layout(layout, depths, config.cdp_D, pupil, config.display_optics()),
                 Accommodation.shared(grid_used, index_used, config.options, pupil),
                 sampling, pipeline_config,
             ))

@@ -68,6 +68,10 @@ class SweepConfig:
         relative to the config file)
     cdp_D : central depth plane, D
     depth_offsets_D : rendered depths relative to the CDP, D (natural view: the CDP only)
+    lenslet_distance_mm : a lenslet-array display at this distance from the eye (mm): each
+        view is its lenslet's Fresnel pattern (:func:`lfjax.display.display_optics_at`);
+        None: the paper's ideal display
+    pixel_width_arcmin : angular width of the emitters, arcmin (0: points)
 
     Accommodation
     -------------
@@ -77,6 +81,9 @@ class SweepConfig:
     Spectrum and sampling
     ---------------------
     wavelengths_nm : (start, stop, step), nm
+    display_spectrum : a built-in display's white (:data:`lfjax.display_spectra.DISPLAY_NAMES`)
+        weighted by V(λ) on the wavelengths that carry it, instead of V(λ) white on
+        ``wavelengths_nm`` (whose step then sets the cell width); None: V(λ) white
     freq_step_cpd : frequency step of the OTF grid, cpd; None: planned per (pupil, layout)
         by :func:`lfjax.planner.plan_sampling` on the whole population
     vsotf_tolerance : with a planned step: the planner's VSOTF accuracy target (its proxy
@@ -104,10 +111,13 @@ class SweepConfig:
     layouts: tuple[str, ...] = PAPER_LAYOUTS
     cdp_D: float = 2.0
     depth_offsets_D: tuple[float, ...] = tuple(float(x) for x in _grid(-2.0, 2.0, 0.5))
+    lenslet_distance_mm: float | None = None
+    pixel_width_arcmin: float = 0.0
     accommodation_step_D: float = 0.2
     accommodation_max_D: float = 5.0
     window_D: float = 2.0
     wavelengths_nm: tuple[float, float, float] = (400.0, 700.0, 10.0)
+    display_spectrum: str | None = None
     freq_step_cpd: float | None = None
     vsotf_tolerance: float | None = None
     continuous_peaks: tuple[str, ...] = ("vsotf",)
@@ -151,6 +161,16 @@ class SweepConfig:
     @property
     def wavelength_grid_nm(self) -> np.ndarray:
         return _grid(*self.wavelengths_nm)
+
+    def display_optics(self):
+        """The display's :class:`~lfjax.display.DisplayOptics`, or None (ideal display)."""
+        from ..display import DisplayOptics, display_optics_at
+
+        if self.lenslet_distance_mm is not None:
+            return display_optics_at(self.lenslet_distance_mm, self.cdp_D, self.pixel_width_arcmin)
+        if self.pixel_width_arcmin > 0:
+            return DisplayOptics(pixel_width_arcmin=self.pixel_width_arcmin)
+        return None
 
     @property
     def n_total_eyes(self) -> int:
@@ -211,6 +231,8 @@ _SCHEMA: dict[str, dict[str, tuple[str, str]]] = {
         "layouts": ("layouts", "strings"),
         "cdp_D": ("cdp_D", "float"),
         "depth_offsets_D": ("depth_offsets_D", "floats"),
+        "lenslet_distance_mm": ("lenslet_distance_mm", "float"),
+        "pixel_width_arcmin": ("pixel_width_arcmin", "float"),
     },
     "accommodation": {
         "step_D": ("accommodation_step_D", "float"),
@@ -219,6 +241,7 @@ _SCHEMA: dict[str, dict[str, tuple[str, str]]] = {
     },
     "spectrum": {
         "wavelengths_nm": ("wavelengths_nm", "floats"),
+        "display": ("display_spectrum", "string"),
     },
     "sampling": {
         "freq_step_cpd": ("freq_step_cpd", "float_or_planned"),
@@ -452,6 +475,20 @@ def _range_problems(v: dict, base_dir: Path) -> list[str]:
             p.append(f"spectrum.wavelengths_nm must lie in [{lo:g}, {hi:g}] nm "
                      f"({'Stiles-Crawford data' if sce_on else 'luminous efficiency data'}), got "
                      f"{list(wl)}")
+    distance = v.get("lenslet_distance_mm")
+    if distance is not None:
+        limit = 1000.0 / v["cdp_D"] if v["cdp_D"] > 0 else math.inf
+        if not (0 < distance < limit):
+            p.append(f"display.lenslet_distance_mm must be in (0, {limit:.4g}) mm (the CDP is a "
+                     f"virtual image behind the display), got {distance}")
+    if v.get("pixel_width_arcmin", 0.0) < 0:
+        p.append(f"display.pixel_width_arcmin must be >= 0 arcmin, got {v['pixel_width_arcmin']}")
+    name = v.get("display_spectrum")
+    if name is not None:
+        from ..display_spectra import DISPLAY_NAMES
+
+        if name not in DISPLAY_NAMES:
+            p.append(f"spectrum.display must be one of {', '.join(DISPLAY_NAMES)}, got {name!r}")
     if v["freq_step_cpd"] is not None and v["freq_step_cpd"] <= 0:
         p.append(f"sampling.freq_step_cpd must be > 0 cpd (or \"planned\"), got {v['freq_step_cpd']}")
     tol = v["vsotf_tolerance"]

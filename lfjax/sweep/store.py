@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..peaks import METRICS
-from .compute import FREQUENCIES_CPD, Task, layout_name
+from .compute import FREQUENCIES_CPD, Task, layout_name, sweep_spectrum
 from .config import SweepConfig, config_differences, config_to_toml
 
 STORE_FORMAT = "lfjax-sweep-store/1"
@@ -101,7 +101,10 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         "measured_pupil_mm": float(config.fit_pupil_mm),
         "config_cutoff_threshold": float(config.cutoff_threshold),
         "config_dof_fraction": float(config.dof_fraction),
-        "wavelengths_nm": json.dumps([float(w) for w in config.wavelength_grid_nm]),
+        "wavelengths_nm": json.dumps([float(w) for w in sweep_spectrum(config).wavelengths_nm]),
+        "display": json.dumps({"lenslet_distance_mm": config.lenslet_distance_mm,
+                               "pixel_width_arcmin": config.pixel_width_arcmin,
+                               "spectrum": config.display_spectrum or "V(lambda) white"}),
         "n_chunks": int(config.n_chunks),
         "chunk_size": int(config.chunk_size),
     }
