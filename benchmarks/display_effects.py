@@ -4,8 +4,9 @@ switched on one by one for 2×2, 3×3 and 4×4, and the 2×2 lenslet-size sweep.
 Run:  python benchmarks/display_effects.py [--eyes N] [--out benchmarks/display_effects]
 
 Eyes: the Thibos average eye and the first N virtual eyes of seed 0 (the reproduction's
-eyes). Writes display_effects.csv, display_lenslet_sweep.csv, REPORT.md (the section
-`lfjax reproduce --display-effects` adds) and the two figures into --out.
+eyes). Writes display_effects.csv, display_lenslet_sweep.csv, study.nc and sweep.nc (the
+xarray Datasets), REPORT.md (the section `lfjax reproduce --display-effects` adds) and the
+two figures into --out.
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ def main(argv=None) -> int:
     t1 = time.perf_counter()
     sweep = de.lenslet_sweep(eyes, names, config)
     t2 = time.perf_counter()
+    study.to_netcdf(out / "study.nc", engine="h5netcdf")
+    sweep.to_netcdf(out / "sweep.nc", engine="h5netcdf")
     de.effects_table(study).to_csv(out / "display_effects.csv", index=False, float_format="%.6g")
     de.sweep_table(sweep).to_csv(out / "display_lenslet_sweep.csv", index=False, float_format="%.6g")
     de.save_display_figures(study, sweep, out)

@@ -19,6 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .display import aperture_edge_distance, fresnel_propagate
 from .eyes import Eyes
 from .layouts import Layout
 from .options import ModelOptions
@@ -101,8 +102,6 @@ def _pupil_parts(
 ):
     """Amplitude (real, or complex with lenslet diffraction), eye wavefront (µm),
     defocus / SA basis and transmitted energy (mm²) on one subaperture window."""
-    from .display import aperture_edge_distance, fresnel_propagate
-
     shape = "circle" if display is None else display.aperture
     diffracts = display is not None and display.diffracts
     # A diffracted beam is not confined to its subaperture: its window is the whole pupil.

@@ -189,10 +189,13 @@ class Plan:
     fft_work: float
     options: ModelOptions = ModelOptions()
     reasons: list = field(default_factory=list)
+    spectral_weights: tuple | None = None
 
     def spectrum(self) -> Spectrum:
-        """The planned spectrum (V(λ) weights, LCA and SCE of the plan's options)."""
-        return make_spectrum(np.asarray(self.wavelengths_nm), self.options)
+        """The planned spectrum (V(λ) weights, or the ``spectral_weights`` planned for; LCA
+        and SCE of the plan's options)."""
+        weights = None if self.spectral_weights is None else np.asarray(self.spectral_weights)
+        return make_spectrum(np.asarray(self.wavelengths_nm), self.options, weights=weights)
 
     def truncate(self, zernike_um):
         """Eye coefficients (…, n_modes) cut to the planned Zernike order."""
@@ -861,6 +864,7 @@ def plan_sampling(
     if np.isfinite(errors["spectral"]):
         budget -= errors["spectral"]
     spectrum = make_spectrum(wl, options, weights=spectral_weights)
+    weights_kept = None if spectral_weights is None else tuple(float(w) for w in spectral_weights)
     if not estimate_accuracy:
         df = float(freq_step_cpd) if freq_step_cpd is not None else df_top
         if df > df_guard * margin:
@@ -873,7 +877,7 @@ def plan_sampling(
         errors.update(pupil=float("nan"), psf_wrap=float("nan"), total=float("nan"))
         return Plan(sampling, tuple(float(x) for x in wl), order_kept, float(radius),
                     float(df_guard), errors, {}, {}, bands, _fft_work(bands, layout.n_subapertures),
-                    options, reasons)
+                    options, reasons, weights_kept)
 
     # --- frequency step (field + pupil sampling for the FFT path; field only for MFT)
     proxy = _Proxy(scene, spectrum, edge_width_samples)
@@ -989,6 +993,7 @@ def plan_sampling(
     return Plan(
         sampling, tuple(float(x) for x in wl), order_kept, float(radius), float(df_guard), errors,
         cost, cheaper, bands, _fft_work(bands, layout.n_subapertures), options, reasons,
+        weights_kept,
     )
 
 

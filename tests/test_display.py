@@ -319,3 +319,57 @@ def test_display_optics_at_is_the_arrays_optics_for_every_lenslet_size():
             float(array.fresnel_distance_mm), rel=1e-12)
     with pytest.raises(ValueError, match="< 500 mm"):
         display_optics_at(500.0, 2.0)
+
+
+def test_accommodative_gain_and_the_two_by_two_verdict():
+    """Gain 1 when accommodation follows the rendered depth, 0 when it stays at one plane;
+    the verdict names the largest lenslet at which the gain drops below 0.8."""
+    import xarray as xr
+
+    from lfjax.display_effects import accommodative_gain, two_by_two_verdict
+
+    depths = np.array([0.0, 1.0, 2.0, 3.0])
+    assert accommodative_gain(depths, depths + 0.2) == pytest.approx(1.0)
+    assert accommodative_gain(depths, np.full(4, 2.0)) == pytest.approx(0.0, abs=1e-12)
+    follows, stuck = depths, 0.5 * depths + 1.0  # gain 1 and 0.5
+    predicted = np.stack([follows, follows, stuck])[:, None, :]
+    sweep = xr.Dataset(
+        dict(predicted_accommodation=(("distance", "eye", "depth"), predicted),
+             accommodation_error=(("distance", "eye", "depth"), predicted - depths),
+             ideal_accommodation_error=(("eye", "depth"), np.zeros((1, 4)))),
+        coords=dict(distance=[30.0, 300.0, 480.0], depth=depths,
+                    lenslet_aperture_mm=("distance", [1.4, 0.6, 0.06]),
+                    fresnel_number_550nm=("distance", [32.0, 1.4, 0.09])))
+    text, smallest_kept, largest_broken = two_by_two_verdict(sweep)
+    assert smallest_kept == 0.6 and largest_broken == 0.06
+    assert "gain 0.50" in text and "gain 1.00" in text
+
+
+def test_reproduce_display_section_studies_the_average_eye_and_the_first_eyes(monkeypatch):
+    """lfjax reproduce --display-effects --display-eyes 1: the study gets the first virtual
+    eye and the average eye of the reproduction, its layouts, depths (whole dioptres) and
+    options (the computation itself is the notebook test's)."""
+    from lfjax import display_effects as de
+    from lfjax.reproduce import StudyConfig, _display_effects, study_eyes
+
+    seen = {}
+
+    def fake_study(eyes, names, config, progress=True):
+        seen.update(eyes=eyes, names=names, config=config)
+        return "study"
+
+    monkeypatch.setattr(de, "run_display_study", fake_study)
+    monkeypatch.setattr(de, "lenslet_sweep", lambda eyes, names, config, progress=True: "sweep")
+    monkeypatch.setattr(de, "display_effects_markdown", lambda study, sweep: f"{study}+{sweep}")
+    config = StudyConfig.quick(n_eyes=3, depth_offsets_D=(-2.0, -0.5, 0.0, 1.0))
+    stages = []
+    study, sweep, markdown = _display_effects(config, 1, stages.append)
+    assert (study, sweep, markdown) == ("study", "sweep", "study+sweep")
+    assert stages == ["display effects", "display: 2x2 lenslet sweep"]
+    eyes, labels = study_eyes(config)
+    assert seen["names"] == ["eye01", "average"]
+    np.testing.assert_array_equal(np.asarray(seen["eyes"].zernike_um),
+                                  np.asarray(eyes.zernike_um)[[0, len(labels) - 1]])
+    assert seen["config"].layouts == ("2x2", "3x3", "4x4")
+    assert seen["config"].depth_offsets_D == (-2.0, 0.0, 1.0)
+    assert seen["config"].sweep_distances_mm == (100.0, 400.0)  # --quick

@@ -105,3 +105,21 @@ def test_weight_outside_the_computed_range_is_merged_with_a_warning():
 def test_bad_spectrum_input_is_named(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+def test_the_planner_plans_for_a_display_spectrum_as_weighted():
+    """plan_sampling(spectral_weights=...) guards the blur of the spectrum actually shown
+    (its weights decide which wavelengths may be left out) and hands it back."""
+    import lfjax
+
+    layout = lfjax.grid_layout(2, 3.0)
+    # violet + green in equal parts: V(λ) would weigh 400 nm at 0.25 % and leave it out
+    kwargs = dict(depths_D=[1.0, 3.0], wavelengths_nm=[400.0, 560.0], estimate_accuracy=False,
+                  wrap_tolerance=0.01)
+    plan = lfjax.planner.plan_sampling(layout, spectral_weights=[0.5, 0.5], **kwargs)
+    np.testing.assert_allclose(np.asarray(plan.spectrum().weights), [0.5, 0.5])
+    as_v = lfjax.planner.plan_sampling(layout, **kwargs)
+    assert plan.blur_radius_arcmin > as_v.blur_radius_arcmin  # 400 nm's LCA blur is guarded
+    assert plan.sampling.freq_step_cpd < as_v.sampling.freq_step_cpd
+    with pytest.raises(ValueError, match="spectral_weights needs wavelengths_nm"):
+        lfjax.planner.plan_sampling(layout, spectral_weights=[1.0], estimate_accuracy=False)

@@ -26,6 +26,7 @@ import helpers as H
 SAMPLING = lfjax.Sampling(2.0)
 OPTIONS = lfjax.ModelOptions()
 SPECTRUM = lfjax.make_spectrum([520.0, 600.0], OPTIONS)
+SPECTRUM_550 = lfjax.make_spectrum([550.0], OPTIONS)
 LAYOUT = lfjax.grid_layout(2, 3.0)
 EYES = lfjax.Eyes(np.asarray(lfjax.sample_eyes(4, 1).zernike_um)[:, :10], 3.0)
 CONFIG = PipelineConfig.build(SPECTRUM.wavelengths_nm, LAYOUT.window_diameter_mm, 3.0, SAMPLING,
@@ -103,7 +104,43 @@ def peak_vs_centre(centre):
     return refine_peak(_bump, 1.0, 1.4, 1.2, centre).accommodation_D
 
 
+def fresnel_vs_distance(z_mm):
+    """fresnel_propagate (lenslet diffraction) of a soft disc against the distance, mm: both
+    kernel samplings (near field at 40 mm, far field at 400 mm on this grid)."""
+    from lfjax.display import fresnel_propagate
+    from lfjax.optics import soft_disk
+
+    k = (jnp.arange(32) - 16) * 0.05
+    aperture = soft_disk(k[None, :] ** 2 + k[:, None] ** 2, 0.5, 0.0125)
+    field = fresnel_propagate(aperture.astype(jnp.complex128), 0.05, 550e-6, z_mm)
+    return jnp.stack([jnp.real(field[16, 12:20]), jnp.imag(field[16, 12:20])]).ravel()
+
+
+def pixels_vs_width(width_arcmin):
+    """pixel_transfer (finite emitters) against the emitter's angular width, arcmin."""
+    from lfjax.display import DisplayOptics, pixel_transfer
+
+    f = jnp.linspace(0.0, 3000.0, 5)  # cycles/rad
+    return pixel_transfer(f, f, DisplayOptics(pixel_width_arcmin=width_arcmin)).ravel()
+
+
+def core_vs_fresnel_distance(z_mm):
+    """retinal_metrics with lenslet diffraction and pixels against the Fresnel distance, mm."""
+    from lfjax.display import DisplayOptics
+
+    display = DisplayOptics("fresnel", "circle", z_mm, 1.0)
+    scene = Scene.from_layout(LAYOUT, [2.4], 2.0, 3.0, display)
+    spectrum = SPECTRUM_550
+    config = PipelineConfig.build(spectrum.wavelengths_nm, LAYOUT.window_diameter_mm, 3.0,
+                                  lfjax.Sampling(1.6), OPTIONS, display=display)
+    m = retinal_metrics(EYES, scene, spectrum, _accommodation(jnp.asarray(2.2)), config)
+    return jnp.stack([m.vsotf[0, 0, 0], m.strehl[0, 0, 0]])
+
+
 CASES = {
+    "fresnel_propagate": (fresnel_vs_distance, 120.0, [40.0, 120.0, 400.0], 1e-3),
+    "pixel_transfer": (pixels_vs_width, 1.5, [0.5, 1.5, 3.0], 1e-5),
+    "core_display": (core_vs_fresnel_distance, 400.0, [300.0, 500.0], 1e-2),
     # name: (f, x0, batch, finite-difference step)
     "core_accommodation": (core_vs_accommodation, 2.3, [1.9, 2.3, 2.7], 1e-4),
     "core_zernike": (core_vs_zernike, np.asarray(EYES.zernike_um)[0], None, 1e-5),

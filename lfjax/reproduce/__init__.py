@@ -36,6 +36,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from .alternatives import ALTERNATIVES, run_alternatives
 from .claims import Claim, dof_D, evaluate_claims
 from .config import LF_LAYOUTS, METRICS, StudyConfig, study_eyes
@@ -71,7 +73,7 @@ def _display_effects(config: StudyConfig, n_eyes: int, stage):
 
     eyes, labels = study_eyes(config)
     keep = list(range(n_eyes)) + [len(labels) - 1]  # the average eye is last
-    subset = Eyes(eyes.zernike_um[keep], eyes.measured_pupil_mm, eyes.orientation)
+    subset = Eyes(eyes.zernike_um[np.asarray(keep)], eyes.measured_pupil_mm, eyes.orientation)
     names = [labels[i] for i in keep]
     offsets = tuple(d for d in config.depth_offsets_D if abs(d - round(d)) < 1e-9)
     display_config = DisplayStudyConfig(
