@@ -373,3 +373,63 @@ def test_reproduce_display_section_studies_the_average_eye_and_the_first_eyes(mo
     assert seen["config"].layouts == ("2x2", "3x3", "4x4")
     assert seen["config"].depth_offsets_D == (-2.0, 0.0, 1.0)
     assert seen["config"].sweep_distances_mm == (100.0, 400.0)  # --quick
+
+
+def _synthetic_display_results():
+    """Datasets shaped as run_display_study's and lenslet_sweep's (2 layouts, 2 eyes, 3
+    depths, 2 distances) with made-up values: for the code that reads them."""
+    import xarray as xr
+
+    from lfjax.display_effects import STEPS, DisplayStudyConfig
+
+    config = DisplayStudyConfig(layouts=("2x2", "3x3"), depth_offsets_D=(-1.0, 0.0, 1.0),
+                                sweep_distances_mm=(100.0, 400.0))
+    rng = np.random.default_rng(0)
+    depths = config.depths_D
+    dims = ("step", "layout", "eye", "depth")
+    shape = (len(STEPS), 2, 2, depths.size)
+    error = rng.normal(0.0, 0.1, shape)
+    study = xr.Dataset(
+        dict(predicted_accommodation=(dims, depths + error), accommodation_error=(dims, error),
+             peak_vsotf=(dims, rng.uniform(0.2, 0.8, shape)), peak_success=(dims, np.ones(shape, bool)),
+             cutoff_frequency=(dims, rng.uniform(5.0, 30.0, shape)),
+             seconds=(("step", "layout"), np.ones(shape[:2])),
+             freq_step_cpd=(("step", "layout"), np.full(shape[:2], 0.7))),
+        coords=dict(step=list(STEPS), layout=["2x2", "3x3"], eye=["eye01", "average"], depth=depths,
+                    lenslet_pitch_mm=("layout", [0.6, 0.4]), lenslet_aperture_mm=("layout", [0.6, 0.4]),
+                    focal_length_mm=("layout", [3.0, 2.0]), fresnel_number_550nm=("layout", [1.4, 0.6]),
+                    pixel_arcmin=("layout", [3.3, 4.9])),
+        attrs=dict(cdp_D=config.cdp_D, spectrum_wavelengths=11, white_wavelengths=16, **config.as_attrs()))
+    sweep_error = rng.normal(0.0, 0.1, (2, 2, depths.size))
+    sweep = xr.Dataset(
+        dict(predicted_accommodation=(("distance", "eye", "depth"), depths + sweep_error),
+             accommodation_error=(("distance", "eye", "depth"), sweep_error),
+             cutoff_frequency=(("distance", "eye", "depth"), rng.uniform(5.0, 30.0, (2, 2, depths.size))),
+             ideal_accommodation_error=(("eye", "depth"), np.zeros((2, depths.size))),
+             ideal_cutoff_frequency=(("eye", "depth"), np.full((2, depths.size), 20.0))),
+        coords=dict(distance=[100.0, 400.0], eye=["eye01", "average"], depth=depths,
+                    lenslet_aperture_mm=("distance", [1.2, 0.3]),
+                    fresnel_number_550nm=("distance", [8.2, 0.5])),
+        attrs=dict(cdp_D=config.cdp_D, **config.as_attrs()))
+    return study, sweep
+
+
+def test_reproduce_writes_the_display_tables_figures_and_report_section(tmp_path):
+    """What lfjax reproduce --display-effects writes from the two studies: both CSV tables
+    (a row per layout × step × depth, per distance × depth), both figures and the report
+    section with its tables."""
+    import pandas as pd
+
+    from lfjax.display_effects import display_effects_markdown
+    from lfjax.reproduce import DISPLAY_SWEEP_TABLE, DISPLAY_TABLE, write_display_outputs
+
+    study, sweep = _synthetic_display_results()
+    files = write_display_outputs(study, sweep, tmp_path)
+    assert set(files) == {DISPLAY_TABLE, DISPLAY_SWEEP_TABLE, "display_effects.png",
+                          "display_lenslet_sweep.png"}
+    assert len(pd.read_csv(tmp_path / DISPLAY_TABLE)) == 4 * 2 * 3
+    assert len(pd.read_csv(tmp_path / DISPLAY_SWEEP_TABLE)) == 2 * 3
+    for name in ("display_effects.png", "display_lenslet_sweep.png"):
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    markdown = display_effects_markdown(study, sweep)
+    assert "| 3x3 | +spectrum |" in markdown and "accommodative gain" in markdown

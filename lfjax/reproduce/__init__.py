@@ -63,6 +63,16 @@ DISPLAY_TABLE = "display_effects.csv"
 DISPLAY_SWEEP_TABLE = "display_lenslet_sweep.csv"
 
 
+def write_display_outputs(study, sweep, folder: Path) -> list[str]:
+    """The display-effects tables (CSV) and figures (PNG) in ``folder``; returns their names."""
+    from ..display_effects import effects_table, save_display_figures, sweep_table
+
+    folder = Path(folder)
+    effects_table(study).to_csv(folder / DISPLAY_TABLE, index=False, float_format="%.6g")
+    sweep_table(sweep).to_csv(folder / DISPLAY_SWEEP_TABLE, index=False, float_format="%.6g")
+    return [DISPLAY_TABLE, DISPLAY_SWEEP_TABLE] + save_display_figures(study, sweep, folder)
+
+
 def _display_effects(config: StudyConfig, n_eyes: int, stage):
     """The display-effects study on the average eye and the first ``n_eyes`` study eyes:
     (study Dataset, 2×2 sweep Dataset, report markdown)."""
@@ -293,19 +303,10 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         if population is not None:
             population[1].to_csv(tmp / POPULATION_TABLE, index=False, float_format="%.6g")
             files.append(POPULATION_TABLE)
-        if display_parts is not None:
-            from ..display_effects import effects_table, sweep_table
-
-            effects_table(display_parts[0]).to_csv(tmp / DISPLAY_TABLE, index=False, float_format="%.6g")
-            sweep_table(display_parts[1]).to_csv(tmp / DISPLAY_SWEEP_TABLE, index=False,
-                                                 float_format="%.6g")
-            files += [DISPLAY_TABLE, DISPLAY_SWEEP_TABLE]
         stage("figures")
         files += save_figures(ds, examples, tmp, config)
         if display_parts is not None:
-            from ..display_effects import save_display_figures
-
-            files += save_display_figures(*display_parts, tmp)
+            files += write_display_outputs(display_parts[0], display_parts[1], tmp)
         stage("report")
         timings_now = dict(timings)
         timings_now["total"] = time.perf_counter() - t_start
