@@ -61,6 +61,8 @@ class DisplayStudyConfig:
     wavelength_step_nm : wavelength step of the V(λ) white in steps 1–3 and the cell width
         of the display spectrum, nm (RESULTS §6: 20 nm moved no prediction on the paper's grid)
     sweep_distances_mm : display distances of :func:`lenslet_sweep` (2×2), mm
+    sweep_window_D : the sweep's accommodation window, D (±2 D keeps the CDP — and the
+        lenslet plane, near it — inside for every depth, so a metric can move there)
     options : ModelOptions
     cutoff_threshold : MTF value defining the cut-off frequency (paper: 0.05)
     """
@@ -78,6 +80,7 @@ class DisplayStudyConfig:
     spectrum: str = "oled"
     wavelength_step_nm: float = 20.0
     sweep_distances_mm: tuple[float, ...] = (30.0, 100.0, 200.0, 300.0, 400.0, 450.0, 480.0, 495.0)
+    sweep_window_D: float = 2.0
     options: ModelOptions = field(default_factory=ModelOptions)
     cutoff_threshold: float = 0.05
 
@@ -114,7 +117,7 @@ class DisplayStudyConfig:
 
     @property
     def accommodation_D(self) -> np.ndarray:
-        top = float(self.depths_D.max()) + self.window_D
+        top = float(self.depths_D.max()) + max(self.window_D, self.sweep_window_D)
         n = int(math.floor(top / self.accommodation_step_D + 1e-9)) + 1
         return np.round(self.accommodation_step_D * np.arange(n), 9)
 
@@ -140,7 +143,8 @@ class DisplayStudyConfig:
         return out
 
 
-def shared_sampling(eyes: Eyes, config: DisplayStudyConfig, layout, display, *spectra):
+def shared_sampling(eyes: Eyes, config: DisplayStudyConfig, layout, display, *spectra,
+                    window_D: float | None = None):
     """One sampling for every step of a layout: the planner's field guard for the most
     demanding scene (``display``: diffraction and pixels on) and the finest over the spectra,
     so the steps differ by the display effects only, not by their sampling."""
@@ -148,7 +152,8 @@ def shared_sampling(eyes: Eyes, config: DisplayStudyConfig, layout, display, *sp
     from .through_focus import _windowed_grid
 
     depths = config.depths_D
-    _, _, allowed, absolute = _windowed_grid(config.accommodation_D, depths, config.window_D)
+    window = config.window_D if window_D is None else window_D
+    _, _, allowed, absolute = _windowed_grid(config.accommodation_D, depths, window)
     pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
     plans = [plan_sampling(
         layout, config.pupil_diameter_mm, config.cdp_D, depths_D=depths,
@@ -160,10 +165,12 @@ def shared_sampling(eyes: Eyes, config: DisplayStudyConfig, layout, display, *sp
     return min((p.sampling for p in plans), key=lambda s: s.freq_step_cpd)
 
 
-def _evaluate(eyes: Eyes, config: DisplayStudyConfig, layout, spectrum, display, sampling=None):
+def _evaluate(eyes: Eyes, config: DisplayStudyConfig, layout, spectrum, display, sampling=None,
+              window_D: float | None = None):
     tf = through_focus(eyes, layout, config.depths_D, config.accommodation_D,
                        config.pupil_diameter_mm, config.cdp_D, spectrum=spectrum,
-                       sampling=sampling, options=config.options, window_D=config.window_D,
+                       sampling=sampling, options=config.options,
+                       window_D=config.window_D if window_D is None else window_D,
                        continuous_peaks=("vsotf",), display=display)
     peaks = tf.peaks["vsotf"]
     predicted = np.asarray(peaks.accommodation_D, float)
@@ -173,6 +180,7 @@ def _evaluate(eyes: Eyes, config: DisplayStudyConfig, layout, spectrum, display,
         peak_vsotf=np.asarray(peaks.value, float),
         cutoff=np.asarray(tf.cutoff_cpd("vsotf", config.cutoff_threshold), float),
         df=float(tf.sampling.freq_step_cpd),
+        strehl_grid=np.asarray(tf.predicted_accommodation_D("strehl"), float),
     )
 
 
@@ -246,9 +254,11 @@ def lenslet_sweep(eyes: Eyes, eye_names, config: DisplayStudyConfig = DisplayStu
     """2×2 tangent views made by lenslet arrays at each of ``config.sweep_distances_mm``
     (diffraction on, point emitters, V(λ) white): Dataset with dims (distance, eye, depth)
     holding ``predicted_accommodation``, ``accommodation_error`` (D), ``cutoff_frequency``
-    (cpd), and per distance the lenslet aperture (mm) and Fresnel number at 550 nm; the
-    ideal display's values ride along as ``ideal_*`` (eye, depth). One sampling serves all
-    (:func:`shared_sampling`)."""
+    (cpd), ``peak_vsotf`` (the VSOTF at its peak: how good the best image is) and
+    ``strehl_accommodation`` (the Strehl ratio's grid peak, D), and per distance the lenslet
+    aperture (mm) and Fresnel number at 550 nm; the ideal display's values ride along as
+    ``ideal_*`` (eye, depth). Accommodation within ±``sweep_window_D`` of each depth; one
+    sampling serves all (:func:`shared_sampling`)."""
     import xarray as xr
     from tqdm import tqdm  # text bar: tqdm.auto warns in notebooks without ipywidgets
 
@@ -257,22 +267,23 @@ def lenslet_sweep(eyes: Eyes, eye_names, config: DisplayStudyConfig = DisplayStu
     white = config.white_spectrum()
     distances = np.asarray(config.sweep_distances_mm, float)
     shape = (distances.size, eyes.n_eyes, depths.size)
-    pred, cut = np.full(shape, np.nan), np.full(shape, np.nan)
+    pred, cut, val, strehl = (np.full(shape, np.nan) for _ in range(4))
     aperture, fresnel = np.zeros(distances.size), np.zeros(distances.size)
     bar = tqdm(total=distances.size + 1, disable=not progress, unit="scene")
     bar.set_description("2x2 ideal")
     # diffraction's field guard does not depend on the distance: one sampling for all
+    window = config.sweep_window_D
     sampling = shared_sampling(eyes, config, layout, config.lenslets(2, float(distances[0])).optics(),
-                               white)
-    ideal = _evaluate(eyes, config, layout, white, None, sampling)
+                               white, window_D=window)
+    ideal = _evaluate(eyes, config, layout, white, None, sampling, window)
     bar.update(1)
     for i, distance in enumerate(distances):
         bar.set_description(f"2x2 lenslets at {distance:g} mm")
         lenslets = config.lenslets(2, float(distance))
         aperture[i] = float(lenslets.aperture_mm)
         fresnel[i] = float(lenslets.fresnel_number(550.0))
-        r = _evaluate(eyes, config, layout, white, lenslets.optics(), sampling)
-        pred[i], cut[i] = r["predicted"], r["cutoff"]
+        r = _evaluate(eyes, config, layout, white, lenslets.optics(), sampling, window)
+        pred[i], cut[i], val[i], strehl[i] = r["predicted"], r["cutoff"], r["peak_vsotf"], r["strehl_grid"]
         bar.update(1)
     bar.close()
     dims = ("distance", "eye", "depth")
@@ -281,8 +292,12 @@ def lenslet_sweep(eyes: Eyes, eye_names, config: DisplayStudyConfig = DisplayStu
             predicted_accommodation=(dims, pred, {"units": "D"}),
             accommodation_error=(dims, pred - depths, {"units": "D"}),
             cutoff_frequency=(dims, cut, {"units": "cpd"}),
+            peak_vsotf=(dims, val),
+            strehl_accommodation=(dims, strehl, {"units": "D", "long_name": "Strehl ratio grid peak"}),
             ideal_accommodation_error=(("eye", "depth"), ideal["predicted"] - depths, {"units": "D"}),
             ideal_cutoff_frequency=(("eye", "depth"), ideal["cutoff"], {"units": "cpd"}),
+            ideal_peak_vsotf=(("eye", "depth"), ideal["peak_vsotf"]),
+            ideal_strehl_accommodation=(("eye", "depth"), ideal["strehl_grid"], {"units": "D"}),
         ),
         coords=dict(distance=distances, eye=list(eye_names), depth=depths,
                     lenslet_aperture_mm=("distance", aperture),
@@ -318,7 +333,8 @@ def effects_table(ds):
 
 def sweep_table(sweep):
     """Per (distance, depth): lenslet aperture (mm), Fresnel number, mean accommodation error
-    (D) with the ideal display's beside it, and mean cut-off (cpd)."""
+    (D), mean VSOTF at the peak, mean Strehl-ratio prediction (D) and mean cut-off (cpd), each
+    with the ideal display's beside it."""
     import pandas as pd
 
     rows = []
@@ -331,6 +347,10 @@ def sweep_table(sweep):
                 depth_D=float(depth),
                 mean_error_D=float(sweep.accommodation_error.isel(distance=i, depth=di).mean()),
                 ideal_mean_error_D=float(sweep.ideal_accommodation_error.isel(depth=di).mean()),
+                mean_peak_vsotf=float(sweep.peak_vsotf.isel(distance=i, depth=di).mean()),
+                ideal_mean_peak_vsotf=float(sweep.ideal_peak_vsotf.isel(depth=di).mean()),
+                mean_strehl_accommodation_D=float(sweep.strehl_accommodation.isel(distance=i, depth=di).mean()),
+                ideal_mean_strehl_accommodation_D=float(sweep.ideal_strehl_accommodation.isel(depth=di).mean()),
                 mean_cutoff_cpd=float(sweep.cutoff_frequency.isel(distance=i, depth=di).mean()),
                 ideal_mean_cutoff_cpd=float(sweep.ideal_cutoff_frequency.isel(depth=di).mean()),
             ))
@@ -344,30 +364,43 @@ def accommodative_gain(depths_D, predicted_D) -> float:
     return float(np.polyfit(np.asarray(depths_D, float), np.asarray(predicted_D, float), 1)[0])
 
 
-def two_by_two_verdict(sweep, min_gain: float = 0.8):
+def two_by_two_verdict(sweep, min_gain: float = 0.8, max_change_D: float = 0.25):
     """Does lenslet diffraction change the paper's 2×2 conclusion — that 2×2 views drive
-    accommodation to the rendered depth? Criterion: the accommodative gain
+    accommodation to the rendered depth? It holds while the accommodative gain
     (:func:`accommodative_gain` of the eyes' mean continuous VSOTF peaks over the rendered
-    depths) stays ≥ ``min_gain``. Returns (text, smallest lenslet aperture (mm) at which the
-    conclusion still holds or NaN, largest aperture at which it fails or NaN); the text
-    also gives, per lenslet size, the largest change of the mean error from the ideal
-    display (D)."""
+    depths) stays ≥ ``min_gain`` and the mean error at every depth stays within
+    ``max_change_D`` (the paper's "small error" scale) of the ideal display's. Returns (text, smallest lenslet aperture (mm) at which the
+    conclusion still holds or NaN, largest aperture at which it fails or NaN). The text also
+    gives, per lenslet size, the largest change of the mean error from the ideal display
+    (D), the mean VSOTF at the peak (how good the best retinal image is) and the gain of
+    the Strehl ratio's peaks (when present), which can disagree with the VSOTF's."""
     depths = sweep.depth.values
     ideal_gain = accommodative_gain(depths, depths + sweep.ideal_accommodation_error.mean("eye").values)
     apertures = sweep.lenslet_aperture_mm.values
     gains = np.array([accommodative_gain(depths, sweep.predicted_accommodation.isel(distance=i).mean("eye"))
                       for i in range(apertures.size)])
-    keeps = gains >= min_gain
-    kept, broken = apertures[keeps], apertures[~keeps]
-    parts = [f"ideal display: accommodative gain {ideal_gain:.2f} "
-             f"({'>=' if ideal_gain >= min_gain else '<'} {min_gain:g}: accommodation "
-             f"{'follows' if ideal_gain >= min_gain else 'does not follow'} the rendered depth)"]
     ideal_mean = sweep.ideal_accommodation_error.mean("eye").values
+    changes = np.array([np.max(np.abs(sweep.accommodation_error.isel(distance=i).mean("eye").values - ideal_mean))
+                        for i in range(apertures.size)])
+    keeps = (gains >= min_gain) & (changes <= max_change_D)
+    kept, broken = apertures[keeps], apertures[~keeps]
+    has_strehl = "strehl_accommodation" in sweep
+    ideal_extra = ""
+    if has_strehl:
+        ideal_extra = (f", VSOTF at the peak {float(sweep.ideal_peak_vsotf.mean()):.3f}, Strehl gain "
+                       f"{accommodative_gain(depths, sweep.ideal_strehl_accommodation.mean('eye')):.2f}")
+    parts = [f"ideal display: VSOTF gain {ideal_gain:.2f}{ideal_extra}"]
     for i, distance in enumerate(sweep.distance.values):
-        change = float(np.max(np.abs(sweep.accommodation_error.isel(distance=i).mean("eye").values - ideal_mean)))
+        change = float(changes[i])
+        extra = ""
+        if has_strehl:
+            strehl_gain = accommodative_gain(depths, sweep.strehl_accommodation.isel(distance=i).mean("eye"))
+            extra = (f", VSOTF at the peak {float(sweep.peak_vsotf.isel(distance=i).mean()):.3f}, "
+                     f"Strehl gain {strehl_gain:.2f}")
         parts.append(f"lenslets {apertures[i]:.3g} mm at {distance:g} mm (Fresnel number "
-                     f"{float(sweep.fresnel_number_550nm[i]):.2g}): gain {gains[i]:.2f}, mean error "
-                     f"within {change:.2f} D of the ideal display's")
+                     f"{float(sweep.fresnel_number_550nm[i]):.2g}): VSOTF gain {gains[i]:.2f} (mean error "
+                     f"within {change:.2f} D of the ideal display's){extra}: "
+                     f"{'holds' if keeps[i] else 'changed'}")
     return ("; ".join(parts), float(kept.min()) if kept.size else math.nan,
             float(broken.max()) if broken.size else math.nan)
 
@@ -402,15 +435,19 @@ def display_effects_markdown(ds, sweep) -> str:
             f"{g.change_cutoff_cpd.mean():+.1f} |")
     lines.append("")
     text, smallest_kept, largest_broken = two_by_two_verdict(sweep)
-    lines.append(f"2x2 lenslet sweep (diffraction on, point emitters, V(λ) white): {text}.")
+    window = sweep.attrs.get("config_sweep_window_D", sweep.attrs.get("config_window_D"))
+    lines.append(f"2x2 lenslet sweep (diffraction on, point emitters, V(λ) white; accommodation "
+                 f"within ±{window:g} D of each depth, so the CDP is inside): {text}.")
     if np.isfinite(largest_broken):
-        lines.append(f"Diffraction changes the 2x2 conclusion (accommodative gain below 0.8) for "
-                     f"lenslets of {largest_broken:.3g} mm and smaller"
+        lines.append(f"Diffraction changes the 2x2 conclusion (VSOTF gain below 0.8, or a mean "
+                     f"error more than 0.25 D from the ideal display's) for lenslets of "
+                     f"{largest_broken:.3g} mm and smaller"
                      + (f"; it still holds at {smallest_kept:.3g} mm" if np.isfinite(smallest_kept) else "")
                      + ".")
     else:
         lines.append("Over the sweep, diffraction does not change the 2x2 conclusion: accommodation "
-                     "follows the rendered depth (gain >= 0.8) down to the smallest lenslet tried"
+                     "follows the rendered depth (VSOTF gain >= 0.8, mean errors within 0.25 D of "
+                     "the ideal display's) down to the smallest lenslet tried"
                      + (f", {smallest_kept:.3g} mm." if np.isfinite(smallest_kept) else "."))
     return "\n".join(lines)
 
@@ -446,7 +483,8 @@ def save_display_figures(ds, sweep, out) -> list[str]:
     plt.close(fig)
     names.append("display_effects.png")
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    has_strehl = "strehl_accommodation" in sweep
+    fig, axes = plt.subplots(1, 3 if has_strehl else 2, figsize=(15 if has_strehl else 10, 4))
     depths = sweep.depth.values
     for di, depth in enumerate(depths):
         line, = axes[0].plot(sweep.lenslet_aperture_mm, sweep.accommodation_error.isel(depth=di).mean("eye"),
@@ -457,11 +495,18 @@ def save_display_figures(ds, sweep, out) -> list[str]:
                      color=line.get_color())
         axes[1].axhline(float(sweep.ideal_cutoff_frequency.isel(depth=di).mean()), color=line.get_color(),
                         ls=":", lw=0.8)
+        if has_strehl:
+            axes[2].plot(sweep.lenslet_aperture_mm, sweep.strehl_accommodation.isel(depth=di).mean("eye"),
+                         "s--", color=line.get_color())
+            axes[2].axhline(depth, color=line.get_color(), ls=":", lw=0.8)
     for ax in axes:
         ax.set_xscale("log")
         ax.set_xlabel("lenslet aperture (mm)")
     axes[0].set_ylabel("2x2 mean accommodation error (D)")
     axes[1].set_ylabel("2x2 mean MTF cut-off (cpd)")
+    if has_strehl:
+        axes[2].set_ylabel("2x2 mean Strehl-ratio prediction (D)")
+        axes[2].set_title("dotted: the rendered depth")
     axes[0].legend(title="rendered depth", fontsize=8)
     axes[0].set_title("dotted: ideal display")
     fig.tight_layout()

@@ -405,8 +405,12 @@ def _synthetic_display_results():
         dict(predicted_accommodation=(("distance", "eye", "depth"), depths + sweep_error),
              accommodation_error=(("distance", "eye", "depth"), sweep_error),
              cutoff_frequency=(("distance", "eye", "depth"), rng.uniform(5.0, 30.0, (2, 2, depths.size))),
+             peak_vsotf=(("distance", "eye", "depth"), rng.uniform(0.05, 0.3, (2, 2, depths.size))),
+             strehl_accommodation=(("distance", "eye", "depth"), np.broadcast_to(depths, (2, 2, depths.size))),
              ideal_accommodation_error=(("eye", "depth"), np.zeros((2, depths.size))),
-             ideal_cutoff_frequency=(("eye", "depth"), np.full((2, depths.size), 20.0))),
+             ideal_cutoff_frequency=(("eye", "depth"), np.full((2, depths.size), 20.0)),
+             ideal_peak_vsotf=(("eye", "depth"), np.full((2, depths.size), 0.25)),
+             ideal_strehl_accommodation=(("eye", "depth"), np.broadcast_to(depths, (2, depths.size)))),
         coords=dict(distance=[100.0, 400.0], eye=["eye01", "average"], depth=depths,
                     lenslet_aperture_mm=("distance", [1.2, 0.3]),
                     fresnel_number_550nm=("distance", [8.2, 0.5])),
@@ -432,4 +436,4 @@ def test_reproduce_writes_the_display_tables_figures_and_report_section(tmp_path
     for name in ("display_effects.png", "display_lenslet_sweep.png"):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     markdown = display_effects_markdown(study, sweep)
-    assert "| 3x3 | +spectrum |" in markdown and "accommodative gain" in markdown
+    assert "| 3x3 | +spectrum |" in markdown and "Strehl gain 1.00" in markdown
