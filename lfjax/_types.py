@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
+
+
+def is_concrete(*xs) -> bool:
+    """True when no leaf of ``xs`` is a tracer: values can be checked on the host."""
+    return not any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(xs))
 
 
 def as_real_array(x):

@@ -50,21 +50,16 @@ from __future__ import annotations
 import math
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import as_real_array
+from ._types import as_real_array, is_concrete as _concrete
 from .layouts import Layout
 from .sampling import next_fast_size
 from .units import ARCMIN_PER_RADIAN
 
 DIFFRACTION_MODES = ("off", "fresnel", "modulus")
 APERTURE_SHAPES = ("circle", "square")
-
-
-def _concrete(*xs) -> bool:
-    return not any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(xs))
 
 
 class DisplayOptics(eqx.Module):

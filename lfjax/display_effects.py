@@ -89,10 +89,9 @@ class DisplayStudyConfig:
         if unknown or not self.layouts:
             raise ValueError(f"layouts must be a non-empty subset of {tuple(LAYOUT_SIZES)}, got {unknown}")
         limit = 1000.0 / self.cdp_D if self.cdp_D > 0 else math.inf
-        for name in ("display_distance_mm",):
-            v = getattr(self, name)
-            if not (0 < v < limit):
-                raise ValueError(f"{name} must be in (0, {limit:g}) mm (in front of the CDP), got {v}")
+        if not (0 < self.display_distance_mm < limit):
+            raise ValueError(f"display_distance_mm must be in (0, {limit:g}) mm (in front of the "
+                             f"CDP), got {self.display_distance_mm}")
         if any(not (0 < d < limit) for d in self.sweep_distances_mm):
             raise ValueError(f"sweep_distances_mm must lie in (0, {limit:g}) mm, got {self.sweep_distances_mm}")
         if any(self.cdp_D + d < 0 for d in self.depth_offsets_D):

@@ -19,6 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._types import is_concrete
 from .display import aperture_edge_distance, fresnel_propagate
 from .eyes import Eyes
 from .layouts import Layout
@@ -304,8 +305,7 @@ def half_frequencies_cpd(n_fft: int, freq_step_cpd: float):
 # ----------------------------------------------------------------------------- validation
 
 
-def _is_concrete(*xs) -> bool:
-    return not any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(xs))
+_is_concrete = is_concrete
 
 
 def validate_pupil(pupil_diameter_mm, measured_pupil_mm: float) -> None:
