@@ -904,12 +904,21 @@ def main():
     p.add_argument("--force", action="store_true", help="re-run cached method results")
     p.add_argument("--methods", default="", help="only these methods (development)")
     p.add_argument("--tag", default="", help="cache sub-folder (development runs)")
+    p.add_argument("--wavelengths", default="",
+                   help="comma-separated wavelengths, nm (default: 420–660 nm in 40 nm); the "
+                        "reference uses the same, so the count sets cost, not the errors")
     args = p.parse_args()
     args.layouts = args.layouts.split(",")
     args.metrics = args.metrics.split(",")
     args.solver_eyes = min(args.solver_eyes, args.eyes)
-    global CACHE
-    CACHE = CACHE / (args.tag or f"seed{args.seed}_eyes{args.eyes}")
+    global CACHE, WAVELENGTHS_NM
+    suffix = ""
+    if args.wavelengths:
+        WAVELENGTHS_NM = np.array([float(w) for w in args.wavelengths.split(",")])
+        if WAVELENGTHS_NM.size < 1 or np.any((WAVELENGTHS_NM < 380) | (WAVELENGTHS_NM > 780)):
+            p.error("--wavelengths must list wavelengths in 380–780 nm")
+        suffix = "_wl" + "-".join(f"{w:g}" for w in WAVELENGTHS_NM)
+    CACHE = CACHE / (args.tag or f"seed{args.seed}_eyes{args.eyes}{suffix}")
     CACHE.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     if args.part != "reference":
@@ -933,7 +942,8 @@ def main():
         cmd = [sys.executable, __file__, "--part", "reference", "--eyes", str(args.eyes),
                "--reference-eyes", str(args.reference_eyes),
                "--seed", str(args.seed), "--chunk", str(args.chunk), "--layouts",
-               ",".join(args.layouts)] + (["--tag", args.tag] if args.tag else [])
+               ",".join(args.layouts)] + (["--tag", args.tag] if args.tag else []) + (
+                   ["--wavelengths", args.wavelengths] if args.wavelengths else [])
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True)
         print(f"reference (float64, subprocess): {time.perf_counter() - t0:.0f} s", flush=True)
@@ -947,8 +957,9 @@ def analyse(args):
     rows = summarise(runs)
     out_dir = HERE if not args.tag else CACHE
     write_csv(rows, out_dir / "peak_finding.csv")
-    wl = (f"{WAVELENGTHS_NM.size} wavelengths {WAVELENGTHS_NM[0]:.0f}–{WAVELENGTHS_NM[-1]:.0f} nm "
-          f"/ {WAVELENGTHS_NM[1] - WAVELENGTHS_NM[0]:.0f} nm")
+    wl = f"{WAVELENGTHS_NM.size} wavelength{'s' if WAVELENGTHS_NM.size > 1 else ''} " + (
+        f"{WAVELENGTHS_NM[0]:.0f}–{WAVELENGTHS_NM[-1]:.0f} nm / {WAVELENGTHS_NM[1] - WAVELENGTHS_NM[0]:.0f} nm"
+        if WAVELENGTHS_NM.size > 1 else f"{WAVELENGTHS_NM[0]:.0f} nm")
     plot(rows, out_dir / "peak_finding.png", wl)
     kinds = find_failure_cases(runs, args.seed, args.eyes, z, args.solver_eyes)
     ref_seconds = {name: float(np.load(CACHE / f"reference_{name}.npz")["seconds"])

@@ -109,6 +109,57 @@ def wavefront_um(coefficients_um, x, y):
     return jnp.tensordot(coefficients_um, basis, axes=([-1], [0]))
 
 
+@lru_cache(maxsize=None)
+def monomial_coefficients(n_modes: int) -> np.ndarray:
+    """Modes j = 0 … n_modes−1 as polynomials in x and y: array M of shape
+    (n_modes, N+1, N+1), N the largest radial order, with Z_j(x, y) = Σ_pq M[j, p, q] x^p y^q.
+
+    Built exactly (float64) from ``R_n^m(ρ)/ρ^m`` (a polynomial in ρ² = x² + y²) times
+    ``Re``/``Im (x + iy)^|m|``. A polynomial on a rectangular sample grid is separable,
+    ``W = Yᵀ A X`` with X[p, k] = x_k^p, which :func:`wavefront_on_grid` uses.
+    """
+    if n_modes < 1:
+        raise ValueError(f"n_modes must be >= 1, got {n_modes}")
+    order = nm_from_ansi(n_modes - 1)[0]
+    out = np.zeros((n_modes, order + 1, order + 1))
+    for j in range(n_modes):
+        n, m = nm_from_ansi(j)
+        m_abs = abs(m)
+        radial = np.zeros((order + 1, order + 1))  # Σ_k c_k (x² + y²)^k
+        for k, c in enumerate(_radial_coefficients(n, m_abs)):
+            for i in range(k + 1):  # binomial expansion of (x² + y²)^k
+                radial[2 * i, 2 * (k - i)] += c * math.comb(k, i)
+        angular = np.zeros((order + 1, order + 1))  # Re or Im of (x + iy)^|m|
+        for i in range(m_abs + 1):  # term C(m, i) x^(m−i) (iy)^i
+            power = (1j) ** i * math.comb(m_abs, i)
+            value = power.real if m >= 0 else power.imag
+            angular[m_abs - i, i] += value
+        product = np.zeros((order + 1, order + 1))
+        for (p1, q1) in zip(*np.nonzero(radial)):
+            for (p2, q2) in zip(*np.nonzero(angular)):
+                product[p1 + p2, q1 + q2] += radial[p1, q1] * angular[p2, q2]
+        out[j] = normalisation(n, m) * product
+    return out
+
+
+def powers_of(x, n: int):
+    """x⁰ … x^(n−1) stacked on a new axis −2 (integer powers: exact signs, finite gradients)."""
+    return jnp.stack([jnp.ones_like(x)] + [x**k for k in range(1, n)], axis=-2)
+
+
+def wavefront_on_grid(monomials, x, y):
+    """Σ_pq A[…, p, q] x^p y^q on the grid y × x: shape (…, len(y), len(x)).
+
+    ``monomials`` (…, N+1, N+1) as from :func:`monomial_coefficients` contracted with
+    coefficients; ``x`` (…, n_x) and ``y`` (…, n_y) 1-D coordinates (broadcast with the
+    leading axes). Two small matrix products instead of N² polynomial terms per sample:
+    the reverse pass then costs matrix products too (DESIGN.md §3).
+    """
+    x_pow = powers_of(x, monomials.shape[-1])  # (…, N+1, n_x)
+    y_pow = powers_of(y, monomials.shape[-1])  # (…, N+1, n_y)
+    return jnp.einsum("...qy,...pq,...px->...yx", y_pow, monomials, x_pow)
+
+
 def mirror_sign_vector(n_modes: int) -> np.ndarray:
     """Signs that mirror a coefficient vector x → −x (left eye ↔ right eye).
 
@@ -131,5 +182,7 @@ __all__ = [
     "zernike_mode",
     "zernike_basis",
     "wavefront_um",
+    "monomial_coefficients",
+    "wavefront_on_grid",
     "mirror_sign_vector",
 ]

@@ -156,3 +156,47 @@ def test_defocus_coefficient_formula():
     c = units.dioptres_to_c20_um(D, d)
     w = lambda rr: c * math.sqrt(3) * (2 * (rr / (d / 2)) ** 2 - 1)  # noqa: E731
     assert w(r) - w(0.0) == pytest.approx(D * r**2 / 2, rel=1e-13)
+
+
+def test_monomial_form_is_exact_to_order_10():
+    """monomial_coefficients rebuilds every mode exactly (float64, against the polar
+    reference's Cartesian twin), and wavefront_on_grid evaluates it on a separable grid."""
+    x = np.linspace(-1.1, 1.1, 23)
+    y = np.linspace(-1.05, 1.1, 19)
+    xx, yy = np.meshgrid(x, y)
+    n_modes = zernike.n_modes_for_order(10)
+    m = zernike.monomial_coefficients(n_modes)
+    assert m.shape == (n_modes, 11, 11)
+    direct = np.asarray(_basis66(jnp.asarray(xx.ravel()), jnp.asarray(yy.ravel())))
+    monomial = np.einsum("jpq,pi,qi->ji", m, xx.ravel()[None] ** np.arange(11)[:, None],
+                         yy.ravel()[None] ** np.arange(11)[:, None])
+    np.testing.assert_allclose(monomial, direct, rtol=0, atol=5e-10)
+    c = np.asarray(jax.random.normal(jax.random.key(2), (n_modes,)))
+    grid = zernike.wavefront_on_grid(jnp.asarray(np.tensordot(c, m, 1)), jnp.asarray(x), jnp.asarray(y))
+    np.testing.assert_allclose(np.asarray(grid).ravel(), c @ direct, rtol=0, atol=1e-9)
+
+
+def test_pipeline_wavefront_separable_and_high_order_paths_agree_with_the_polynomials():
+    """The pipeline's per-state wavefront (monomial form up to order 10, the polynomials
+    themselves beyond) equals eye + c20·Z(2,0) + c40·Z(4,0) evaluated mode by mode, float32."""
+    from lfjax.optics import SEPARABLE_MAX_ORDER, _state_wavefronts_um
+
+    x = jnp.asarray(np.linspace(-1.6, 1.6, 31), jnp.float32)
+    y = jnp.asarray(np.linspace(-1.5, 1.7, 29), jnp.float32)
+    xx, yy = np.meshgrid(np.asarray(x, float), np.asarray(y, float))
+    c20, c40 = np.array([0.3, -0.8]), np.array([0.05, 0.1])
+    pupil, sa_radius, measured = 3.0, 2.5, 3.5
+    for order in (4, SEPARABLE_MAX_ORDER, SEPARABLE_MAX_ORDER + 2):
+        n_modes = zernike.n_modes_for_order(order)
+        c = 0.1 * np.asarray(jax.random.normal(jax.random.key(order), (n_modes,)))
+        w = _state_wavefronts_um(jnp.asarray(c, jnp.float32), jnp.asarray(c20, jnp.float32),
+                                 jnp.asarray(c40, jnp.float32), x[None], y[None], pupil,
+                                 sa_radius, measured)
+        eye = sum(c[j] * np.asarray(zernike.zernike_mode(j, xx / (measured / 2), yy / (measured / 2)))
+                  for j in range(n_modes))
+        z20 = np.asarray(zernike.zernike_mode(4, xx / (pupil / 2), yy / (pupil / 2)))
+        z40 = np.asarray(zernike.zernike_mode(12, xx / sa_radius, yy / sa_radius))
+        expected = eye[None] + c20[:, None, None] * z20 + c40[:, None, None] * z40
+        inside = xx**2 + yy**2 <= (pupil / 2) ** 2
+        assert w.shape == (2, 1, 29, 31)
+        np.testing.assert_allclose(np.asarray(w)[:, 0][:, inside], expected[:, inside], rtol=0, atol=2e-4)
