@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-BENCH_DATE = "2026-11-23"
+BENCH_DATE = "2026-11-25"
 """Date stamped on the results (the project's reporting date); the run's clock time is printed too."""
 
 

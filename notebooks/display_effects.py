@@ -19,7 +19,8 @@
 #
 # The size is set by `LFJAX_NOTEBOOK_SIZE`: `small` (the committed outputs: the Thibos
 # average eye, three layouts, three depths, 50 nm wavelength steps) or `tiny` (what
-# `tests/test_display.py` runs: 2×2 only, 100 nm steps; numbers meaningless). The full
+# `tests/test_display.py` runs: 2×2 only, 100 nm steps, peaks from five states around the
+# grid's instead of Newton; numbers meaningless). The full
 # study: `benchmarks/display_effects.py` (RESULTS.md) or `lfjax reproduce --display-effects`.
 #
 # `notebooks/display_effects.py` is this notebook as a plain script (jupytext percent
@@ -38,7 +39,8 @@ from lfjax.display_spectra import display_spectrum
 
 SIZE = os.environ.get("LFJAX_NOTEBOOK_SIZE", "small")
 if SIZE == "tiny":
-    config = de.DisplayStudyConfig.quick(wavelength_step_nm=100.0, sweep_distances_mm=(400.0,))
+    config = de.DisplayStudyConfig.quick(wavelength_step_nm=100.0, sweep_distances_mm=(400.0,),
+                                         peak_method="local")
 else:
     config = de.DisplayStudyConfig.quick(layouts=("2x2", "3x3", "4x4"),
                                          sweep_distances_mm=(30.0, 200.0, 400.0, 470.0))
