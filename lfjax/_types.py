@@ -13,11 +13,16 @@ def is_concrete(*xs) -> bool:
 
 def as_real_array(x):
     """Array-like → jax array of the default real dtype (float32, or float64 under x64);
-    traced values pass through with their own floating dtype."""
+    traced values pass through with their own floating dtype.
+
+    Concrete values are made strongly typed: a Python float becomes a *weakly* typed array,
+    which ``jax.jit`` treats as a different input type from the same value given as an
+    array, so a pytree built from floats and one built from arrays would compile twice."""
+    if isinstance(x, jax.core.Tracer):
+        return x if jnp.issubdtype(x.dtype, jnp.floating) else x.astype(jnp.result_type(float))
     x = jnp.asarray(x)
-    if jnp.issubdtype(x.dtype, jnp.floating):
-        return x
-    return x.astype(jnp.result_type(float))
+    dtype = x.dtype if jnp.issubdtype(x.dtype, jnp.floating) else jnp.result_type(float)
+    return jnp.asarray(x, dtype)
 
 
 def as_index_array(x):

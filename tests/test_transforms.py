@@ -246,3 +246,26 @@ def test_array_likes_are_converted_on_construction_and_default_sampling_is_plann
     assert np.all(np.isfinite(np.asarray(tf.vsotf)))
     with pytest.raises(ValueError, match="Spectrum.weights must have the shape"):
         Spectrum(np.array([500.0, 600.0]), np.array([1.0]), np.zeros(2), np.zeros(2))
+
+
+def test_python_floats_and_arrays_give_one_compilation():
+    """A Scene built from Python floats and one built from arrays of the same dtype are the
+    same input type to jax.jit (no weak types leak into the leaves): one trace, not two."""
+    import equinox as eqx
+
+    traces = []
+
+    @eqx.filter_jit
+    def doubled_cdp(scene, accommodation):
+        traces.append(None)
+        return 2.0 * scene.cdp_D + accommodation.sa_radius_mm
+
+    real = jnp.result_type(float)
+    from_floats = Scene([[0.0, 0.0]], [3.0], 2.0, [1.0], 3.0)
+    from_arrays = Scene(jnp.zeros((1, 2), real), jnp.full((1,), 3.0, real), jnp.asarray(2.5, real),
+                        jnp.ones((1,), real), jnp.asarray(3.0, real))
+    options = lfjax.ModelOptions()
+    doubled_cdp(from_floats, Accommodation.shared([1.0], [[0]], options, 3.0))
+    doubled_cdp(from_arrays, Accommodation.shared(jnp.ones((1,), real), [[0]], options,
+                                                  jnp.asarray(3.0, real)))
+    assert len(traces) == 1
