@@ -323,26 +323,17 @@ def _direct_fn():
     import equinox as eqx
     import jax
     import jax.numpy as jnp
-    from lfjax.eyes import Eyes
-    from lfjax.peaks import refine_peak
-    from lfjax.pipeline import Accommodation, Scene, reference_normalisers, retinal_metrics
+    from lfjax.peaks import refine_peak, single_state_metric
+    from lfjax.pipeline import _eye_coefficients, reference_normalisers
 
     @eqx.filter_jit
     def direct(eyes, scene, spectrum, acc, config, lower, upper, start, metric, method):
         reference = reference_normalisers(scene, spectrum, acc, config)
-
-        def value_fn(a, args):
-            zernike_um, depth = args
-            one = Scene(scene.centres_mm, scene.diameters_mm, scene.cdp_D, depth[None],
-                        scene.pupil_diameter_mm)
-            state = Accommodation(a[None], jnp.zeros((1, 1), jnp.int32), acc.sa_c40_um_per_D,
-                                  acc.sa_radius_mm)
-            m = retinal_metrics(Eyes(zernike_um[None], eyes.measured_pupil_mm), one, spectrum,
-                                state, config, reference)
-            return getattr(m, metric)[0, 0, 0]
-
-        shape = (eyes.zernike_um.shape[0], scene.depths_D.shape[0])
-        z = jnp.broadcast_to(eyes.zernike_um[:, None, :], shape + eyes.zernike_um.shape[-1:])
+        value_fn = single_state_metric(eyes.measured_pupil_mm, scene, spectrum, acc, config,
+                                       reference, metric)
+        coefficients = _eye_coefficients(eyes, config)
+        shape = (coefficients.shape[0], scene.depths_D.shape[0])
+        z = jnp.broadcast_to(coefficients[:, None, :], shape + coefficients.shape[-1:])
         b = lambda x: jnp.broadcast_to(jnp.asarray(x)[None, :], shape)  # noqa: E731
         solve = lambda lo, hi, s, zz, d: refine_peak(  # noqa: E731
             value_fn, lo, hi, s, (zz, d), method, ATOL_D, MAX_STEPS)
@@ -392,7 +383,7 @@ def as_record(out, n_eyes, n_slots):
 def run_methods(args):
     import jax
     import lfjax
-    from _common import CompileTimer, block, timed
+    from _common import CompileTimer, timed
 
     z = np.load(CACHE / "eyes.npz")["zernike_um"]
     eyes_all = lfjax.eyes.make_eyes(z, PUPIL_MM)
@@ -462,7 +453,6 @@ def run_methods(args):
 def local_maxima(v, prominence=0.05):
     """numpy twin of lfjax.peaks._local_maxima on one curve (−inf = not allowed): indices of
     the global maximum and of the highest other prominent local maximum (or −1)."""
-    n = v.size
     best = int(np.argmax(v))
     left = np.concatenate([[-np.inf], v[:-1]])
     right = np.concatenate([v[1:], [-np.inf]])

@@ -351,6 +351,26 @@ def accommodation_peaks(
                            refine_second)
 
 
+def single_state_metric(measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
+                        grid: Accommodation, config: PipelineConfig, reference,
+                        metric: str = "vsotf"):
+    """The function solvers maximise: ``value_fn(a, (zernike_um, depth_D))`` → the metric
+    (scalar) of one eye (coefficients as the pipeline uses them, piston and tilt dropped)
+    accommodated at ``a`` (D) on the scene's point rendered at ``depth_D`` (D), with the
+    accommodation SA of ``grid`` and the scene's ``reference`` normalisers."""
+
+    def value_fn(a, args):
+        zernike_um, depth = args
+        one = Scene(scene.centres_mm, scene.diameters_mm, scene.cdp_D, depth[None],
+                    scene.pupil_diameter_mm, scene.display)
+        state = Accommodation(a[None], jnp.zeros((1, 1), jnp.int32), grid.sa_c40_um_per_D,
+                              grid.sa_radius_mm)
+        return pair_metric(zernike_um, measured_pupil_mm, one, spectrum, state, config,
+                           reference, metric)[0, 0]
+
+    return value_fn
+
+
 def peaks_from_grid(
     values, eyes: Eyes, scene: Scene, spectrum: Spectrum, grid: Accommodation,
     config: PipelineConfig, reference, metric: str = "vsotf", method: str = "auto",
@@ -389,15 +409,8 @@ def peaks_from_grid(
                        & (index < states.shape[-1] - 1), hi, take(states_b, index))
         return jnp.maximum(lo, 0.0), hi
 
-    def value_fn(a, args):
-        zernike_um, depth = args
-        one = Scene(scene.centres_mm, scene.diameters_mm, scene.cdp_D, depth[None],
-                    scene.pupil_diameter_mm, scene.display)
-        state = Accommodation(a[None], jnp.zeros((1, 1), jnp.int32), grid.sa_c40_um_per_D,
-                              grid.sa_radius_mm)
-        return pair_metric(zernike_um, eyes.measured_pupil_mm, one, spectrum, state, config,
-                           reference, metric)[0, 0]
-
+    value_fn = single_state_metric(eyes.measured_pupil_mm, scene, spectrum, grid, config,
+                                   reference, metric)
     depths_b = jnp.broadcast_to(scene.depths_D[None, :], values.shape[:2])
     coefficients = _eye_coefficients(eyes, config)
     z_b = jnp.broadcast_to(coefficients[:, None, :], values.shape[:2] + coefficients.shape[-1:])
@@ -469,6 +482,7 @@ accommodation_peaks_jit = eqx.filter_jit(accommodation_peaks)
 
 __all__ = [
     "PEAK_METHODS",
+    "single_state_metric",
     "Peak",
     "Peaks",
     "refine_peak",
