@@ -14,9 +14,10 @@ Which way of finding the through-focus peak is accurate, robust and cheap? Metho
 * ``newton_depth`` (``--extra``) Newton with no grid: whole window, started at the depth
 
 Scene: 3 mm pupil, CDP 2 D, rendered depths 0–4 D in 0.5 D, accommodation 0–5 D and only
-states within ±1 D of each depth allowed (the paper's grid), 7 wavelengths 420–660 nm in
-40 nm (few, to stay affordable: the peaks are compared with a reference computed on the
-same spectrum and sampling, so the wavelength count does not enter the errors), sampling
+states within ±1 D of each depth allowed (the paper's grid), by default 7 wavelengths
+420–660 nm in 40 nm (``--wavelengths`` sets others; few, to stay affordable: the peaks are
+compared with a reference computed on the same spectrum and sampling, so the wavelength
+count does not enter the errors, only the curves' shapes through LCA), sampling
 from ``lfjax.planner.plan_sampling`` (guard only). Layouts: natural view (open 3 mm pupil),
 2×2, 3×3, 4×4 viewpoints. The natural view has one central view and so ignores the rendered
 depth (RESULTS "issues" 3); its cases here are a real point at each depth (``cdp_D = depth``),
@@ -34,10 +35,12 @@ compiles; its compile time is jax's own compile events, reported separately). Al
 run interleaved chunk by chunk, so they share the machine's background load.
 
 Run (writes peak_finding.csv, peak_finding.png, peak_failure_cases.json here; raw results
-in benchmarks/_cache/peak_finding/):
+in benchmarks/_cache/peak_finding/; RESULTS.md §10 used three wavelengths, 450, 550 and
+650 nm, so that every method could run on all 100 eyes in about two hours on two cores):
 
-    .venv/bin/python benchmarks/peak_finding.py --eyes 100 --solver-eyes 20
-    .venv/bin/python benchmarks/peak_finding.py --part analyse      # re-analyse cached runs
+    .venv/bin/python benchmarks/peak_finding.py --eyes 100 --solver-eyes 100 --chunk 10 \
+        --wavelengths 450,550,650
+    .venv/bin/python benchmarks/peak_finding.py --part analyse ...  # re-analyse cached runs
 """
 
 from __future__ import annotations

@@ -153,7 +153,7 @@ def wavefront_on_grid(monomials, x, y):
     ``monomials`` (…, N+1, N+1) as from :func:`monomial_coefficients` contracted with
     coefficients; ``x`` (…, n_x) and ``y`` (…, n_y) 1-D coordinates (broadcast with the
     leading axes). Two small matrix products instead of N² polynomial terms per sample:
-    the reverse pass then costs matrix products too (DESIGN.md §3).
+    the reverse pass then costs matrix products too (benchmarks/RESULTS.md §8).
     """
     x_pow = powers_of(x, monomials.shape[-1])  # (…, N+1, n_x)
     y_pow = powers_of(y, monomials.shape[-1])  # (…, N+1, n_y)
