@@ -101,8 +101,8 @@ def _pupil_parts(
     pupil_diameter_mm, centre_mm, diameter_mm, dx_mm, sce_rho, n_pupil: int,
     edge_width_samples: float, wavelength_mm=None, display=None,
 ):
-    """Amplitude (real, or complex with lenslet diffraction), the window's 1-D sample
-    coordinates x and y (mm) and the transmitted energy (mm²) of one subaperture window."""
+    """Amplitude (real, or complex with lenslet diffraction) and transmitted energy (mm²)
+    of one subaperture window."""
     shape = "circle" if display is None else display.aperture
     diffracts = display is not None and display.diffracts
     # A diffracted beam is not confined to its subaperture: its window is the whole pupil.
@@ -148,7 +148,7 @@ def _pupil_parts(
         # under-counts the edge by ~s·perimeter, a bias the OTF's zero-frequency term must
         # not carry (it would lift the whole normalised MTF by ~2s/R).
         energy = jnp.sum(coverage * sce * sce) * dx_mm * dx_mm
-    return amp, xx[0], yy[:, 0], energy
+    return amp, energy
 
 
 SEPARABLE_MAX_ORDER = 10
@@ -169,18 +169,37 @@ def _pad_monomials(a, size: int):
     return jnp.pad(a, [(0, 0)] * (a.ndim - 2) + [(0, pad), (0, pad)]) if pad else a
 
 
-def _state_wavefronts_um(eye_um, c20_um, c40_um, x_mm, y_mm, pupil_diameter_mm, sa_radius_mm,
-                         measured_pupil_mm):
-    """Total wavefront (µm) of every (state, view): eye + defocus c20·Z(2,0) on the
-    calculation pupil + SA c40·Z(4,0) on its own radius, (n_acc, n_sub, n_y, n_x).
+def _window_centres_mm(centres_mm, display):
+    """Centre of each view's sample window, mm: the view's own, or the pupil's for diffracted
+    beams (they spread over the whole pupil)."""
+    if display is not None and display.diffracts:
+        return jnp.zeros_like(centres_mm)
+    return centres_mm
 
-    ``eye_um`` is the eye's coefficient vector (n_modes,); ``x_mm``/``y_mm`` (n_sub, n) the
-    windows' 1-D coordinates. Every term is a polynomial in x and y, so one monomial matrix
-    per state and two thin matrix products per view give the wavefront
-    (:func:`lfjax.zernike.wavefront_on_grid`): the reverse pass (Zernike coefficients,
-    centres, states) then costs small matrix products rather than N² polynomial terms per
-    sample (RESULTS §8)."""
-    real = x_mm.dtype
+
+def _shift_matrices(centre_mm, size: int):
+    """B (…, N+1, N+1) with B[p', p] = C(p', p)·c^(p'−p) (p' ≥ p): the coefficients of a
+    polynomial in x become those of the same polynomial in u = x − c as Bᵀ·(…)."""
+    exponent = np.subtract.outer(np.arange(size), np.arange(size))
+    binomial = np.array([[math.comb(i, j) if i >= j else 0 for j in range(size)] for i in range(size)])
+    c_pow = jnp.moveaxis(powers_of(centre_mm, size), -2, -1)  # (…, N+1)
+    return jnp.asarray(binomial, centre_mm.dtype) * c_pow[..., np.clip(exponent, 0, None)]
+
+
+def _state_wavefronts_um(eye_um, c20_um, c40_um, window_centres_mm, offsets_mm, pupil_diameter_mm,
+                         sa_radius_mm, measured_pupil_mm):
+    """Total wavefront (µm) of every (state, view): eye + defocus c20·Z(2,0) on the
+    calculation pupil + SA c40·Z(4,0) on its own radius, (n_acc, n_sub, n, n).
+
+    ``eye_um`` is the eye's coefficient vector (n_modes,); the views' windows are sampled at
+    ``window_centres_mm`` (n_sub, 2) + ``offsets_mm`` (n,) along x and y. Every term is a
+    polynomial in x and y, so one monomial matrix per state, moved to each window's centre
+    (a binomial shift of the small matrix), and two thin matrix products with the
+    offsets' powers give the wavefront (:func:`lfjax.zernike.wavefront_on_grid`). The
+    reverse pass then costs small matrix products rather than N² polynomial terms per
+    sample, and the centres' derivatives flow through the small matrices only, so the
+    sample-sized cotangent has one consumer (RESULTS §8)."""
+    real = offsets_mm.dtype
     n_modes = eye_um.shape[-1]
     eye_order = nm_from_ansi(n_modes - 1)[0]
     r_pupil = 0.5 * pupil_diameter_mm
@@ -193,11 +212,15 @@ def _state_wavefronts_um(eye_um, c20_um, c40_um, x_mm, y_mm, pupil_diameter_mm, 
     if separable_eye:
         eye = _monomials_mm(eye_um, 0.5 * measured_pupil_mm, n_modes)
         per_state = per_state + _pad_monomials(eye, size)[None]
-    w = wavefront_on_grid(per_state[:, None], x_mm[None], y_mm[None])
+    shift_x = _shift_matrices(window_centres_mm[:, 0], size)  # (n_sub, N+1, N+1)
+    shift_y = _shift_matrices(window_centres_mm[:, 1], size)
+    local = jnp.einsum("nip,aij,njq->anpq", shift_x, per_state, shift_y)  # (n_acc, n_sub, …)
+    w = wavefront_on_grid(local, offsets_mm, offsets_mm)
     if not separable_eye:  # high orders: the polynomials themselves (no cancellation)
         r_meas = 0.5 * measured_pupil_mm
-        w_eye = jax.vmap(lambda x, y: wavefront_um(
-            eye_um, x[None, :] / r_meas, y[:, None] / r_meas))(x_mm, y_mm)
+        w_eye = jax.vmap(lambda c: wavefront_um(
+            eye_um, (c[0] + offsets_mm)[None, :] / r_meas, (c[1] + offsets_mm)[:, None] / r_meas
+        ))(window_centres_mm)
         w = w + w_eye[None]
     return w.astype(real)
 
@@ -296,13 +319,14 @@ def _elemental_otfs_band(
                 wl_mm, display,
             )
         )(centres_mm, diameters_mm)
-        amp, x_mm, y_mm, energy = parts  # (n_sub, n_pupil, n_pupil), (n_sub, n_pupil)², (n_sub,)
+        amp, energy = parts  # (n_sub, n_pupil, n_pupil) and (n_sub,)
         # ModelOptions.wavelength_normalisation as data: unit_sum = 1 divides by the energy
         # all views transmit at this wavelength, 0 leaves the weight as it is
         weight = weight * jnp.power(jnp.sum(energy), -spectrum.unit_sum)
         c20 = dioptres_to_c20_um(accommodation_D - cdp_D + lca_D, pupil_diameter_mm)
-        w = _state_wavefronts_um(coefficients_um, c20, c40, x_mm, y_mm, pupil_diameter_mm,
-                                 sa_params[1], measured_pupil_mm)
+        offsets = (jnp.arange(n_pupil, dtype=real) - n_pupil // 2) * dx
+        w = _state_wavefronts_um(coefficients_um, c20, c40, _window_centres_mm(centres_mm, display),
+                                 offsets, pupil_diameter_mm, sa_params[1], measured_pupil_mm)
         phase = (-2.0 * jnp.pi / (wl_nm * 1e-3)) * w
         if jnp.iscomplexobj(amp):  # lenslet diffraction: a complex beam in the pupil
             field = amp[None] * jax.lax.complex(jnp.cos(phase), jnp.sin(phase))
@@ -333,8 +357,8 @@ def _elemental_otfs_band(
     init = (jnp.zeros((n_acc, n_sub, n_fft, n_fft), real), jnp.zeros((n_sub,), real))
     xs = (spectrum.wavelengths_nm, spectrum.weights, spectrum.lca_D, spectrum.sce_rho_per_mm2)
     # Reverse mode keeps each wavelength's pupil spectrum and recomputes the cheap pupil
-    # fields instead of stacking every intermediate over the scan (jax.checkpoint): 2.4x
-    # faster than stacking, 1.15x faster than recomputing the transform too; the forward
+    # fields instead of stacking every intermediate over the scan (jax.checkpoint): 1.6x
+    # faster than stacking, 1.13x faster than recomputing the transform too; the forward
     # is unchanged (benchmarks/bench_gradient.py, RESULTS.md §8).
     keep_spectrum = jax.checkpoint_policies.save_only_these_names("pupil_spectrum")
     one_wavelength = jax.checkpoint(one_wavelength, prevent_cse=False, policy=keep_spectrum)

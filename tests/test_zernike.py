@@ -177,26 +177,29 @@ def test_monomial_form_is_exact_to_order_10():
 
 
 def test_pipeline_wavefront_separable_and_high_order_paths_agree_with_the_polynomials():
-    """The pipeline's per-state wavefront (monomial form up to order 10, the polynomials
-    themselves beyond) equals eye + c20·Z(2,0) + c40·Z(4,0) evaluated mode by mode, float32."""
+    """The pipeline's per-state wavefront on each view's window (monomial form moved to the
+    window's centre up to order 10, the polynomials themselves beyond) equals eye +
+    c20·Z(2,0) + c40·Z(4,0) evaluated mode by mode at the samples, float32."""
     from lfjax.optics import SEPARABLE_MAX_ORDER, _state_wavefronts_um
 
-    x = jnp.asarray(np.linspace(-1.6, 1.6, 31), jnp.float32)
-    y = jnp.asarray(np.linspace(-1.5, 1.7, 29), jnp.float32)
-    xx, yy = np.meshgrid(np.asarray(x, float), np.asarray(y, float))
+    offsets = jnp.asarray(np.linspace(-1.5, 1.5, 31), jnp.float32)
+    centres = jnp.asarray([[0.25, -0.4], [-0.6, 0.1]], jnp.float32)  # two views' windows
+    xx = np.asarray(centres[:, 0], float)[:, None, None] + np.asarray(offsets, float)[None, None, :]
+    yy = np.asarray(centres[:, 1], float)[:, None, None] + np.asarray(offsets, float)[None, :, None]
+    xx, yy = np.broadcast_arrays(xx, yy)
     c20, c40 = np.array([0.3, -0.8]), np.array([0.05, 0.1])
     pupil, sa_radius, measured = 3.0, 2.5, 3.5
     for order in (4, SEPARABLE_MAX_ORDER, SEPARABLE_MAX_ORDER + 2):
         n_modes = zernike.n_modes_for_order(order)
         c = 0.1 * np.asarray(jax.random.normal(jax.random.key(order), (n_modes,)))
         w = _state_wavefronts_um(jnp.asarray(c, jnp.float32), jnp.asarray(c20, jnp.float32),
-                                 jnp.asarray(c40, jnp.float32), x[None], y[None], pupil,
+                                 jnp.asarray(c40, jnp.float32), centres, offsets, pupil,
                                  sa_radius, measured)
         eye = sum(c[j] * np.asarray(zernike.zernike_mode(j, xx / (measured / 2), yy / (measured / 2)))
                   for j in range(n_modes))
         z20 = np.asarray(zernike.zernike_mode(4, xx / (pupil / 2), yy / (pupil / 2)))
         z40 = np.asarray(zernike.zernike_mode(12, xx / sa_radius, yy / sa_radius))
-        expected = eye[None] + c20[:, None, None] * z20 + c40[:, None, None] * z40
+        expected = eye[None] + c20[:, None, None, None] * z20[None] + c40[:, None, None, None] * z40[None]
         inside = xx**2 + yy**2 <= (pupil / 2) ** 2
-        assert w.shape == (2, 1, 29, 31)
-        np.testing.assert_allclose(np.asarray(w)[:, 0][:, inside], expected[:, inside], rtol=0, atol=2e-4)
+        assert w.shape == (2, 2, 31, 31)
+        np.testing.assert_allclose(np.asarray(w)[:, inside], expected[:, inside], rtol=0, atol=2e-4)
