@@ -105,9 +105,7 @@ def _pupil_parts(
     of one subaperture window."""
     shape = "circle" if display is None else display.aperture
     diffracts = display is not None and display.diffracts
-    # A diffracted beam is not confined to its subaperture: its window is the whole pupil.
-    window_centre = jnp.zeros_like(centre_mm) if diffracts else centre_mm
-    xx, yy = _window_coordinates(window_centre, n_pupil, dx_mm)
+    xx, yy = _window_coordinates(_window_centres_mm(centre_mm, display), n_pupil, dx_mm)
     r2 = xx * xx + yy * yy
     edge = edge_width_samples * dx_mm
     r_pupil = 0.5 * pupil_diameter_mm
