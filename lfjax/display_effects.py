@@ -67,8 +67,8 @@ class DisplayStudyConfig:
     cutoff_threshold : MTF value defining the cut-off frequency (paper: 0.05)
     peak_method : how the continuous VSOTF peak is refined from the grid
         (:func:`lfjax.through_focus.through_focus`'s ``peak_method``: "auto" is Newton;
-        "local" fits five states around the grid parabola's vertex, 3.4e-4 D from Newton in
-        RESULTS §8 and much cheaper to compile)
+        "local" fits three states around the grid parabola's vertex, ~1e-4 D from Newton
+        (:mod:`lfjax.peaks`) and much cheaper to compile)
     """
 
     layouts: tuple[str, ...] = ("2x2", "3x3", "4x4")

@@ -239,7 +239,7 @@ def test_optimistix_golden_search_still_needs_the_offset_workaround():
 
 
 def test_local_refinement_agrees_with_the_exact_peak():
-    """"local" (five points around the grid parabola's vertex, no solver loop) finds the
+    """"local" (three points around the grid parabola's vertex, no solver loop) finds the
     analytic peak of a defocused eye (CDP − own defocus) to < 5e-4 D, where the grid
     parabola alone is off by more."""
     layout = lfjax.open_pupil(3.0)
@@ -260,6 +260,20 @@ def test_local_refinement_agrees_with_the_exact_peak():
                                   np.asarray(parabola.accommodation_D))
     np.testing.assert_allclose(np.asarray(vertex.value), np.asarray(parabola.value), rtol=2e-2)
     assert np.all(np.asarray(vertex.value) >= np.asarray(vertex.grid_value) - 1e-12)
+
+
+def test_local_refinement_at_the_hyperopic_limit():
+    """Near 0 D the three-point stencil moves inside the bracket instead of being clipped
+    onto the limit (clipped points coincide and leave the parabola's fit singular: NaN).
+    A peak 0.05 D above the limit is found; one beyond it is held at 0 D and succeeds."""
+    layout = lfjax.open_pupil(3.0)
+    cfg, scene, grid, allowed = _pipeline(layout, [0.3], cdp_D=0.3)
+    own = np.array([0.25, 0.6])  # peaks at 0.05 D and (beyond the limit) -0.3 D
+    eyes = lfjax.Eyes(np.concatenate([_defocused_eye(d).zernike_um for d in own]), 3.0)
+    local = accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "local", allowed)
+    found = np.asarray(local.accommodation_D)[:, 0]
+    assert np.all(np.isfinite(found)) and np.all(np.asarray(local.success))
+    np.testing.assert_allclose(found, [0.05, 0.0], atol=5e-4)
 
 
 def test_flat_curves_of_strongly_aberrated_eyes_are_not_reported_as_successes():

@@ -75,7 +75,7 @@ def layout_through_focus(
                 pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
                 spectrum=spectrum, sampling=sampling, options=options,
                 # claim 2 reads the global VSOTF peak; second peaks stay grid-located. "local"
-                # (five-point refinement, no solver loop) agrees with Newton to < 4e-4 D and
+                # (three-point refinement, no solver loop) agrees with Newton to ~1e-4 D and
                 # compiles like the grid (Newton's loop added ~25 s per layout).
                 continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
             )
@@ -218,7 +218,7 @@ def run_study(
                 "long_name": "sub-grid peak: parabola through the grid peak and neighbours",
                 "units": "D"}),
             predicted_accommodation_continuous=(("layout", "eye", "depth", "metric"), pred_cont, {
-                "long_name": "continuous peak: five-point local refinement of the grid peak "
+                "long_name": "continuous peak: three-point local refinement of the grid peak "
                              "(lfjax.peaks 'local'; VSOTF only, NaN for Strehl)", "units": "D"}),
             continuous_peak_success=(("layout", "eye", "depth", "metric"), cont_ok, {
                 "long_name": "the continuous peak converged inside its bracket"}),
