@@ -121,12 +121,16 @@ def main():
         return
     print("command: .venv/bin/python benchmarks/bench_reproduce.py")
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"jax {jax.__version__}, {time.strftime('%Y-%m-%d %H:%M')}")
+          f"jax {jax.__version__}, devices {jax.devices()}, {time.strftime('%Y-%m-%d %H:%M')}",
+          flush=True)
     cache = Path(tempfile.mkdtemp())
     runs = {}
     for label, extra in (("cold cache, full", []), ("warm cache, full", []),
                          ("warm cache, --no-alternatives", ["--no-alternatives"])):
         runs[label] = run_cli(cache, extra)
+        # printed as each run ends: a run cut short by a time limit still leaves the others
+        print(f"lfjax reproduce ({label}): {runs[label][0]:.1f} s\n  {runs[label][1]}",
+              flush=True)
     shutil.rmtree(cache, ignore_errors=True)
     main_floor, alt_floor, lines = floor_seconds()
     for line in lines:
