@@ -8,8 +8,10 @@ one eye's OTF stack (eyes are mapped in chunks).
 
 from __future__ import annotations
 
+import functools
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -109,12 +111,28 @@ class ThroughFocus(eqx.Module):
 
     def mtf_at_peak(self, metric: str = "vsotf"):
         """Radial MTF at the predicted accommodation, (n_eyes, n_depth, n_freq)."""
-        idx = jnp.asarray(self.peak_index(metric))
-        return jnp.take_along_axis(self.radial_mtf, idx[..., None, None], axis=2)[:, :, 0]
+        return _mtf_at_index(self.radial_mtf, jnp.asarray(self.peak_index(metric)))
 
     def cutoff_cpd(self, metric: str = "vsotf", threshold: float = 0.05):
         """Cut-off frequency (cpd) of the MTF at the predicted accommodation."""
-        return cutoff_frequency(self.mtf_at_peak(metric), self.radial_freq_cpd, threshold)
+        if not (0.0 < threshold < 1.0):
+            raise ValueError(f"threshold must be in (0, 1), got {threshold}")
+        return _cutoff_at_index(self.radial_mtf, jnp.asarray(self.peak_index(metric)),
+                                self.radial_freq_cpd, float(threshold))
+
+
+def _mtf_at_index(radial_mtf, index):
+    return jnp.take_along_axis(radial_mtf, index[..., None, None], axis=2)[:, :, 0]
+
+
+# One compiled program per shape: run eagerly, these few lines were about ten small
+# compilations for every new layout shape (a cold `lfjax reproduce` makes eight such shapes).
+_mtf_at_index = jax.jit(_mtf_at_index)
+
+
+@functools.partial(jax.jit, static_argnames="threshold")
+def _cutoff_at_index(radial_mtf, index, frequencies_cpd, threshold: float):
+    return cutoff_frequency(_mtf_at_index(radial_mtf, index), frequencies_cpd, threshold)
 
 
 def _check_states(accommodation_D, depths_D) -> None:
