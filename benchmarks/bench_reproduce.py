@@ -6,7 +6,7 @@ per band. The floor counts what the job cannot avoid computing: per wavelength a
 field (and |.|^2), per wavelength band one rfft2 of the band's summed PSF, for the main study
 and for the modelling alternatives (the reduced study, once per variant and for its baseline).
 
-Run:  .venv/bin/python benchmarks/bench_reproduce.py
+Run:  .venv/bin/python benchmarks/bench_reproduce.py [--keep-report REPORT.md | --floor-only]
 """
 
 from __future__ import annotations
@@ -97,8 +97,9 @@ def _timed(fn) -> float:
     return time.perf_counter() - t0
 
 
-def run_cli(cache_dir: Path, extra: list[str]) -> tuple[float, str]:
-    """Wall time of ``lfjax reproduce`` in a fresh process, and its REPORT.md timing line."""
+def run_cli(cache_dir: Path, extra: list[str], keep_report: Path | None = None) -> tuple[float, str]:
+    """Wall time of ``lfjax reproduce`` in a fresh process, and its REPORT.md timing line
+    (the whole REPORT.md is copied to ``keep_report`` when given)."""
     out = Path(tempfile.mkdtemp()) / "study"
     env = dict(os.environ, LFJAX_CACHE_DIR=str(cache_dir))
     env.pop("XLA_FLAGS", None)
@@ -108,12 +109,17 @@ def run_cli(cache_dir: Path, extra: list[str]) -> tuple[float, str]:
     subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
     elapsed = time.perf_counter() - t0
     report = (out / "REPORT.md").read_text()
+    if keep_report is not None:
+        keep_report.write_text(report)
     timings = next((line for line in report.splitlines() if line.startswith("Timings")), "")
     shutil.rmtree(out.parent, ignore_errors=True)
     return elapsed, timings
 
 
 def main():
+    keep = None
+    if len(sys.argv) == 3 and sys.argv[1] == "--keep-report":
+        keep = Path(sys.argv[2])  # the cold run's REPORT.md (to compare verdicts across machines)
     if len(sys.argv) == 2 and sys.argv[1] == "--floor-only":
         main_floor, alt_floor, lines = floor_seconds()
         print("\n".join(lines))
@@ -127,7 +133,7 @@ def main():
     runs = {}
     for label, extra in (("cold cache, full", []), ("warm cache, full", []),
                          ("warm cache, --no-alternatives", ["--no-alternatives"])):
-        runs[label] = run_cli(cache, extra)
+        runs[label] = run_cli(cache, extra, keep if label.startswith("cold") else None)
         # printed as each run ends: a run cut short by a time limit still leaves the others
         print(f"lfjax reproduce ({label}): {runs[label][0]:.1f} s\n  {runs[label][1]}",
               flush=True)

@@ -5,6 +5,13 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+FULL = jax.lax.Precision.HIGHEST
+"""Precision of every matrix product in lfjax. JAX's default lets accelerators round float32
+products' inputs (TF32, a 10-bit mantissa, on NVIDIA GPUs since Ampere; bfloat16 passes on
+TPU): the separable wavefront's cancelling monomials, the matrix Fourier transform's phase
+sums and the three-point peak fit (values that agree to 1e-4) need all of float32. The CPU
+ignores it. tests/test_precision.py checks every product of the traced programs."""
+
 
 def is_concrete(*xs) -> bool:
     """True when no leaf of ``xs`` is a tracer: values can be checked on the host."""

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import as_real_array
+from ._types import FULL, as_real_array
 from .zernike import mirror_sign_vector, nm_from_ansi
 
 THIBOS_PUPILS_MM = (3.0, 4.5, 6.0, 7.5)
@@ -180,7 +180,7 @@ def sample_eyes(
     # jax_enable_x64 (float64 draws would be different random numbers).
     z = jax.random.normal(key, (int(n_eyes), mean.size), dtype=jnp.float32)
     z = z.astype(jnp.result_type(float))
-    coeffs = jnp.asarray(mean) + z @ jnp.asarray(chol).T
+    coeffs = jnp.asarray(mean) + jnp.matmul(z, jnp.asarray(chol).T, precision=FULL)
     eyes = Eyes(coeffs, float(measured_pupil_mm))
     if zero_piston_tilt:
         eyes = eyes.without_piston_tilt()

@@ -25,6 +25,7 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
+from ._types import FULL
 from .optics import full_plane
 
 ORIENTATIONS = ("right", "up", "left", "down")
@@ -186,7 +187,7 @@ def _psf_on_grid(otf_half, df, p, n: int, L: int):
     aperture = jnp.sinc(f * p)  # pixel box integration (sinc(x) = sin(πx)/(πx))
     theta = (jnp.arange(n) - n // 2) * p
     kernel = jnp.exp(2j * jnp.pi * theta[:, None] * f[None, :]) * aperture[None, :]  # (n, L)
-    psf = jnp.einsum("ik,...kl,jl->...ij", kernel, otf, kernel)
+    psf = jnp.einsum("ik,...kl,jl->...ij", kernel, otf, kernel, precision=FULL)
     psf = jnp.real(psf) * (df / 60.0) ** 2 * p * p
     inside = jnp.abs(theta) <= 30.0 / df  # one period of the model's periodic PSF
     return psf * (inside[:, None] & inside[None, :])

@@ -109,7 +109,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float
 
-from ._types import as_real_array as _real
+from ._types import FULL, as_real_array as _real
 from .display import DisplayOptics
 from .eyes import Eyes
 from .layouts import Layout, make_layout
@@ -1282,7 +1282,7 @@ class _CoordinateObjective:
         @loss.defjvp
         def loss_jvp(primals, tangents):
             value, grad = self.value_and_grad(primals[0])
-            dot = sum(jnp.vdot(g, t) for g, t in zip(jax.tree_util.tree_leaves(grad),
+            dot = sum(jnp.vdot(g, t, precision=FULL) for g, t in zip(jax.tree_util.tree_leaves(grad),
                                                     jax.tree_util.tree_leaves(tangents[0])))
             return value, dot
 

@@ -13,6 +13,7 @@ from functools import lru_cache
 import jax.numpy as jnp
 import numpy as np
 
+from ._types import FULL
 from .optics import frequencies_cpd, half_frequencies_cpd
 
 # ----------------------------------------------------------------------------- NCSF
@@ -174,7 +175,8 @@ def radial_mtf(otf_half, n_fft: int, freq_step_cpd: float):
     """
     matrix, k = _radial_bins(n_fft)
     mod = jnp.abs(otf_half).reshape(otf_half.shape[:-2] + (-1,))
-    return mod @ jnp.asarray(matrix, mod.dtype).T, jnp.asarray(k * freq_step_cpd)
+    return (jnp.matmul(mod, jnp.asarray(matrix, mod.dtype).T, precision=FULL),
+            jnp.asarray(k * freq_step_cpd))
 
 
 def cutoff_frequency(radial, frequencies_cpd_, threshold: float = 0.05):

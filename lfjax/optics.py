@@ -20,7 +20,7 @@ import jax.numpy as jnp
 from jax.ad_checkpoint import checkpoint_name
 import numpy as np
 
-from ._types import is_concrete
+from ._types import FULL, is_concrete
 from .display import aperture_edge_distance, fresnel_propagate
 from .eyes import Eyes
 from .layouts import Layout
@@ -159,7 +159,8 @@ def _monomials_mm(coefficients_um, radius_mm, n_modes: int):
     """Σ_j c_j Z_j(x/r, y/r) as monomial coefficients in x and y in mm, (N+1, N+1)."""
     m = monomial_coefficients(n_modes)
     scale = powers_of(jnp.reshape(1.0 / radius_mm, (1,)).astype(coefficients_um.dtype), m.shape[-1])[:, 0]
-    return jnp.tensordot(coefficients_um, jnp.asarray(m, coefficients_um.dtype), 1) * jnp.outer(scale, scale)
+    return (jnp.tensordot(coefficients_um, jnp.asarray(m, coefficients_um.dtype), 1, precision=FULL)
+            * jnp.outer(scale, scale))
 
 
 def _pad_monomials(a, size: int):
@@ -212,7 +213,7 @@ def _state_wavefronts_um(eye_um, c20_um, c40_um, window_centres_mm, offsets_mm, 
         per_state = per_state + _pad_monomials(eye, size)[None]
     shift_x = _shift_matrices(window_centres_mm[:, 0], size)  # (n_sub, N+1, N+1)
     shift_y = _shift_matrices(window_centres_mm[:, 1], size)
-    local = jnp.einsum("nip,aij,njq->anpq", shift_x, per_state, shift_y)  # (n_acc, n_sub, …)
+    local = jnp.einsum("nip,aij,njq->anpq", shift_x, per_state, shift_y, precision=FULL)  # (n_acc, n_sub, …)
     w = wavefront_on_grid(local, offsets_mm, offsets_mm)
     if not separable_eye:  # high orders: the polynomials themselves (no cancellation)
         r_meas = 0.5 * measured_pupil_mm
@@ -335,7 +336,7 @@ def _elemental_otfs_band(
             # samples of the PSF, truncated (not wrapped) at the field edge.
             theta = jnp.asarray(k_theta, real) * pixel_rad
             kernel = jnp.exp((-2j * jnp.pi / wl_mm) * theta[:, None] * local[None, :])
-            spectrum_2d = jnp.einsum("jy,...yx,mx->...jm", kernel, field, kernel)
+            spectrum_2d = jnp.einsum("jy,...yx,mx->...jm", kernel, field, kernel, precision=FULL)
             scale = dx**4 * pixel_rad**2 / wl_mm**2
         else:
             # The aperture fills only the central n_pupil samples; an explicit pad then one

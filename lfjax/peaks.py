@@ -57,6 +57,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float, Int
 
+from ._types import FULL
 from .eyes import Eyes
 from .optics import _is_concrete
 from .pipeline import (
@@ -213,8 +214,8 @@ def _local_refinement(value_fn, vertex_D, lower_D, upper_D, args) -> Peak:
     # least-squares parabola in x = point − centre: minimise Σ (c0 + c1 x + c2 x² − v)²
     x = points - centre[..., None]
     design = jnp.stack([jnp.ones_like(x), x, x * x], axis=-1)
-    normal = jnp.einsum("...ki,...kj->...ij", design, design)
-    rhs = jnp.einsum("...ki,...k->...i", design, values)
+    normal = jnp.einsum("...ki,...kj->...ij", design, design, precision=FULL)
+    rhs = jnp.einsum("...ki,...k->...i", design, values, precision=FULL)
     c0, c1, c2 = jnp.moveaxis(jnp.linalg.solve(normal, rhs[..., None])[..., 0], -1, 0)
     concave = c2 < 0
     shift = jnp.where(concave, -c1 / (2.0 * jnp.where(concave, c2, -1.0)), 0.0)

@@ -26,6 +26,7 @@ import numpy as np
 # Module import, not ``from .optics import ...``: lfjax.optics re-exports
 # monochromatic_psf, so either module may be imported first.
 from . import optics as _optics
+from ._types import FULL
 from .sampling import EDGE_EXTENT_SCALES
 from .units import ARCMIN_PER_RADIAN, dioptres_to_c20_um
 from .zernike import zernike_mode
@@ -374,7 +375,8 @@ def _monochromatic_psf(
     field = amp * jnp.exp((-2j * jnp.pi / (wavelength_nm * 1e-3)) * w)
     theta_rad = (jnp.arange(n_pixels) - n_pixels // 2) * pixel_arcmin / ARCMIN_PER_RADIAN
     kernel = jnp.exp((-2j * jnp.pi / (wavelength_nm * 1e-6)) * theta_rad[:, None] * x[None, :])
-    g = kernel @ field @ kernel.T  # rows: θ_y, columns: θ_x
+    g = jnp.matmul(jnp.matmul(kernel, field, precision=FULL), kernel.T,
+                   precision=FULL)  # rows: θ_y, columns: θ_x
     psf = jnp.abs(g) ** 2
     return psf / jnp.sum(psf)
 

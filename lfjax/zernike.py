@@ -14,6 +14,8 @@ from functools import lru_cache
 import jax.numpy as jnp
 import numpy as np
 
+from ._types import FULL
+
 MAX_RADIAL_ORDER = 20
 """Largest radial order accepted (the Thibos data go to order 10)."""
 
@@ -106,7 +108,7 @@ def wavefront_um(coefficients_um, x, y):
     """
     n_modes = coefficients_um.shape[-1]
     basis = zernike_basis(n_modes, x, y)
-    return jnp.tensordot(coefficients_um, basis, axes=([-1], [0]))
+    return jnp.tensordot(coefficients_um, basis, axes=([-1], [0]), precision=FULL)
 
 
 @lru_cache(maxsize=None)
@@ -157,7 +159,7 @@ def wavefront_on_grid(monomials, x, y):
     """
     x_pow = powers_of(x, monomials.shape[-1])  # (…, N+1, n_x)
     y_pow = powers_of(y, monomials.shape[-1])  # (…, N+1, n_y)
-    return jnp.einsum("...qy,...pq,...px->...yx", y_pow, monomials, x_pow)
+    return jnp.einsum("...qy,...pq,...px->...yx", y_pow, monomials, x_pow, precision=FULL)
 
 
 def mirror_sign_vector(n_modes: int) -> np.ndarray:
