@@ -11,6 +11,7 @@ Run:  .venv/bin/python benchmarks/bench_reproduce.py [--keep-report REPORT.md | 
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import platform
 import shutil
@@ -25,29 +26,39 @@ import jax.numpy as jnp
 import numpy as np
 
 
-def _band_floor(eyes_n: int, n_states: int, n_sub: int, bands) -> float:
+def _band_floor(eyes_n: int, n_states: int, n_sub: int, bands, mft_samples=None) -> float:
     """Seconds of the bare transforms for one layout: per wavelength an fft2 of each complex
-    pupil field and |.|^2 summed over the band; per band one rfft2 of the summed PSF per
-    (eye, state, view) — what optics._elemental_otfs_band does, without anything else."""
+    pupil field (or, with ``mft_samples``, the matrix Fourier transform of an
+    mft_samples² field onto the band's n² angles) and |.|^2 summed over the band; per band
+    one rfft2 of the summed PSF per (eye, state, view) — what optics._elemental_otfs_band
+    does, without anything else."""
     total = 0.0
     for start, stop, n in bands:
         n_wl = stop - start
         fields = eyes_n * n_states * n_sub  # one summed PSF per (eye, state, view)
         chunk = min(fields, 64)
+        m = n if mft_samples is None else int(mft_samples)
 
         @jax.jit
         def work(x):
             def one(acc, i):
                 # the field depends on the wavelength index, or XLA hoists the transform out
                 # of the loop (computing it once)
-                spec = jnp.fft.fft2(x * (1.0 + 1e-3 * i).astype(x.dtype))
+                field = x * (1.0 + 1e-3 * i).astype(x.dtype)
+                if mft_samples is None:
+                    spec = jnp.fft.fft2(field)
+                else:
+                    kernel = jnp.exp(1j * (1.0 + 1e-3 * i) * jnp.outer(
+                        jnp.arange(n, dtype=jnp.float32), jnp.arange(m, dtype=jnp.float32)))
+                    spec = jnp.einsum("jy,...yx,mx->...jm", kernel, field, kernel,
+                                      precision=jax.lax.Precision.HIGHEST)
                 return acc + jnp.real(spec) ** 2 + jnp.imag(spec) ** 2, None
 
-            psf, _ = jax.lax.scan(one, jnp.zeros(x.shape, jnp.float32),
+            psf, _ = jax.lax.scan(one, jnp.zeros((x.shape[0], n, n), jnp.float32),
                                   jnp.arange(n_wl, dtype=jnp.float32))
             return jnp.fft.rfft2(psf)
 
-        x = jnp.ones((chunk, n, n), jnp.complex64)
+        x = jnp.ones((chunk, m, m), jnp.complex64)
         work(x).block_until_ready()
         best = min(_timed(lambda: work(x).block_until_ready()) for _ in range(3))
         total += best * fields / chunk
@@ -66,13 +77,17 @@ def _study_floor(config, label: str, repeat: int = 1) -> tuple[float, list[str]]
         depths = (np.array([config.cdp_D]) if name == "natural"
                   else np.asarray(config.depths_D, float))
         sampling = _planned_sampling(eyes, layout, depths, config, config.options)
+        mft = dict(config.mft_pupil_samples).get(name)  # as lfjax.reproduce.study does
+        if mft:
+            sampling = dataclasses.replace(sampling, transform="mft", mft_pupil_samples=mft)
         grid = np.asarray(config.accommodation_D, float)
         used = np.any(np.abs(grid[None, :] - depths[:, None]) <= config.window_D + 1e-9, axis=0)
         bands = wavelength_bands(config.wavelength_grid_nm, layout.window_diameter_mm,
                                  config.pupil_diameter_mm, sampling)
-        t = repeat * _band_floor(eyes.n_eyes, int(used.sum()), layout.n_subapertures, bands)
+        t = repeat * _band_floor(eyes.n_eyes, int(used.sum()), layout.n_subapertures, bands, mft)
         lines.append(f"{label} {name}: df {sampling.freq_step_cpd:.4g} cpd, bands {bands}, "
-                     f"{int(used.sum())} states, {layout.n_subapertures} views"
+                     + (f"MFT {mft} pupil samples, " if mft else "")
+                     + f"{int(used.sum())} states, {layout.n_subapertures} views"
                      + (f", x {repeat} runs" if repeat > 1 else "") + f": {t:.2f} s")
         total += t
     return total, lines
@@ -97,7 +112,8 @@ def _timed(fn) -> float:
     return time.perf_counter() - t0
 
 
-def run_cli(cache_dir: Path, extra: list[str], keep_report: Path | None = None) -> tuple[float, str]:
+def run_cli(cache_dir: Path, extra: list[str],
+            keep_report: Path | None = None) -> tuple[float, str]:
     """Wall time of ``lfjax reproduce`` in a fresh process, and its REPORT.md timing line
     (the whole REPORT.md is copied to ``keep_report`` when given)."""
     out = Path(tempfile.mkdtemp()) / "study"

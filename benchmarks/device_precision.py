@@ -51,13 +51,15 @@ def main():
     ap.add_argument("--save", help="write the results to this .npz")
     ap.add_argument("--compare", help="compare with the results in this .npz")
     args = ap.parse_args()
-    print(f"jax {jax.__version__}, devices {jax.devices()}, lfjax from {lfjax.__file__}", flush=True)
+    print(f"jax {jax.__version__}, devices {jax.devices()}, lfjax from {lfjax.__file__}",
+          flush=True)
     now = compute()
     if args.save:
         np.savez(args.save, **now)
     if args.compare:
         ref = dict(np.load(args.compare))
-        print(f"eyes' Zernike coefficients: max |Δ| {np.max(np.abs(now['zernike_um'] - ref['zernike_um'])):.1e} um")
+        dz = np.max(np.abs(now["zernike_um"] - ref["zernike_um"]))
+        print(f"eyes' Zernike coefficients: max |Δ| {dz:.1e} um")
         for name in LAYOUTS:
             dv = np.nanmax(np.abs(now[f"{name}_vsotf"] - ref[f"{name}_vsotf"]))
             ds = np.nanmax(np.abs(now[f"{name}_strehl"] - ref[f"{name}_strehl"]))

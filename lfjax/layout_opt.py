@@ -1282,8 +1282,9 @@ class _CoordinateObjective:
         @loss.defjvp
         def loss_jvp(primals, tangents):
             value, grad = self.value_and_grad(primals[0])
-            dot = sum(jnp.vdot(g, t, precision=FULL) for g, t in zip(jax.tree_util.tree_leaves(grad),
-                                                    jax.tree_util.tree_leaves(tangents[0])))
+            dot = sum(jnp.vdot(g, t, precision=FULL)
+                      for g, t in zip(jax.tree_util.tree_leaves(grad),
+                                      jax.tree_util.tree_leaves(tangents[0])))
             return value, dot
 
         return lambda y, args: (loss(y), None)

@@ -213,7 +213,8 @@ def _state_wavefronts_um(eye_um, c20_um, c40_um, window_centres_mm, offsets_mm, 
         per_state = per_state + _pad_monomials(eye, size)[None]
     shift_x = _shift_matrices(window_centres_mm[:, 0], size)  # (n_sub, N+1, N+1)
     shift_y = _shift_matrices(window_centres_mm[:, 1], size)
-    local = jnp.einsum("nip,aij,njq->anpq", shift_x, per_state, shift_y, precision=FULL)  # (n_acc, n_sub, …)
+    # (n_acc, n_sub, N+1, N+1)
+    local = jnp.einsum("nip,aij,njq->anpq", shift_x, per_state, shift_y, precision=FULL)
     w = wavefront_on_grid(local, offsets_mm, offsets_mm)
     if not separable_eye:  # high orders: the polynomials themselves (no cancellation)
         r_meas = 0.5 * measured_pupil_mm

@@ -31,9 +31,9 @@ with one of:
     derivative is that of the fitted vertex (a finite-difference estimate of the implicit
     one). Success: the fit is concave and its vertex lies within ``LOCAL_TRUST_D`` =
     0.05 D of the stencil's centre (or the peak is held at the hyperopic limit). On
-    10 eyes × 2 layouts × 9 depths: 4e-5 D from Newton at the median, 9e-5 D at p95
-    (five points out to ±0.05 D: 1.9e-4 and 5.7e-4; the curvature's cubic bias grows
-    with the stencil's width), with three states per peak instead of five.
+    10 eyes × 2 layouts × 9 depths: 2–3e-5 D from Newton at the median, 4–9e-5 D at p95
+    (five points out to ±0.05 D: 0.9–1.9e-4 and 2.8–5.7e-4; the curvature's cubic bias
+    grows with the stencil's width), with three states per peak instead of five.
 ``"parabola"``
     the vertex of the parabola through the grid maximum and its neighbours (no solver),
     the metric evaluated there.

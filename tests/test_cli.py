@@ -111,6 +111,10 @@ def test_quick_run_results_file_is_labelled(quick_run):
         assert ds.attrs["option_sce"] == "amplitude"
         assert "model_options_json" in ds.attrs
         assert int(ds.is_average.sum()) == 1
+        # the transform each layout used is recorded (4x4: the MFT, by default)
+        assert rep.study_sampling(ds, "4x4").transform == "mft"
+        assert rep.study_sampling(ds, "4x4").mft_pupil_samples == 48
+        assert rep.study_sampling(ds, "2x2").transform == "fft"
         # VSOTF of the average eye, natural view, at its peak is close to 1 (near DL)
         nat = ds.vsotf.sel(layout="natural", eye="average", depth=2.0)
         assert 0.8 < float(nat.max()) <= 1.01
@@ -221,7 +225,11 @@ def test_config_validation():
         rep.StudyConfig(depth_offsets_D=(-1.0, 1.0))
     with pytest.raises(ValueError, match=">= 0 D"):
         rep.StudyConfig(depth_offsets_D=(-3.0, 0.0))
+    for bad in ((("5x5", 48),), (("4x4", 8),), (("4x4", 48.5),), (("4x4",),)):
+        with pytest.raises(ValueError, match="mft_pupil_samples"):
+            rep.StudyConfig(mft_pupil_samples=bad)
     reduced = rep.StudyConfig().reduced()
+    assert reduced.mft_pupil_samples == (("4x4", 48),)
     assert reduced.depth_offsets_D == (-2.0, -1.0, 0.0, 1.0, 2.0)
     assert reduced.wavelengths_nm[2] == 20.0 and not reduced.alternatives
 

@@ -10,15 +10,13 @@ the traced programs (the CPU ignores the setting, so a CPU run could not see it 
 
 from __future__ import annotations
 
-import dataclasses
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.extend import core as jcore
 
 import lfjax
-from lfjax.images import psf_on_grid, retinal_image
+from lfjax.images import psf_on_grid
 from lfjax.metrics import radial_mtf
 from lfjax.peaks import accommodation_peaks
 from lfjax.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
@@ -74,10 +72,11 @@ def test_local_peak_fit_and_radial_mtf_are_full_precision():
         lambda z: accommodation_peaks(lfjax.Eyes(z, 6.0), scene, spectrum, accommodation,
                                       config, "vsotf", "local").accommodation_D,
         eyes.zernike_um)
-    _assert_full_precision(lambda otf: radial_mtf(otf, 16, 1.0)[0], jnp.ones((16, 9), jnp.complex64))
+    _assert_full_precision(lambda otf: radial_mtf(otf, 16, 1.0)[0],
+                           jnp.ones((16, 9), jnp.complex64))
 
 
-def test_eye_draw_psf_and_images_are_full_precision():
+def test_eye_draw_psf_and_pixel_psf_are_full_precision():
     _assert_full_precision(lambda key: lfjax.sample_eyes(key, 3).zernike_um, jax.random.key(0))
     z = np.asarray(lfjax.sample_eyes(0, 1).zernike_um)[0]
     _assert_full_precision(

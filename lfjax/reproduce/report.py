@@ -16,7 +16,7 @@ import numpy as np
 
 from .claims import Claim
 from .config import METRICS, StudyConfig
-from .study import _aberrated, _average
+from .study import _aberrated, _average, study_sampling
 
 TABLES = {
     "predictions": "accommodation_predictions.csv",
@@ -260,12 +260,15 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
     add("## Settings")
     add("")
     add("| layout | subapertures | frequency step (cpd) | PSF field (arcmin) | FFT size | "
-        "time (s) |")
-    add("|---|---|---|---|---|---|")
+        "PSF transform | time (s) |")
+    add("|---|---|---|---|---|---|---|")
     for name in ds.layout.values:
         s = ds.sel(layout=name)
+        sampling = study_sampling(ds, str(name)) if "sampling_json" in ds.attrs else None
+        transform = ("FFT (pupil step λ·Δf)" if sampling is None or sampling.transform == "fft"
+                     else f"MFT ({sampling.mft_pupil_samples} pupil samples)")
         add(f"| {name} | {int(s.n_subapertures)} | {float(s.freq_step_cpd):g} | "
-            f"{60.0 / float(s.freq_step_cpd):.1f} | {int(s.n_fft)} | "
+            f"{60.0 / float(s.freq_step_cpd):.1f} | {int(s.n_fft)} | {transform} | "
             f"{float(s.compute_seconds):.1f} |")
     add("")
     add("Model options (`lfjax.ModelOptions`):")
