@@ -1,10 +1,13 @@
-"""Time `lfjax reproduce` (the paper's full default study) against its FFT floor.
+"""Time `lfjax reproduce` (the paper's full default study) against its transform floor.
 
 Three runs of the command line in fresh processes (cold compilation cache, warm, warm without
 alternatives), then the floor: the bare batched transforms, timed warm, in one jitted call
-per band. The floor counts what the job cannot avoid computing: per wavelength an fft2 of each pupil
-field (and |.|^2), per wavelength band one rfft2 of the band's summed PSF, for the main study
-and for the modelling alternatives (the reduced study, once per variant and for its baseline).
+per band. The floor counts what the job cannot avoid computing: per wavelength an fft2 of
+each pupil field (the matrix Fourier transform for the layouts the study gives it,
+``StudyConfig.mft_pupil_samples``) and |.|^2, per wavelength band one rfft2 of the band's
+summed PSF, for the main study and for the modelling alternatives (the reduced study, once
+per variant and for its baseline). Each band's cost is one chunk of 64 fields timed (best of
+9) and scaled to the study's count: read it to ±15 % (benchmarks/RESULTS.md §9).
 
 Run:  .venv/bin/python benchmarks/bench_reproduce.py [--keep-report REPORT.md | --floor-only]
 """
