@@ -10,13 +10,14 @@ Imports :mod:`~lfjax.reproduce.config`, :mod:`~lfjax.reproduce.study` and
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 
 from .claims import Claim
 from .config import METRICS, StudyConfig
-from .study import _aberrated, _average, study_sampling
+from .study import _aberrated, _average
 
 TABLES = {
     "predictions": "accommodation_predictions.csv",
@@ -262,11 +263,14 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
     add("| layout | subapertures | frequency step (cpd) | PSF field (arcmin) | FFT size | "
         "PSF transform | time (s) |")
     add("|---|---|---|---|---|---|---|")
+    # a Dataset assembled elsewhere (the sweep's study view) may record no sampling per layout
+    samplings = json.loads(ds.attrs.get("sampling_json", "{}"))
     for name in ds.layout.values:
         s = ds.sel(layout=name)
-        sampling = study_sampling(ds, str(name)) if "sampling_json" in ds.attrs else None
-        transform = ("FFT (pupil step λ·Δf)" if sampling is None or sampling.transform == "fft"
-                     else f"MFT ({sampling.mft_pupil_samples} pupil samples)")
+        sampling = samplings.get(str(name))
+        transform = ("not recorded" if sampling is None
+                     else "FFT (pupil step λ·Δf)" if sampling.get("transform", "fft") == "fft"
+                     else f"MFT ({sampling.get('mft_pupil_samples')} pupil samples)")
         add(f"| {name} | {int(s.n_subapertures)} | {float(s.freq_step_cpd):g} | "
             f"{60.0 / float(s.freq_step_cpd):.1f} | {int(s.n_fft)} | {transform} | "
             f"{float(s.compute_seconds):.1f} |")
