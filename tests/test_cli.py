@@ -128,6 +128,7 @@ def test_quick_run_report_states_every_claim(quick_run):
     for i in range(1, 8):
         assert f"\n| {i} | " in text
     assert "--quick" in text and "Modelling choices" in text
+    assert "| 4x4 | 16 |" in text and "MFT (48 pupil samples)" in text
 
 
 # ------------------------------------------------------------------ bad input
