@@ -14,7 +14,6 @@ Run:  .venv/bin/python benchmarks/bench_reproduce.py [--keep-report REPORT.md | 
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import platform
 import shutil
@@ -81,9 +80,7 @@ def _study_floor(config, label: str, repeat: int = 1) -> tuple[float, list[str]]
         depths = (np.array([config.cdp_D]) if name == "natural"
                   else np.asarray(config.depths_D, float))
         sampling = _planned_sampling(eyes, layout, depths, config, config.options)
-        mft = dict(config.mft_pupil_samples).get(name)  # as lfjax.reproduce.study does
-        if mft:
-            sampling = dataclasses.replace(sampling, transform="mft", mft_pupil_samples=mft)
+        mft = sampling.mft_pupil_samples if sampling.transform == "mft" else None
         grid = np.asarray(config.accommodation_D, float)
         used = np.any(np.abs(grid[None, :] - depths[:, None]) <= config.window_D + 1e-9, axis=0)
         bands = wavelength_bands(config.wavelength_grid_nm, layout.window_diameter_mm,

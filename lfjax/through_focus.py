@@ -115,19 +115,15 @@ class ThroughFocus(eqx.Module):
 
     def cutoff_cpd(self, metric: str = "vsotf", threshold: float = 0.05):
         """Cut-off frequency (cpd) of the MTF at the predicted accommodation."""
-        if not (0.0 < threshold < 1.0):
-            raise ValueError(f"threshold must be in (0, 1), got {threshold}")
         return _cutoff_at_index(self.radial_mtf, jnp.asarray(self.peak_index(metric)),
                                 self.radial_freq_cpd, float(threshold))
 
 
-def _mtf_at_index(radial_mtf, index):
-    return jnp.take_along_axis(radial_mtf, index[..., None, None], axis=2)[:, :, 0]
-
-
 # One compiled program per shape: run eagerly, these few lines were about ten small
 # compilations for every new layout shape (a cold `lfjax reproduce` makes eight such shapes).
-_mtf_at_index = jax.jit(_mtf_at_index)
+@jax.jit
+def _mtf_at_index(radial_mtf, index):
+    return jnp.take_along_axis(radial_mtf, index[..., None, None], axis=2)[:, :, 0]
 
 
 @functools.partial(jax.jit, static_argnames="threshold")

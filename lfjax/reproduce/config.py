@@ -202,7 +202,8 @@ def _planned_sampling(eyes, layout, depths, config, options) -> Sampling:
     scene (the largest ladder step whose PSF field holds the blur; milliseconds). The
     accuracy proxy is skipped: it takes 9–27 s per layout on the paper's grid, and for a
     1e-3 VSOTF target it asks the 3×3/4×4 layouts for about half the guard's step (~4× the
-    compute); at the guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7)."""
+    compute); at the guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7).
+    The transform is the FFT, or the MFT for the layouts in ``config.mft_pupil_samples``."""
     from ..planner import plan_sampling
 
     plan = plan_sampling(
@@ -212,7 +213,10 @@ def _planned_sampling(eyes, layout, depths, config, options) -> Sampling:
         wavelengths_nm=config.wavelength_grid_nm, eyes_zernike_um=np.asarray(eyes.zernike_um),
         measured_pupil_mm=eyes.measured_pupil_mm, options=options, estimate_accuracy=False,
     )
-    return plan.sampling
+    mft_samples = dict(config.mft_pupil_samples).get(layout.name)
+    if mft_samples is None:
+        return plan.sampling
+    return dataclasses.replace(plan.sampling, transform="mft", mft_pupil_samples=int(mft_samples))
 
 
 __all__ = [

@@ -68,10 +68,6 @@ def layout_through_focus(
     options = config.options if options is None else options
     spectrum = make_spectrum(config.wavelength_grid_nm, options) if spectrum is None else spectrum
     sampling = _planned_sampling(eyes, layout, depths_D, config, options)
-    mft_samples = dict(config.mft_pupil_samples).get(layout.name)
-    if mft_samples is not None:
-        sampling = dataclasses.replace(sampling, transform="mft",
-                                       mft_pupil_samples=int(mft_samples))
     for _ in range(16):
         try:
             tf = through_focus(
