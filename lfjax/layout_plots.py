@@ -103,6 +103,50 @@ def fig_history(history, label: str = "loss") -> Figure:
     return fig
 
 
+def fig_front(front, pupil_diameter_mm: float) -> Figure:
+    """The trade-off of a :class:`lfjax.layout_opt.Front`: held-out accommodation RMSE (D;
+    the display's share: each eye's error less its own error on the CDP) against held-out image quality at each eye's predicted accommodation (mean VSOTF), the
+    fitted points joined in order of tolerance, the tangent n×n grids (squares) and natural
+    viewing (star) marked, each fitted layout drawn small beside its point."""
+    rows = front.table()
+    fig = Figure(figsize=(8.0, 5.6), layout="constrained")
+    ax = fig.add_subplot()
+    fitted = [r for r in rows if r["tolerance_D"] is not None]
+    refs = [r for r in rows if r["tolerance_D"] is None]
+    x = np.array([r["image_at_peak"] for r in fitted])
+    y = np.array([r["relative_accommodation_rmse_D"] for r in fitted])
+    ax.plot(x, y, "-o", color="tab:red", ms=6, label="fitted (tolerance in D)")
+    for r in fitted:
+        ax.annotate(f"{r['tolerance_D']:.2g}", (r["image_at_peak"], r["relative_accommodation_rmse_D"]),
+                    textcoords="offset points", xytext=(6, -12), fontsize=7, color="tab:red")
+    for r in refs:
+        marker = "*" if r["name"] == "natural" else "s"
+        ax.plot([r["image_at_peak"]], [r["relative_accommodation_rmse_D"]], marker, color="tab:blue", ms=9)
+        ax.annotate(r["name"] if r["name"] == "natural" else f"tangent {r['name']}",
+                    (r["image_at_peak"], r["relative_accommodation_rmse_D"]), textcoords="offset points",
+                    xytext=(6, 4), fontsize=8, color="tab:blue")
+    allx = np.array([r["image_at_peak"] for r in rows])
+    ally = np.array([r["relative_accommodation_rmse_D"] for r in rows])
+    padx = 0.15 * max(np.ptp(allx), 0.05)
+    pady = 0.15 * max(np.ptp(ally), 0.05)
+    ax.set_xlim(allx.min() - padx, allx.max() + 2.5 * padx)
+    ax.set_ylim(max(ally.min() - pady, 0.0), ally.max() + 2.5 * pady)
+    ax.set_xlabel("image quality at the predicted accommodation (held-out mean VSOTF)")
+    ax.set_ylabel("display's accommodation error, RMSE (D, held-out)")
+    n_eyes = (front.fits[0].test or front.fits[0].train)["after"]["n_eyes"]
+    ax.set_title(f"accommodation against image quality ({n_eyes} held-out eyes)", fontsize=10)
+    ax.legend(fontsize=8, loc="upper left")
+    # layouts drawn beside their points, in axes coordinates
+    size = 0.13
+    for r, fit in zip(fitted, front.fits):
+        px, py = ax.transAxes.inverted().transform(
+            ax.transData.transform((r["image_at_peak"], r["relative_accommodation_rmse_D"])))
+        inset = ax.inset_axes([min(px + 0.02, 1 - size), min(py + 0.02, 1 - size), size, size])
+        draw_layout(inset, fit.layout, pupil_diameter_mm)
+        inset.set_axis_off()
+    return fig
+
+
 def save_fit_figures(fit, curves: dict, out_dir, dpi: int = 110) -> list[Path]:
     """Write layouts.png, through_focus.png and history.png of a
     :class:`lfjax.layout_opt.LayoutFit` (``curves`` as for :func:`fig_through_focus`)."""
@@ -127,6 +171,7 @@ __all__ = [
     "fig_layouts",
     "fig_through_focus",
     "fig_history",
+    "fig_front",
     "save_fit_figures",
     "FIGURES",
 ]

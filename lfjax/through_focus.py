@@ -210,11 +210,30 @@ def _used_states(grid, index, allowed):
     return grid[used], np.where(allowed, remap[index], 0)
 
 
+PLANNED_NEIGHBOURHOOD_D = np.round(np.arange(-5, 6) * 0.2, 9)
+"""Offsets (D) around each rendered depth that every default sampling covers: the default
+through-focus grid of :func:`through_focus`."""
+
+
 def _planned_sampling(eyes: Eyes, layout: Layout, depths, pairs, pupil_diameter_mm, cdp_D,
                       spectrum: Spectrum, options: ModelOptions, display=None) -> Sampling:
-    """The planner's field guard for this scene (milliseconds; no accuracy proxy)."""
+    """The planner's field guard for this scene (milliseconds; no accuracy proxy).
+
+    One rule for :func:`through_focus` and :func:`metrics_at`: the guard covers the pairs
+    asked for *and* the default through-focus neighbourhood of every rendered depth
+    (:data:`PLANNED_NEIGHBOURHOOD_D`, states ≥ 0 D). The guard picks the largest frequency
+    step whose field holds the widest blur of the pairs it sees, so a single (depth, state)
+    pair would otherwise get a coarser step than the curve through it, and the two entry
+    points would give different values at the same point (by 2e-3 in VSOTF, more than the
+    planner's accuracy target)."""
     from .planner import plan_sampling
 
+    depths = np.atleast_1d(np.asarray(depths, float))
+    around = depths[:, None] + PLANNED_NEIGHBOURHOOD_D[None, :]
+    keep = around >= 0
+    pairs = (np.concatenate([np.asarray(pairs[0], float).ravel(), around[keep]]),
+             np.concatenate([np.asarray(pairs[1], float).ravel(),
+                             np.broadcast_to(depths[:, None], around.shape)[keep]]))
     return plan_sampling(
         layout=layout, pupil_diameter_mm=float(pupil_diameter_mm), cdp_D=float(cdp_D),
         depths_D=np.asarray(depths, float), accommodation_D=np.unique(np.asarray(pairs[0], float)),

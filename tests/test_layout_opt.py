@@ -182,6 +182,8 @@ def test_coordinates_round_trip():
     (lambda: lo.depth_grid(0.0, float("nan"), 5), "high end"),
     (lambda: lo.depth_grid(0.0, 4.0, 0), "n_depths"),
     (lambda: lo.Objective.parse("sharpness"), "objective"),
+    (lambda: lo.Objective.parse(None, -0.1), "accommodation_tolerance_D"),
+    (lambda: lo.Objective(penalty_per_D2=0.0), "penalty_per_D2"),
     (lambda: lo.Objective.parse({"depth_of_field": 0.0}), "weight must be > 0"),
     (lambda: lo.Objective.parse({"resolution": float("nan")}), "weight of resolution"),
 ])
@@ -198,7 +200,14 @@ def test_problem_refuses_the_paper_reference_and_bad_depths():
         with pytest.raises(ValueError, match="depths_D"):
             lo.make_problem(eye, depths, CONSTRAINTS, sampling=SAMPLING)
     with pytest.raises(ValueError, match="window_D"):
-        lo.make_problem(eye, DEPTHS, CONSTRAINTS, "accommodation", sampling=SAMPLING, window_D=0.2)
+        lo.make_problem(eye, DEPTHS, CONSTRAINTS, "accommodation", sampling=SAMPLING, window_D=0.0)
+    with pytest.raises(ValueError, match="accuracy"):
+        lo.make_problem(eye, DEPTHS, CONSTRAINTS, sampling=SAMPLING, accuracy="precise")
+    with pytest.raises(ValueError, match="peak_method"):
+        lo.make_problem(eye, DEPTHS, CONSTRAINTS, sampling=SAMPLING, peak_method="auto")
+    with pytest.raises(ValueError, match="peak_step_D"):
+        lo.make_problem(eye, DEPTHS, CONSTRAINTS, sampling=SAMPLING, peak_step_D=1.0,
+                        peak_margin_D=0.0)
 
 
 def test_optimiser_arguments_are_checked(dl_problem):
@@ -280,12 +289,20 @@ def test_feasible_start_moves_layouts_inside():
         lo.to_unconstrained(moved, constraints)  # accepted as a start
 
 
-@pytest.mark.parametrize("objective", lo.OBJECTIVES)
+@pytest.mark.parametrize("objective", (*lo.OBJECTIVES, "penalised"))
 def test_objective_gradients_match_finite_differences(objective):
-    """Reverse-mode gradient of each objective (depth of field; accommodation MSE through
-    the implicitly differentiated Newton peak; soft cut-off) against central differences of
-    the same compiled loss along a random direction of all centres and diameters, float64."""
+    """Reverse-mode gradient of each objective (image at the predicted accommodation and
+    accommodation MSE through the grid parabola's vertex of the uncapped peak; depth of
+    field; soft cut-off; the default objective with its penalty active) against central
+    differences of the same compiled loss along a random direction of all centres and
+    diameters, float64."""
+    if objective == "penalised":  # the default objective, with a tolerance it exceeds
+        objective = lo.Objective.parse(None, 0.01)
     problem = tiny_problem(lfjax.sample_eyes(3, 1), objective)
+    if isinstance(objective, lo.Objective):
+        ev = lo.evaluate_layout(lo.free_params([[-0.7, -0.6], [0.75, -0.7], [-0.65, 0.8], [0.7, 0.72]],
+                                               [1.2, 1.3, 1.25, 1.1]), problem)
+        assert ev["penalty"] > 0, "the penalty must be active for this check"
     layout = lo.free_params([[-0.7, -0.6], [0.75, -0.7], [-0.65, 0.8], [0.7, 0.72]],
                             [1.2, 1.3, 1.25, 1.1])
     _, grad = lo.layout_value_and_grad(layout, problem)
@@ -300,12 +317,116 @@ def test_evaluation_on_held_out_eyes_pads_chunks(dl_problem):
     """Three eyes in chunks of the problem's one: same numbers as one at a time."""
     eyes = lfjax.sample_eyes(7, 3)
     layout = perturbed_tangent_2x2()
-    whole = lo.evaluate_layout(layout, dl_problem, eyes, terms=("depth_of_field", "resolution"))
-    single = [lo.evaluate_layout(layout, dl_problem, eyes[i], terms=("depth_of_field", "resolution"))
-              for i in range(3)]
+    whole = lo.evaluate_layout(layout, dl_problem, eyes)
+    single = [lo.evaluate_layout(layout, dl_problem, eyes[i]) for i in range(3)]
     assert whole["n_eyes"] == 3
     assert whole["depth_of_field"] == pytest.approx(np.mean([s["depth_of_field"] for s in single]))
+    assert whole["image_at_peak"] == pytest.approx(np.mean([s["image_at_peak"] for s in single]))
     assert whole["values"]["vsotf"].shape == (3, 2)
+    assert whole["values"]["peak_D"].shape == (3, 2)
+
+
+# ------------------------------------------------------------------ honest evaluation
+
+
+def pinhole(diameter_mm=0.94):
+    """Four views stacked on the pupil centre: one aperture, no light field (what the old
+    depth-of-field default converged to)."""
+    return lo.free_params(np.full((4, 2), 1e-8), np.full(4, diameter_mm))
+
+
+@pytest.fixture(scope="module")
+def seeded_problem():
+    """Three seeded eyes, depths 0, 2 (the CDP) and 4 D, 550 nm, refined ("local") peaks."""
+    return lo.make_problem(lfjax.sample_eyes(11, 3), [0.0, 2.0, 4.0], CONSTRAINTS,
+                           wavelengths_nm=WAVELENGTHS, sampling=SAMPLING, peak_method="local")
+
+
+def test_collapsed_pinhole_is_reported_as_through_focus_sees_it(seeded_problem):
+    """The pinhole's peaks are the global maxima through_focus finds on a finer grid over a
+    window holding the CDP (every depth's peak near the CDP), not a peak capped near the
+    rendered depth: accommodation RMSE above 1 D, gain near 0, and a warning."""
+    from lfjax.through_focus import through_focus
+
+    problem = seeded_problem
+    ev = lo.evaluate_layout(pinhole(), problem)
+    layout = lo.to_layout(pinhole(), problem.constraints)
+    tf = through_focus(problem.eyes, layout, depths_D=[0.0, 2.0, 4.0],
+                       accommodation_D=np.round(np.arange(0.0, 6.01, 0.1), 9), window_D=3.0,
+                       pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=problem.spectrum,
+                       sampling=SAMPLING, options=problem.options, check_aliasing=False,
+                       continuous_peaks=("vsotf",), peak_method="newton")
+    reference = np.asarray(tf.continuous_peaks("vsotf").accommodation_D)
+    np.testing.assert_allclose(ev["values"]["peak_D"], reference, atol=5e-3)
+    assert np.all(np.abs(reference - 2.0) < 0.6)  # every eye focuses near the CDP
+    assert ev["accommodation_rmse_D"] > 1.0
+    assert ev["relative_accommodation_rmse_D"] > 1.0
+    assert abs(ev["accommodation_gain"]) < 0.2
+    assert lo.parallax_warning(lo.to_layout(pinhole(), problem.constraints), ev) is not None
+    tangent = lo.evaluate_layout(lo.tangent_lattice("square", 4), problem)
+    assert tangent["accommodation_gain"] > 0.8
+    assert lo.parallax_warning(lo.to_layout(lo.tangent_lattice("square", 4), problem.constraints),
+                               tangent) is None
+
+
+def test_a_peak_on_the_window_edge_counts_as_a_failure():
+    """A 1 D hyperopic eye (c(2,0) = -0.3248 µm on 3 mm) needs 1 D more than the rendered
+    depth; with a 0.25 D margin its peaks for the CDP (2 D: window [1.75, 2.25]) and the
+    4 D depth (window [1.75, 4.25]) lie beyond their windows' upper ends and are reported
+    on the edge, as failures, while its peak for 0 D (window [0, 2.25]) is found at 1 D."""
+    z = np.zeros((1, 15))
+    z[0, 4] = -0.3248
+    eye = lfjax.Eyes(z, 3.0)
+    problem = lo.make_problem(eye, [0.0, 2.0, 4.0], CONSTRAINTS, wavelengths_nm=WAVELENGTHS,
+                              sampling=SAMPLING, peak_margin_D=0.25)
+    ev = lo.evaluate_layout(lo.tangent_lattice("square", 4), problem)
+    edge = ev["values"]["peak_at_edge"][0]
+    assert edge.tolist() == [False, True, True]
+    assert ev["values"]["peak_success"][0].tolist() == [True, False, False]
+    assert ev["n_edge_peaks"] == 2 and ev["peak_success_fraction"] == pytest.approx(1 / 3)
+    assert ev["values"]["peak_D"][0, 1] == pytest.approx(2.25, abs=0.05)
+    assert ev["values"]["peak_D"][0, 2] == pytest.approx(4.25, abs=0.05)
+    assert ev["values"]["peak_D"][0, 0] == pytest.approx(1.0, abs=0.25)
+
+
+def test_default_objective_ranks_collapse_below_the_tangent_grid(seeded_problem):
+    """By default (image at the predicted accommodation, display error <= 0.25 D) views that
+    coincide — a pinhole, or one large aperture — score worse than the paper's tangent 2×2
+    grid; unconstrained image quality alone would prefer the pinhole (why the constraint)."""
+    problem = seeded_problem.with_objective(lo.DEFAULT_OBJECTIVE)
+    loss = {name: float(lo.layout_value_and_grad(p, problem)[0]) for name, p in (
+        ("tangent", lo.as_free(lo.tangent_lattice("square", 4))), ("pinhole", pinhole()),
+        ("one aperture", pinhole(2.0)))}
+    assert loss["pinhole"] > loss["tangent"] + 0.5
+    assert loss["one aperture"] > loss["tangent"] + 0.5
+    quality_only = problem.with_objective("image_at_peak")
+    assert float(lo.layout_value_and_grad(pinhole(), quality_only)[0]) < \
+        float(lo.layout_value_and_grad(lo.as_free(lo.tangent_lattice("square", 4)), quality_only)[0])
+
+
+def test_front_and_references_on_a_tiny_case(seeded_problem, tmp_path):
+    """Two tolerances, two steps each, scored at the fit's setting: a front of fitted
+    points, the tangent grid and natural viewing (whose display error is 0 by definition:
+    each depth is its own focal plane), drawn into a PNG."""
+    from lfjax import layout_plots
+
+    problem = seeded_problem.with_objective(lo.DEFAULT_OBJECTIVE)
+    front = lo.trade_off_front(lo.tangent_lattice("square", 4), problem, [0.1, 1.0], max_steps=2,
+                               progress=False, report_problem=None, references=False)
+    front.references.update(lo.tangent_grid_evaluations(problem, sizes=(2,)))
+    front.references["natural"] = lo.natural_evaluation(problem)
+    rows = front.table()
+    assert [r["name"] for r in rows][-2:] == ["2x2", "natural"]
+    assert rows[-1]["relative_accommodation_rmse_D"] == 0.0
+    assert all(math.isfinite(r["image_at_peak"]) for r in rows)
+    # the tangent reference is the fit's start: the fitted points' losses are no worse
+    for fit in front.fits:
+        assert fit.history[-1] <= fit.history[0] + 1e-9
+    fig = layout_plots.fig_front(front, 3.0)
+    fig.savefig(tmp_path / "front.png")
+    assert (tmp_path / "front.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(ValueError, match="tolerances_D"):
+        lo.trade_off_front(lo.tangent_lattice("square", 4), problem, [0.0])
 
 
 # ------------------------------------------------------------------ files
@@ -339,7 +460,8 @@ def test_layout_json_round_trip(tmp_path):
 
 TINY_CLI = ["optimise", "--train-eyes", "1", "--test-eyes", "2", "--wavelengths", "550",
             "--freq-step", "2", "--depths", "1", "3", "--n-depths", "2", "--max-diameter", "2",
-            "--steps", "4", "--parametrisation", "free", "--no-progress"]
+            "--steps", "4", "--parametrisation", "free", "--no-progress",
+            "--report-accuracy", "fit"]
 
 
 def test_cli_optimise_tiny_case(capsys, tmp_path, monkeypatch):
@@ -358,9 +480,11 @@ def test_cli_optimise_tiny_case(capsys, tmp_path, monkeypatch):
     assert_inside(layout, CONSTRAINTS)
     test = record["objective"]["test"]
     assert test["before"]["n_eyes"] == 2
-    assert math.isfinite(test["after"]["depth_of_field"])
-    assert record["objective"]["train"]["after"]["depth_of_field"] > \
-        record["objective"]["train"]["before"]["depth_of_field"]
+    assert math.isfinite(test["after"]["image_at_peak"])
+    assert test["after"]["accuracy"] == "fit" and 0 <= test["after"]["peak_success_fraction"] <= 1
+    assert record["objective"]["train"]["after"]["loss"] <= \
+        record["objective"]["train"]["before"]["loss"] + 1e-9
+    assert record["objective"]["accommodation_tolerance_D"] == 0.25
     assert record["provenance"]["seed_test"] == 1 and record["parameters"]["kind"] == "free"
     # a second run into the same folder needs --force
     code = cli.main([*TINY_CLI, "--out", str(out)])
@@ -385,6 +509,9 @@ def test_cli_optimise_tiny_case(capsys, tmp_path, monkeypatch):
     (["--display-distance", "600"], "--display-distance"),
     (["--pixel-arcmin", "-1"], "--pixel-arcmin"),
     (["--spectrum", "plasma"], "--spectrum"),
+    (["--accommodation-tolerance", "0"], "--accommodation-tolerance"),
+    (["--front", "1"], "--front"),
+    (["--front", "3", "--test-eyes", "0"], "--front"),
 ])
 def test_cli_bad_input_one_line_exit_2(capsys, tmp_path, args, message):
     out = tmp_path / "never"
