@@ -1,13 +1,13 @@
 """Wave optics of the eye: generalised pupil functions, elemental OTFs, polychromatic OTFs.
 
-Conventions (DESIGN.md §1): pupil function ``A · exp(−i 2π W / λ)``; PSF = |forward DFT|²
+Conventions (docs/design.md#conventions): pupil function ``A · exp(−i 2π W / λ)``; PSF = |forward DFT|²
 (a positive x-tilt c(1,1) moves the PSF towards −x); OTF = forward DFT of the PSF. Arrays
 are ``[y, x]``; OTFs are in FFT order (index 0 is zero frequency, ``k·df`` with k from
 ``fftfreq``). The PSF is never re-centred: light-field displacements are signal.
 
 The expensive part is computed once per eye: for every wavelength λ, accommodation state
 a and subaperture n the elemental OTF on a window sized to that subaperture; every
-rendered depth is then a phase ramp and a sum (DESIGN.md §3).
+rendered depth is then a phase ramp and a sum (docs/design.md#why-it-is-fast).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Monochromatic point-spread function of an eye by a matrix Fourier transform (MFT).
 
-Conventions (DESIGN.md §1): pupil function ``A · exp(−i 2π W / λ)``, PSF = |forward
+Conventions (docs/design.md#conventions): pupil function ``A · exp(−i 2π W / λ)``, PSF = |forward
 transform|², arrays ``[y, x]``. The pupil is a soft-edged disc (:func:`lfjax.optics.soft_disk`)
 sampled with ``pupil_samples`` samples across its diameter; the PSF is evaluated directly
 on the requested angles, so any pixel size and field can be asked for.
