@@ -396,8 +396,9 @@ def pair_metric(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Sp
 
 
 retinal_metrics_jit = eqx.filter_jit(retinal_metrics)
-otf_stack_jit = eqx.filter_jit(otf_stack)
 """:func:`retinal_metrics` compiled (``eqx.filter_jit``: static config, arrays traced)."""
+otf_stack_jit = eqx.filter_jit(otf_stack)
+""":func:`otf_stack` compiled (``eqx.filter_jit``: static config, arrays traced)."""
 
 
 @eqx.filter_jit

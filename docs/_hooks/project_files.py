@@ -10,6 +10,7 @@ GitHub.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from mkdocs.plugins import event_priority
@@ -47,6 +48,7 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
     and ``benchmarks/RESULTS.md`` reaches ``docs/design.md`` as ``../docs/design.md``. On
     the site, ``docs/`` is the root and the mounted folders sit beside its pages, so each such
     link loses one level (or its ``docs/``)."""
+    markdown = _blank_line_before_lists(markdown)
     depth = page.file.src_uri.count("/")
     up = "../" * depth
     if page.file.src_uri.split("/", 1)[0] in MOUNTS:
@@ -54,3 +56,24 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
     for folder in MOUNTS:
         markdown = markdown.replace("](" + up + "../" + folder + "/", "](" + up + folder + "/")
     return markdown
+
+
+LIST_ITEM = re.compile(r"^\s{0,3}(?:[*+-]|\d+[.)])\s+\S")
+FENCE = re.compile(r"^\s*(```|~~~)")
+
+
+def _blank_line_before_lists(markdown: str) -> str:
+    """GitHub starts a list right after a paragraph line; Python-Markdown needs a blank line
+    first. Insert one (outside code fences) so the files read the same in both places."""
+    out: list[str] = []
+    in_fence = False
+    previous = ""
+    for line in markdown.split("\n"):
+        if FENCE.match(line):
+            in_fence = not in_fence
+        elif (not in_fence and LIST_ITEM.match(line) and previous.strip()
+              and not LIST_ITEM.match(previous) and not previous.startswith((" ", "\t", "|", "#"))):
+            out.append("")
+        out.append(line)
+        previous = line
+    return "\n".join(out)
