@@ -206,9 +206,9 @@ class RetinalMetrics(eqx.Module):
     radial_mtf : (…, n_depth, n_k, L//2+1) meridian-averaged MTF at f = k·df
     """
 
-    vsotf: Array
-    strehl: Array
-    radial_mtf: Array
+    vsotf: Float[Array, "*n_eyes n_depth n_k"]
+    strehl: Float[Array, "*n_eyes n_depth n_k"]
+    radial_mtf: Float[Array, "*n_eyes n_depth n_k n_freq"]
 
 
 # ----------------------------------------------------------------------------- stages

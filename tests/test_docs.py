@@ -145,6 +145,6 @@ def test_docstring_house_style_becomes_numpydoc():
            "The closing paragraph, not a parameter.")
     out = normalise(doc).split("\n")
     assert out[4:6] == ["depths_D", "    (n_depth,) rendered depths, D"]
-    assert out[6:9] == ["window_D", "    float, D, optional", "    Half-width."]
-    assert out[9:11] == ["name, source", "    str"]
-    assert out[12:15] == ["Notes", "-----", "The closing paragraph, not a parameter."]
+    assert out[6:9] == ["window_D", "    float, D, optional<br>", "    Half-width."]
+    assert out[9:13] == ["name", "    str", "source", "    str"]
+    assert out[14:17] == ["Notes", "-----", "The closing paragraph, not a parameter."]

@@ -63,9 +63,20 @@ def normalise_sections(text: str) -> str:
             continue
         if in_section and not line.startswith(" "):
             m = ENTRY.match(line)
-            if m and m.group("rest"):
-                out += [m.group("names"), "    " + m.group("rest")]
-                i += 1
+            if m and (m.group("rest") or "," in m.group("names")):
+                # The entry's own description lines follow, indented.
+                j = i + 1
+                while j < len(lines) and lines[j].startswith(" ") and lines[j].strip():
+                    j += 1
+                body = lines[i + 1:j]
+                if m.group("rest"):
+                    # The name line's text reads as the first line of the description; a
+                    # line break keeps it apart from the indented text that follows.
+                    body = ["    " + m.group("rest") + ("<br>" if body else "")] + body
+                # One entry per name: "spectrum, options : ..." documents both.
+                for name in re.split(r"\s*,\s*", m.group("names")):
+                    out += [name] + body
+                i = j
                 continue
         out.append(line)
         i += 1
