@@ -60,7 +60,7 @@ What is computed once and reused:
 4. VSOTF = Σ NCSF·Re OTF / OTF(0) ÷ the same for the paper's reference (aberration-free,
    focused and rendered at the CDP, same layout, SA and LCA kept), on the OTF's own grid:
    true DFT frequencies k / (N · PSF sample) (ISETBio's 'otf support' is off by N/(N−1)
-   for odd N; DESIGN.md §1), Watson–Ahumada NCSF from ``lfjax.metrics`` (numpy path).
+   for odd N; docs/design.md#conventions), Watson–Ahumada NCSF from ``lfjax.metrics`` (numpy path).
 
 Orientation: ISETBio negates y in the pupil, so its PSF rows run towards −θ_y; the y phase
 ramp carries the opposite sign (checked by ``tests/test_isetbio_style.py``: an aberration-

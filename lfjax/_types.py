@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import functools
+import os
+import types
+import typing
+
 import jax
+import jaxtyping
 import jax.numpy as jnp
 
 FULL = jax.lax.Precision.HIGHEST
@@ -35,3 +41,62 @@ def as_real_array(x):
 def as_index_array(x):
     """Array-like → int32 jax array (index arrays)."""
     return jnp.asarray(x, jnp.int32)
+
+
+# ----------------------------------------------------------------- shapes in the types
+# The public numerical entry points annotate their array arguments and results with
+# jaxtyping shapes ("n_depth n_acc"). The annotations are documentation everywhere, and
+# checked at call time when LFJAX_SHAPE_CHECKS=1 (the test suite sets it in conftest.py
+# before importing lfjax), so a wrong shape fails naming the dimension that disagrees.
+
+SHAPE_CHECKS = os.environ.get("LFJAX_SHAPE_CHECKS", "") == "1"
+"""True when :func:`shape_checked` entry points check their jaxtyping annotations."""
+
+
+def _is_shape_annotation(hint) -> bool:
+    """True for a jaxtyping array type, or a union / tuple that contains one."""
+    if isinstance(hint, type) and issubclass(hint, jaxtyping.AbstractArray):
+        return True
+    return any(_is_shape_annotation(arg) for arg in typing.get_args(hint))
+
+
+def shape_checked(fn):
+    """Check ``fn``'s jaxtyping-annotated arguments and result at call time, when
+    :data:`SHAPE_CHECKS` is on; otherwise return ``fn`` unchanged (no cost).
+
+    Only the jaxtyping annotations are checked (by beartype, through ``jaxtyping.jaxtyped``,
+    so one call's dimension names must agree across its arguments and its result); the
+    other annotations stay documentation. When the arguments fail and ``fn``'s own host
+    checks also refuse them, ``fn``'s error (a ``ValueError`` naming the parameter, what
+    users get without the checks) is raised, with the shape error as its context.
+    """
+    if not SHAPE_CHECKS:
+        return fn
+    # Deferred: beartype is a test dependency, imported only when the checks are on.
+    from beartype import BeartypeConf, beartype
+
+    hints = typing.get_type_hints(fn, include_extras=True)
+    checked = {name: hint for name, hint in hints.items() if _is_shape_annotation(hint)}
+    if not checked:
+        raise TypeError(f"{fn.__qualname__} has no jaxtyping annotation to check")
+    # A copy of fn that carries only the shape annotations (beartype reads __annotations__).
+    copy = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__, fn.__defaults__,
+                              fn.__closure__)
+    copy.__kwdefaults__ = fn.__kwdefaults__
+    copy.__qualname__ = fn.__qualname__
+    copy.__module__ = fn.__module__
+    copy.__annotations__ = checked
+    typecheck = beartype(conf=BeartypeConf(is_pep484_tower=True))
+    checking = jaxtyping.jaxtyped(typechecker=typecheck)(copy)
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return checking(*args, **kwargs)
+        except jaxtyping.TypeCheckError as error:
+            if "parameters" in str(error).split("\n", 1)[0]:
+                fn(*args, **kwargs)  # fn's own host checks speak first when they refuse
+            raise error from None
+
+    wrapper.__shape_checked__ = True
+    return wrapper

@@ -1,26 +1,28 @@
 """Wave optics of the eye: generalised pupil functions, elemental OTFs, polychromatic OTFs.
 
-Conventions (DESIGN.md §1): pupil function ``A · exp(−i 2π W / λ)``; PSF = |forward DFT|²
+Conventions (docs/design.md#conventions): pupil function ``A · exp(−i 2π W / λ)``; PSF = |forward DFT|²
 (a positive x-tilt c(1,1) moves the PSF towards −x); OTF = forward DFT of the PSF. Arrays
 are ``[y, x]``; OTFs are in FFT order (index 0 is zero frequency, ``k·df`` with k from
 ``fftfreq``). The PSF is never re-centred: light-field displacements are signal.
 
 The expensive part is computed once per eye: for every wavelength λ, accommodation state
 a and subaperture n the elemental OTF on a window sized to that subaperture; every
-rendered depth is then a phase ramp and a sum (DESIGN.md §3).
+rendered depth is then a phase ramp and a sum (docs/design.md#why-it-is-fast).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jax.ad_checkpoint import checkpoint_name
 import numpy as np
+from jaxtyping import Array, ArrayLike, Complex, Float, Real
 
-from ._types import FULL, is_concrete
+from ._types import FULL, is_concrete, shape_checked
 from .display import aperture_edge_distance, fresnel_propagate
 from .eyes import Eyes
 from .layouts import Layout
@@ -499,9 +501,9 @@ class OTFStack(eqx.Module):
     freq_step_cpd : float (static) frequency step, cpd.
     """
 
-    otf: jnp.ndarray
-    accommodation_D: jnp.ndarray
-    depths_D: jnp.ndarray
+    otf: Complex[Array, "n_eyes n_depth n_acc L L_half"]
+    accommodation_D: Float[Array, " n_acc"]
+    depths_D: Float[Array, " n_depth"]
     freq_step_cpd: float = eqx.field(static=True)
 
     @property
@@ -517,16 +519,17 @@ class OTFStack(eqx.Module):
         return 60.0 / self.freq_step_cpd / self.n_fft
 
 
+@shape_checked
 def polychromatic_otf(
     eyes: Eyes,
-    accommodation_D,
+    accommodation_D: Real[ArrayLike, " n_acc"] | float | Sequence[float],
     pupil_diameter_mm: float = 3.0,
     cdp_D: float = 2.0,
     spectrum: Spectrum | None = None,
     sampling: Sampling = Sampling(),
     options: ModelOptions = ModelOptions(),
     layout: Layout | None = None,
-    depths_D=None,
+    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None = None,
     eye_chunk: int | None = None,
     check_aliasing: bool = True,
     display=None,

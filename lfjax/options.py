@@ -1,6 +1,6 @@
 """Model options: every modelling choice the paper leaves open, as one named field.
 
-The defaults reproduce Miyanishi et al. as DESIGN.md §2b reads it. ``ModelOptions`` is a
+The defaults reproduce Miyanishi et al. as docs/design.md#modelling-choices reads it. ``ModelOptions`` is a
 frozen, hashable dataclass, so it is a static argument of the jitted pipeline: changing a
 choice recompiles, changing a physical value does not.
 """

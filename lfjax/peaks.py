@@ -55,9 +55,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
-from ._types import FULL
+from ._types import FULL, shape_checked
 from .eyes import Eyes
 from .optics import _is_concrete
 from .pipeline import (
@@ -334,9 +334,11 @@ def _bracket(states_D, index):
     return lo, hi
 
 
+@shape_checked
 def accommodation_peaks(
     eyes: Eyes, scene: Scene, spectrum: Spectrum, grid: Accommodation, config: PipelineConfig,
-    metric: str = "vsotf", method: str = "auto", allowed=None, prominence: float = 0.05,
+    metric: str = "vsotf", method: str = "auto",
+    allowed: Bool[ArrayLike, "n_depth n_k"] | None = None, prominence: float = 0.05,
     atol_D: float = 1e-5, max_steps: int = 32, refine_second: bool = True,
 ) -> Peaks:
     """Continuous predicted accommodation of every eye and rendered depth (pure, jittable).

@@ -206,9 +206,9 @@ class RetinalMetrics(eqx.Module):
     radial_mtf : (…, n_depth, n_k, L//2+1) meridian-averaged MTF at f = k·df
     """
 
-    vsotf: Array
-    strehl: Array
-    radial_mtf: Array
+    vsotf: Float[Array, "*n_eyes n_depth n_k"]
+    strehl: Float[Array, "*n_eyes n_depth n_k"]
+    radial_mtf: Float[Array, "*n_eyes n_depth n_k n_freq"]
 
 
 # ----------------------------------------------------------------------------- stages
@@ -253,7 +253,7 @@ def _eye_coefficients(eyes: Eyes, config: PipelineConfig):
 def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
                    accommodation: Accommodation, bands, sampling: Sampling):
     """Spectrally weighted elemental OTFs of one eye, (n_states, n_sub, L, L//2+1), each
-    carrying the energy its pupil transmits (stages 1–5 of DESIGN.md §2)."""
+    carrying the energy its pupil transmits (stages 1–5 of docs/design.md#the-model-stage-by-stage)."""
     return _elemental_otfs(
         zernike_um, measured_pupil_mm, scene.pupil_diameter_mm, scene.cdp_D, accommodation.states_D,
         scene.centres_mm, scene.diameters_mm, spectrum, bands, sampling,
@@ -341,7 +341,7 @@ def retinal_metrics(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation:
                     config: PipelineConfig, reference=None) -> RetinalMetrics:
     """VSOTF, Strehl ratio and radial MTF of every eye and (rendered depth, k) pair.
 
-    The paper's chain (Miyanishi et al. §2; DESIGN.md §2), one eye at a time:
+    The paper's chain (Miyanishi et al. §2; docs/design.md#the-model-stage-by-stage), one eye at a time:
 
     1–5. eye wavefront + accommodation (defocus and SA) + LCA, Stiles–Crawford apodised
          subaperture pupils → elemental PSFs → OTFs, weighted by the spectrum and summed
@@ -396,8 +396,9 @@ def pair_metric(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Sp
 
 
 retinal_metrics_jit = eqx.filter_jit(retinal_metrics)
-otf_stack_jit = eqx.filter_jit(otf_stack)
 """:func:`retinal_metrics` compiled (``eqx.filter_jit``: static config, arrays traced)."""
+otf_stack_jit = eqx.filter_jit(otf_stack)
+""":func:`otf_stack` compiled (``eqx.filter_jit``: static config, arrays traced)."""
 
 
 @eqx.filter_jit

@@ -1,6 +1,6 @@
 """Monochromatic point-spread function of an eye by a matrix Fourier transform (MFT).
 
-Conventions (DESIGN.md §1): pupil function ``A · exp(−i 2π W / λ)``, PSF = |forward
+Conventions (docs/design.md#conventions): pupil function ``A · exp(−i 2π W / λ)``, PSF = |forward
 transform|², arrays ``[y, x]``. The pupil is a soft-edged disc (:func:`lfjax.optics.soft_disk`)
 sampled with ``pupil_samples`` samples across its diameter; the PSF is evaluated directly
 on the requested angles, so any pixel size and field can be asked for.
@@ -16,17 +16,19 @@ from __future__ import annotations
 
 import math
 import operator
+from collections.abc import Sequence
 from functools import partial
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, ArrayLike, Float, Real
 
 # Module import, not ``from .optics import ...``: lfjax.optics re-exports
 # monochromatic_psf, so either module may be imported first.
 from . import optics as _optics
-from ._types import FULL
+from ._types import FULL, shape_checked
 from .sampling import EDGE_EXTENT_SCALES
 from .units import ARCMIN_PER_RADIAN, dioptres_to_c20_um
 from .zernike import zernike_mode
@@ -207,8 +209,9 @@ def _check_traced(x, bad, message: str):
     return eqx.error_if(x, bad(x), message) if _is_traced(x) else x
 
 
+@shape_checked
 def monochromatic_psf(
-    coefficients_um,
+    coefficients_um: Real[ArrayLike, " n_modes"] | Sequence[float],
     measured_pupil_mm: float,
     pupil_diameter_mm,
     wavelength_nm,
@@ -219,7 +222,7 @@ def monochromatic_psf(
     pupil_samples: int | None = None,
     edge_width_samples: float = 0.25,
     tolerance: float = DEFAULT_TOLERANCE,
-):
+) -> Float[Array, "n_pixels n_pixels"]:
     """Monochromatic PSF of one eye, point-sampled on a square grid, normalised to unit sum.
 
     Parameters

@@ -9,12 +9,15 @@ one eye's OTF stack (eyes are mapped in chunks).
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, ArrayLike, Bool, Float, Real
 
+from ._types import shape_checked
 from .display import DisplayOptics
 from .eyes import Eyes
 from .layouts import Layout, open_pupil
@@ -53,13 +56,13 @@ class ThroughFocus(eqx.Module):
         (``through_focus(continuous_peaks=...)``)
     """
 
-    vsotf: jnp.ndarray
-    strehl: jnp.ndarray
-    radial_mtf: jnp.ndarray
-    radial_freq_cpd: jnp.ndarray
-    accommodation_D: jnp.ndarray
-    allowed: jnp.ndarray
-    depths_D: jnp.ndarray
+    vsotf: Float[Array, "n_eyes n_depth n_acc"]
+    strehl: Float[Array, "n_eyes n_depth n_acc"]
+    radial_mtf: Float[Array, "n_eyes n_depth n_acc n_freq"]
+    radial_freq_cpd: Float[Array, " n_freq"]
+    accommodation_D: Float[np.ndarray, "n_depth n_acc"]
+    allowed: Bool[np.ndarray, "n_depth n_acc"]
+    depths_D: Float[np.ndarray, " n_depth"]
     cdp_D: float = eqx.field(static=True)
     layout_name: str = eqx.field(static=True, default="custom")
     sampling: Sampling | None = eqx.field(static=True, default=None)
@@ -244,17 +247,18 @@ def _planned_sampling(eyes: Eyes, layout: Layout, depths, pairs, pupil_diameter_
     ).sampling
 
 
+@shape_checked
 def through_focus(
     eyes: Eyes,
     layout: Layout | None = None,
-    depths_D=None,
-    accommodation_D=None,
+    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None = None,
+    accommodation_D: Real[ArrayLike, " n_acc"] | Sequence[float] | None = None,
     pupil_diameter_mm: float = 3.0,
     cdp_D: float = 2.0,
     spectrum: Spectrum | None = None,
     sampling: Sampling | None = None,
     options: ModelOptions = ModelOptions(),
-    accommodation_offsets_D=None,
+    accommodation_offsets_D: Real[ArrayLike, " n_acc"] | float | Sequence[float] | None = None,
     window_D: float | None = None,
     eye_chunk: int | None = None,
     check_aliasing: bool = True,
@@ -374,18 +378,19 @@ def _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed, pe
     return metrics, peaks
 
 
+@shape_checked
 def metrics_at(
     eyes: Eyes,
     layout: Layout,
-    depths_D,
-    accommodation_D,
+    depths_D: Real[ArrayLike, " n_depth"] | Sequence[float],
+    accommodation_D: Real[ArrayLike, "n_depth n_acc"] | Sequence[Sequence[float]],
     pupil_diameter_mm=3.0,
     cdp_D=2.0,
     spectrum: Spectrum | None = None,
     sampling: Sampling | None = None,
     options: ModelOptions = ModelOptions(),
     display: DisplayOptics | None = None,
-):
+) -> tuple[Float[Array, "n_eyes n_depth n_acc"], Float[Array, "n_eyes n_depth n_acc"]]:
     """VSOTF and Strehl at given (depth, accommodation) pairs — differentiable in everything.
 
     Unlike :func:`through_focus` (a host-side grid with the hyperopic limit), this is a pure

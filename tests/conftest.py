@@ -7,6 +7,9 @@
 * XLA's CPU backend optimisation level 0: this suite is dominated by compiling many small
   programs (each distinct shape or static option recompiles); level 0 compiles them 2-3x
   faster and changes no result beyond round-off. Set ``XLA_FLAGS`` yourself to override.
+* Shapes in the types are checked (``LFJAX_SHAPE_CHECKS=1``, before lfjax is imported): the
+  public numerical entry points check their jaxtyping annotations with beartype at every
+  call (``lfjax._types.shape_checked``).
 * Expensive results shared by several test files are session fixtures here (each costs
   one XLA compile); cheap module-level inputs live in ``helpers.py``.
 """
@@ -19,6 +22,8 @@ if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = (
         os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0"
     ).strip()
+
+os.environ.setdefault("LFJAX_SHAPE_CHECKS", "1")
 
 import jax  # noqa: E402
 

@@ -1,6 +1,6 @@
 """Slow, float64 numpy reference for the eye + light-field-display wave-optics model.
 
-Written directly from the equations (DESIGN.md sections 1-2), independently of ``lfjax``.
+Written directly from the equations (docs/design.md#conventions and #the-model-stage-by-stage), independently of ``lfjax``.
 It is used only by the test suite to check the fast JAX path, so it favours clarity
 and exactness over speed.
 

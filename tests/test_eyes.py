@@ -17,7 +17,7 @@ N_SMALL = 6  # every small draw has this size: eager jax recompiles for each new
 
 def test_statistics_match_the_published_files():
     """Spot values of the package data against the Thibos/ISETBio JSON files
-    (../shared/data/thibos2002/thibos2002_{3.0,7.5}mm.json: mean[4], mean[12],
+    (the IASstats tables ISETBio bundles, lfjax/data/README.md: mean[4], mean[12],
     covariance[4][4], covariance[12][4], n_eyes)."""
     mean, cov, n = E.thibos_statistics(3.0)
     assert mean.shape == (15,) and cov.shape == (15, 15) and n == 200

@@ -5,7 +5,8 @@ builds its grids on the host; polychromatic_otf needs a concrete pupil diameter 
 its windows). One reverse-mode gradient of J = VSOTF + 0.7·Strehl w.r.t. every physical
 input at once — Zernike coefficients, accommodation, rendered depth, pupil diameter,
 subaperture centres and diameters — is compiled once and checked along random directions
-of each input. The configuration contains the hazards of DESIGN §5: a subaperture centred
+of each input. The configuration contains the hazards of anti-aliased apertures
+(docs/design.md#conventions): a subaperture centred
 on the pupil centre, one internally tangent to the pupil edge, one clipped by it, and
 0 D accommodation.
 """

@@ -1,6 +1,7 @@
 """Light-field rendering (subapertures, display shifts) and through-focus behaviour.
 
-Invariants of DESIGN.md §2.6–2.8 and §4, the paper's qualitative findings for 2×2 and 4×4
+Invariants of docs/design.md#the-model-stage-by-stage (stages 6–8) and
+docs/design.md#how-correctness-is-shown, the paper's qualitative findings for 2×2 and 4×4
 viewpoints, and the fast path against the float64 reference with subapertures and shifts.
 """
 
@@ -32,7 +33,7 @@ def _single_view_otfs(centre, depths, acc):
 
 @pytest.mark.parametrize("centre", INSIDE_CENTRES)
 def test_displaced_centroids_coincide(centre):
-    """DESIGN §2.6: aberration-free, monochromatic eye accommodated at the rendered depth
+    """Stage 6 of docs/design.md#the-model-stage-by-stage: aberration-free, monochromatic eye accommodated at the rendered depth
     (0.5 or 3.5 D, CDP 2 D): every displaced elemental PSF (0.8 mm subaperture inside the
     pupil) is centred on the axis. Off the diagonal (a ≠ depth) it sits at
     θ = −(a − depth)·p (rad, D, m): defocus moves it by −(a − CDP)p, the display by
@@ -128,7 +129,7 @@ def _disk_energy(centre, d, rho):
 
 
 def test_lightfield_otf_is_energy_weighted_sum_of_displaced_elementals():
-    """DESIGN §2.6–2.7 with the paper options (SCE amplitude, SA, LCA; 450 + 650 nm) and a
+    """Stages 6–7 (docs/design.md#the-model-stage-by-stage) with the paper options (SCE amplitude, SA, LCA; 450 + 650 nm) and a
     Thibos eye: the LF OTF equals Σ_n w_n O_n(f) exp(−2πi f·(D_r − D_CDP) p_n), where O_n is
     the normalised OTF of subaperture n alone (computed separately, same window) and w_n its
     share of the transmitted energy Ē_n = Σ_λ w_λ ∫|P_n,λ|² dA (pupil energy = PSF energy).

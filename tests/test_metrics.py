@@ -24,7 +24,7 @@ def _watson_ahumada(f):
 
 
 def test_watson_ahumada_values_on_axis():
-    """S(f) = 373.08 [sech((f/4.1726)^0.7786) − 0.8493 sech(f/1.3625)] (DESIGN §2b) along
+    """S(f) = 373.08 [sech((f/4.1726)^0.7786) − 0.8493 sech(f/1.3625)] (docs/design.md#modelling-choices) along
     both axes (no oblique loss at 0° and 90°); S(0) = 373.08·0.1507."""
     f = np.array([0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 8.0, 16.0, 32.0, 60.0])
     want = _watson_ahumada(f)
@@ -94,7 +94,7 @@ def test_half_plane_sums_equal_full_plane_sums(n):
     num = np.sum(ncsf_full * full.real)
     got = metrics.vsotf_numerator(half, metrics.ncsf_half_plane(n, df))
     assert float(got) == pytest.approx(num, rel=1e-12)
-    # Σ Im OTF·NCSF vanishes for a symmetric NCSF (DESIGN §2.8)
+    # Σ Im OTF·NCSF vanishes for a symmetric NCSF (docs/design.md#the-model-stage-by-stage, stage 8)
     assert abs(np.sum(ncsf_full * full.imag)) < 1e-10 * abs(num)
     full2, half2 = _random_otf(n, n + 100)
     vs = metrics.vsotf(half, half2, n, df)

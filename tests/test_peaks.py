@@ -98,7 +98,7 @@ def test_defocused_eye_peak_is_exact_and_its_gradient_analytic(method="newton"):
     """A monochromatic, SA-free eye with +0.37 D of its own defocus (myopic) viewing a point
     on the display plane (CDP 2.5 D) through its whole pupil focuses 0.37 D short of it; the
     implicit derivative of the peak with respect to c(2,0) is −1/(0.3248 µm/D) exactly
-    (DESIGN.md §1)."""
+    (docs/design.md#conventions)."""
     layout = lfjax.open_pupil(3.0)
     cfg, scene, grid, allowed = _pipeline(layout, [2.5], cdp_D=2.5)
 

@@ -208,7 +208,7 @@ def test_defocus_sign_and_display_shift(centre):
 
 
 def test_displaced_centroids_coincide_multi_subaperture():
-    """DESIGN 2.6 invariant: aberration-free, monochromatic eye accommodated at the rendered
+    """Stage 6 invariant (docs/design.md#the-model-stage-by-stage): aberration-free, monochromatic eye accommodated at the rendered
     depth -> all displaced elemental PSFs share one centroid (here 0)."""
     L, df = 64, 1.5
     cs = [[-0.75, -0.75], [0.75, -0.75], [-0.75, 0.75], [0.75, 0.75]]

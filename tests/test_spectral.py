@@ -10,8 +10,8 @@ from lfjax.options import ModelOptions
 
 
 def test_lef_table_values():
-    """CIE 2008 2° physiologically relevant LEF from colour-science (values as listed in
-    ../shared/NOTES-deps.md): range 390–830 nm, V(555) ≈ 0.9995, peak at 555–556 nm."""
+    """CIE 2008 2° physiologically relevant LEF from colour-science (values as
+    colour-science tabulates them): range 390–830 nm, V(555) ≈ 0.9995, peak at 555–556 nm."""
     assert spectral.lef_range_nm() == (390.0, 830.0)
     v = spectral.luminous_efficiency([400.0, 550.0, 555.0, 700.0])
     np.testing.assert_allclose(v, [0.00245219, 0.989023, 0.999461, 0.00419594], rtol=1e-5)
@@ -48,7 +48,7 @@ def test_nonuniform_and_explicit_weights():
 
 def test_lca_values_and_sign():
     """D(λ) = A (1/(λ−c) − 1/(λref−c)), A = 633.26, c = 214.10 nm, λref = 550 nm; the eye is
-    more powerful (myopic, positive D) for blue; ≈ 1.5 D at 400 nm (DESIGN §3)."""
+    more powerful (myopic, positive D) for blue; ≈ 1.5 D at 400 nm (docs/design.md#why-it-is-fast)."""
     wl = np.array([400.0, 450.0, 550.0, 650.0, 700.0])
     d = spectral.lca_dioptres(wl)
     np.testing.assert_allclose(d, R.lca_dioptres(wl), rtol=1e-14, atol=1e-15)

@@ -22,7 +22,7 @@ ALTERNATIVES: dict[str, dict] = {
     "lca_A=633.46": {"lca_A": 633.46},
     "wavelength_normalisation=unit_sum": {"wavelength_normalisation": "unit_sum"},
 }
-"""Modelling choices the paper leaves open (DESIGN.md §2b), as ``ModelOptions`` changes."""
+"""Modelling choices the paper leaves open (docs/design.md#modelling-choices), as ``ModelOptions`` changes."""
 
 
 def run_alternatives(config: StudyConfig, stage=None) -> dict:

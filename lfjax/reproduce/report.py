@@ -188,7 +188,8 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
     add("")
     if alternatives:
         red = config.reduced()
-        add("The paper leaves some modelling choices open (DESIGN.md §2b). Each alternative was "
+        add("The paper leaves some modelling choices open (lfjax's design notes: "
+            "docs/design.md#modelling-choices in the lfjax project). Each alternative was "
             "run on a reduced set — the same eyes and accommodation grid, rendered depths "
             f"{', '.join(f'{d:+.0f}' for d in red.depth_offsets_D)} D relative to the CDP, "
             f"{red.wavelengths_nm[2]:g} nm wavelength steps — next to a baseline on the same "
