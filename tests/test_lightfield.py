@@ -5,6 +5,7 @@ docs/design.md#how-correctness-is-shown, the paper's qualitative findings for 2�
 viewpoints, and the fast path against the float64 reference with subapertures and shifts.
 """
 
+import functools
 import math
 
 import numpy as np
@@ -262,39 +263,61 @@ REF_LAYOUTS = {
 }
 
 
-@pytest.mark.parametrize("name", list(REF_LAYOUTS))
-def test_lightfield_fast_path_matches_reference(name, dl_convergence):
-    """Fast path vs tests/reference.py with subapertures and display shifts: 2 Thibos eyes,
-    450 + 650 nm, paper options, accommodation 1.8/2.3 D, rendered 1.5/2.6 D (CDP 2 D).
+REF_ACC, REF_DEPTHS = [1.8, 2.3], [1.5, 2.6]
+REF_COMBOS = [(i, j, (i + j) % 2) for i in range(2) for j in range(2)]
+"""(eye, depth, state) combinations compared: four of the eight, every depth and state."""
 
-    Tolerance, as for the open pupil (test_optics): the sum over views is exact in both
-    and the shifts are exact phase ramps, so the difference is the aperture-edge error of
-    the elemental OTFs, bounded by b_fast + b_ref of the worst subaperture at 650 nm:
-    b_fast = c/N_p with c = error·N_p measured by the 1/N_p law at edge 0.25 (≈ 0.29) and
-    N_p = d/(λ df);
-    b_ref measured on a d mm circle. Both scale with edge length per area, so a
-    subaperture clipped by the pupil gets the factor κ = (P/A)_clipped / (4/d) (exact
-    circle-intersection geometry; κ = 1.14 for the 2×2 corners). Measured differences:
-    inside 0.0200 (bound 0.027), 2×2 0.0146 (bound 0.018)."""
+
+def _ref_layout(name):
+    if REF_LAYOUTS[name] is None:
+        return lfjax.grid_layout(2, 3.0)
+    return lfjax.make_layout(*REF_LAYOUTS[name], 3.0)
+
+
+def _lf_references(zernike_um, layout, n, options):
+    """tests/reference.py's LF OTFs {(eye, depth, state): OTF} of REF_COMBOS for the eyes'
+    coefficients ``zernike_um`` (rows), and {(depth, state): OTF} of the aberration-free
+    eye in the same layout, under ``options`` (spectrum, SCE, SA and LCA from it)."""
+    spectrum = lfjax.make_spectrum([450.0, 650.0], options)
+    df = REF_SAMPLING.freq_step_cpd
+
+    def one(z, j, k):
+        return H.reference_for(z, spectrum, REF_ACC[k], CDP, REF_DEPTHS[j], layout, n, df,
+                               options)
+
+    eyes = {(i, j, k): one(zernike_um[i], j, k) for i, j, k in REF_COMBOS}
+    free = {(j, k): one(np.zeros_like(zernike_um[0]), j, k) for _, j, k in REF_COMBOS}
+    return eyes, free
+
+
+@functools.lru_cache(maxsize=None)
+def _lf_comparison(name):
+    """Fast path (paper options, 450 + 650 nm) for 2 Thibos eyes and the aberration-free
+    eye in one batch, and the float64 references of REF_COMBOS."""
     options = lfjax.ModelOptions()
     spectrum = lfjax.make_spectrum([450.0, 650.0], options)
-    eyes = lfjax.sample_eyes(3, 2)
-    if REF_LAYOUTS[name] is None:
-        layout = lfjax.grid_layout(2, 3.0)
-    else:
-        layout = lfjax.make_layout(*REF_LAYOUTS[name], 3.0)
-    acc, depths = [1.8, 2.3], [1.5, 2.6]
-    fast = np.asarray(lfjax.polychromatic_otf(eyes, acc, 3.0, CDP, spectrum, REF_SAMPLING,
-                                              options, layout=layout, depths_D=depths)
+    z = np.asarray(lfjax.sample_eyes(3, 2).zernike_um)
+    eyes = lfjax.eyes.make_eyes(np.concatenate([z, np.zeros((1, z.shape[1]))]), 3.0)
+    layout = _ref_layout(name)
+    fast = np.asarray(lfjax.polychromatic_otf(eyes, REF_ACC, 3.0, CDP, spectrum, REF_SAMPLING,
+                                              options, layout=layout, depths_D=REF_DEPTHS)
                       .full_plane())
-    n, df = fast.shape[-1], REF_SAMPLING.freq_step_cpd
-    diff = 0.0
-    for i in range(2):
-        for j in range(2):
-            k = (i + j) % 2  # four (eye, depth, state) combinations
-            ref = H.reference_for(np.asarray(eyes.zernike_um[i]), spectrum, acc[k], CDP,
-                                  depths[j], layout, n, df, options)
-            diff = max(diff, np.abs(fast[i, j, k] - ref).max())
+    n = fast.shape[-1]
+    ref, ref_free = _lf_references(z, layout, n, options)
+    return dict(z=z, layout=layout, n=n, fast={c: fast[c] for c in REF_COMBOS},
+                free={(j, k): fast[2, j, k] for _, j, k in REF_COMBOS}, ref=ref,
+                ref_free=ref_free)
+
+
+def _cv_residual(fast, ref, fast_free, ref_free):
+    """Control-variate residual over REF_COMBOS (test_optics.control_variate_residual)."""
+    return max(float(np.abs((fast[c] - ref[c]) - (fast_free[c[1:]] - ref_free[c[1:]])).max())
+               for c in REF_COMBOS)
+
+
+def _edge_bound(layout, n, dl_convergence):
+    """max over subapertures of κ (b_fast + b_ref) at 650 nm (see the test below)."""
+    df = REF_SAMPLING.freq_step_cpd
     c_fast = dl_convergence[3.0][2] * dl_convergence[3.0][1]
     bound = 0.0
     for c, d in zip(np.asarray(layout.centres_mm), np.asarray(layout.diameters_mm)):
@@ -309,7 +332,55 @@ def test_lightfield_fast_path_matches_reference(name, dl_convergence):
         b_ref = H.dl_axis_error(ref_dl, df, d, 650.0)
         b_fast = c_fast / H.pupil_samples(d, 650.0, df)
         bound = max(bound, kappa * (b_fast + b_ref))
-    assert diff <= bound, (diff, bound)
+    return bound
+
+
+@pytest.mark.parametrize("name", list(REF_LAYOUTS))
+def test_lightfield_fast_path_matches_reference(name, dl_convergence):
+    """Fast path vs tests/reference.py with subapertures and display shifts: 2 Thibos eyes,
+    450 + 650 nm, paper options, accommodation 1.8/2.3 D, rendered 1.5/2.6 D (CDP 2 D).
+
+    Edge error, as for the open pupil (test_optics): the sum over views is exact in both
+    and the shifts are exact phase ramps, so the difference of the aberration-free eye in
+    the same layout, e_0, is the aperture-edge error of the elemental OTFs, bounded by
+    b_fast + b_ref of the worst subaperture at 650 nm: b_fast = c/N_p with c = error·N_p
+    measured by the 1/N_p law at edge 0.25 (≈ 0.29) and N_p = d/(λ df); b_ref measured on
+    a d mm circle. Both scale with edge length per area, so a subaperture clipped by the
+    pupil gets the factor κ = (P/A)_clipped / (4/d) (exact circle-intersection geometry;
+    κ = 1.14 for the 2×2 corners). Measured e_0: inside 0.0200 (bound 0.027), 2×2 0.0146
+    (bound 0.018).
+
+    That bound is as large as a modelling error (SCE as intensity moves the OTF by 0.018),
+    so the eyes are compared through the control variate: their difference less e_0's
+    (test_optics.control_variate_residual), measured inside 4.1e-3 = 0.21 e_0, 2×2
+    4.6e-3 = 0.32 e_0; required ≤ test_optics.CV_BOUND·e_0 (0.7 e_0: 1.4e-2, 1.0e-2),
+    which every deliberately mis-modelled reference exceeds
+    (test_lightfield_reference_sees_a_modelling_error)."""
+    from test_optics import CV_BOUND
+
+    d = _lf_comparison(name)
+    e0 = max(float(np.abs(d["free"][c] - d["ref_free"][c]).max()) for c in d["free"])
+    assert e0 <= _edge_bound(d["layout"], d["n"], dl_convergence), e0
+    residual = _cv_residual(d["fast"], d["ref"], d["free"], d["ref_free"])
+    assert residual <= CV_BOUND * e0, (residual, e0)
+
+
+@pytest.mark.parametrize("model", ["sce_as_intensity", "accommodation_sa_off", "lca_off"])
+def test_lightfield_reference_sees_a_modelling_error(model):
+    """Negative control: the light-field reference ("inside" layout) computed with a
+    deliberate modelling error — SCE as intensity, accommodation SA off, LCA off, both for
+    the eyes and the aberration-free eye, as a wrong reference would be — leaves a
+    control-variate residual above the CV_BOUND·e_0 bound the fast path meets. Measured
+    1.66e-2 = 0.83 e_0, 1.77e-2 = 0.89 e_0 and 0.51 against 1.4e-2 (at df 1 cpd the margin
+    widens to 1.14 and 1.39 e_0 against a residual of 0.16 e_0, at 3× the cost)."""
+    from test_optics import CV_BOUND, MISMODELLED
+
+    d = _lf_comparison("inside")
+    wrong, wrong_free = _lf_references(d["z"], d["layout"], d["n"],
+                                       lfjax.ModelOptions(**MISMODELLED[model]))
+    e0 = max(float(np.abs(d["free"][c] - d["ref_free"][c]).max()) for c in d["free"])
+    residual = _cv_residual(d["fast"], wrong, d["free"], wrong_free)
+    assert residual > CV_BOUND * e0, (residual, e0)
 
 
 def test_states_beyond_hyperopic_limit_keep_their_true_values():

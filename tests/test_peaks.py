@@ -1,13 +1,12 @@
 """Continuous accommodation peaks (lfjax.peaks): analytic curves, implicit gradients, the
 two-peaked Strehl curve, the hyperopic limit and the grid's far end, bad input, and the
-optimistix GoldenSearch trap the golden method works around."""
+golden method on brackets away from zero (its workaround of an optimistix 0.1.0 bug)."""
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 import pytest
 
 import lfjax
@@ -222,20 +221,20 @@ def test_one_state_grid_is_refused():
 # ----------------------------------------------------------------------------- upstream trap
 
 
-def test_optimistix_golden_search_still_needs_the_offset_workaround():
+@pytest.mark.parametrize("lower, upper, peak", [(2.0, 4.0, 3.0), (2.0, 4.0, 2.1),
+                                                (2.0, 4.0, 3.93), (4.6, 5.0, 4.7),
+                                                (0.0, 0.4, 0.33)])
+def test_golden_search_honours_brackets_that_do_not_straddle_zero(lower, upper, peak):
     """optimistix 0.1.0's GoldenSearch puts its first midpoint at (upper − lower)/(φ + 1),
     not lower + …, so a bracket that does not straddle zero diverges (optimistix issue #236,
-    fixed upstream by PR #237). lfjax searches the offset from the bracket centre instead.
-    When this test fails, a release has fixed the bug: drop the workaround in
-    ``lfjax.peaks.refine_peak`` (golden branch) and this test."""
-    sol = optx.minimise(lambda x, _: (x - 3.0) ** 2, optx.GoldenSearch(rtol=1e-6, atol=1e-6),
-                        jnp.asarray(3.0), None, options=dict(lower=2.0, upper=4.0), throw=False,
-                        max_steps=64)
-    broken = abs(float(sol.value) - 3.0) > 0.1
-    assert broken, "optimistix GoldenSearch now honours the bracket: remove lfjax's workaround"
-    # the workaround itself finds the peak
-    peak = refine_peak(lambda a, _: -((a - 3.0) ** 2), 2.0, 4.0, 3.0, None, "golden")
-    assert abs(float(peak.accommodation_D) - 3.0) < 1e-4
+    fixed upstream by PR #237). lfjax searches the offset from the bracket centre, which is
+    right with or without the upstream fix: the golden method must find the peak of a
+    skewed curve anywhere inside such brackets, near either end included (< 1e-4 D), and
+    report success."""
+    got = refine_peak(_skewed_peak, lower, upper, 0.5 * (lower + upper), (peak, 0.3),
+                      "golden")
+    assert bool(got.success)
+    assert abs(float(got.accommodation_D) - peak) < 1e-4, (float(got.accommodation_D), peak)
 
 
 def test_local_refinement_agrees_with_the_exact_peak():

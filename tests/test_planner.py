@@ -236,7 +236,8 @@ def test_proxy_vsotf_equals_the_pipeline(layout, pupil):
     """For the aberration-free eye the planner's proxy is the pipeline: display shifts and
     defocus tilts enter with the pipeline's signs, and views sharing one transform (mirror /
     quarter-turn images; a hexagon's 60° neighbours are kept apart) contribute exactly their
-    own terms. So the proxy's error estimates are the pipeline's own errors."""
+    own terms. So the proxy's error estimates are the pipeline's own errors. The README
+    states < 1e-6 and is tested at it (measured 4.9e-8 for 4×4, 1.5e-8 for hex)."""
     depths, states = [1.0, 3.0], np.array([0.6, 1.0, 1.4, 2.6, 3.0, 3.4])
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
     eye = lfjax.eyes.aberration_free_eye(measured_pupil_mm=pupil)
@@ -248,13 +249,14 @@ def test_proxy_vsotf_equals_the_pipeline(layout, pupil):
     proxy = planner._Proxy(scene, spectrum, 0.25)
     assert len(proxy.groups) < layout.n_subapertures  # views do share transforms
     ours = proxy.vsotf(df, (acc.ravel(), dep.ravel()))
-    np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), atol=1e-5)
+    np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), rtol=0, atol=1e-6)
 
 
 def test_proxy_mft_equals_the_pipeline_mft():
     """The proxy's MFT path is the pipeline's: the PSF's point samples on the band's angles,
     truncated at the field edge, transformed at step df (so a plan's MFT error includes the
-    field truncation and the frequency quadrature)."""
+    field truncation and the frequency quadrature). Within the README's 1e-6 (measured
+    2.1e-7)."""
     layout, df, samples = lfjax.grid_layout(2, 3.0), 1.414, 48
     depths, states = [1.0, 3.0], np.array([0.6, 1.4, 2.6, 3.4])
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
@@ -266,4 +268,4 @@ def test_proxy_mft_equals_the_pipeline_mft():
     scene = planner._Scene(layout, 3.0, 2.0, acc.ravel(), dep.ravel(), lfjax.ModelOptions())
     ours = planner._Proxy(scene, spectrum, 0.25).vsotf(
         df, (acc.ravel(), dep.ravel()), transform="mft", mft_samples=samples)
-    np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), atol=1e-5)
+    np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), rtol=0, atol=1e-6)

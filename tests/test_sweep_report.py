@@ -270,13 +270,20 @@ def test_wilson_interval():
 def test_interval_brackets_the_fraction_and_shrinks(ds):
     few = te.ten_eye_claims(ds, n_draws=20, seed=0)
     many = te.ten_eye_claims(ds, n_draws=200, seed=0)
+    # a claim the samples cannot decide (claim 3: no 2x2 depth beyond +-1 D here) has no
+    # fraction and no interval
+    judged = (few.n_holds + few.n_fails).values > 0
+    assert judged.sum() >= 5
     for r in (few, many):
-        assert np.all(r.ci_low.values <= r.fraction_holds.values)
-        assert np.all(r.fraction_holds.values <= r.ci_high.values)
-        assert np.all((0 <= r.ci_low.values) & (r.ci_high.values <= 1))
+        np.testing.assert_array_equal((r.n_holds + r.n_fails).values > 0, judged)
+        assert np.all(np.isnan(r.fraction_holds.values[~judged]))
+        assert np.all(np.isnan(r.ci_low.values[~judged]) & np.isnan(r.ci_high.values[~judged]))
+        low, frac, high = (r[k].values[judged] for k in ("ci_low", "fraction_holds", "ci_high"))
+        assert np.all(low <= frac) and np.all(frac <= high)
+        assert np.all((0 <= low) & (high <= 1))
     # Wilson widths: <= 0.137 at n = 200 for any fraction, >= 0.161 at n = 20
     def width(r):
-        return r.ci_high.values - r.ci_low.values
+        return (r.ci_high.values - r.ci_low.values)[judged]
 
     assert np.all(width(many) < width(few))
 

@@ -76,8 +76,35 @@ def dof_D(rel_depths, cutoffs, fraction: float) -> tuple[float, bool]:
     return float(hi - lo), censored
 
 
+def _all_of(verdicts) -> bool | None:
+    """Conjunction of parts that may be undecided (None): False if any part fails, None if
+    none fails but one is undecided, else True."""
+    verdicts = list(verdicts)
+    if any(v is False for v in verdicts):
+        return False
+    return None if any(v is None for v in verdicts) else True
+
+
+def _compare(a, a_censored, b, b_censored, tol, strict) -> bool | None:
+    """Is the true value behind b >= a (strict: > a)? a and b are lower bounds where
+    censored. True when proven (a exact), False when disproven (b exact), else None."""
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return None
+    ok = b > a + tol if strict else b >= a - tol
+    if ok:
+        return True if not a_censored else None
+    return False if not b_censored else None
+
+
 def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
-    """The paper's findings (1)–(7) checked on a study Dataset, each with its criterion."""
+    """The paper's findings (1)–(7) checked on a study Dataset, each with its criterion.
+
+    A claim's ``holds`` is None (verdict "n/a") when the Dataset cannot decide it: a part
+    of its criterion needs data that are absent (no natural view, no LF layouts, no 2x2
+    depth beyond +-1 D, no depth > 0 D, fewer than 2 LF layouts or 3 depths, no cell with
+    an average-eye value) or not finite, or a depth of field reaching the end of the
+    sampled depths (a lower bound) would have to win a comparison. A part that fails
+    still makes the claim fail."""
     cdp = float(ds.attrs["cdp_D"])
     frac = float(ds.attrs.get("config_dof_fraction", 0.8)) if dof_fraction is None else dof_fraction
     layouts = list(ds.layout.values)
@@ -98,7 +125,9 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
                          .peak_value.sel(metric="vsotf"))
         max_abs = float(np.max(np.abs(err)))
         mean = float(np.mean(err))
-        holds = bool(max_abs <= 0.2 + 1e-6 and -0.25 <= mean < 0)
+        # an eye without a prediction (NaN) leaves the claim undecided, not failed
+        holds = (bool(max_abs <= 0.2 + 1e-6 and -0.25 <= mean < 0)
+                 if np.all(np.isfinite(err)) else None)
         sub_grid = (sub.predicted_accommodation_continuous.sel(metric="vsotf").values
                     - float(sub.depth))
         # an eye's own Zernike defocus is a refractive error its accommodation must offset
@@ -126,7 +155,7 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
 
     # (2) VSOTF errors small, negative, constant for every LF layout
     if lf:
-        parts, ok_all = [], True
+        parts, verdicts = [], []
         for name in lf:
             grid_e = ab.sel(layout=name).accommodation_error.sel(metric="vsotf").mean("eye").values
             sel = ab.sel(layout=name)
@@ -137,7 +166,13 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
             check = depths > 1e-9
             negative = bool(np.all(e[check] < 0)) if np.any(check) else False
             constant = bool(np.ptp(e) <= 0.2 + 1e-9)
-            ok_all &= small and negative and constant
+            if not np.all(np.isfinite(e)):
+                verdicts.append(None)  # a depth without continuous peaks: undecided
+            elif not (small and constant) or (np.any(check) and not negative):
+                verdicts.append(False)
+            else:
+                # no depth > 0 D: "negative" cannot be judged (0 D is exempt)
+                verdicts.append(True if np.any(check) else None)
             parts.append(
                 f"{name}: mean errors {_fmt(np.min(e))}…{_fmt(np.max(e))} D "
                 f"(range {np.ptp(e):.2f} D; negative at {int(np.sum(e[check] < 0))}/"
@@ -157,7 +192,7 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
             "forbids negative errors there) (negative); max - min over depths <= 0.2 D "
             "(constant). Continuous peaks remove the 0.2 D grid's ±0.1 D alternation between "
             "half-dioptre depths; the grid peaks are shown for reference.",
-            "; ".join(parts), ok_all))
+            "; ".join(parts), _all_of(verdicts)))
     else:
         claims.append(Claim("2", "VSOTF errors small/negative/constant.", "needs LF layouts",
                             "not evaluated", None))
@@ -181,7 +216,7 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
                     disagreements.append(f"{name} {r:+.1f} D ({d:.2f} D)")
         parts.append(f"mean Strehl vs VSOTF predictions within 0.2 D in {agree_ok}/{agree_cells} "
                      f"cells" + (f" (not: {', '.join(disagreements)})" if disagreements else ""))
-        cdp_ok = None
+        cdp_ok = None  # part (b) undecided without 2x2 depths beyond +-1 D
         if "2x2" in lf:
             far = [di for di, r in enumerate(rel) if abs(r) > 1.0 + 1e-9]
             fr = []
@@ -192,10 +227,12 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
                 fr.append(float(np.mean(closer)))
                 parts.append(f"2x2 {rel[di]:+.1f} D: {int(np.sum(closer))}/{closer.size} eyes' "
                              f"Strehl peak closer to the CDP (mean {np.mean(p_sr):.2f} D)")
-            cdp_ok = bool(far) and all(f >= 0.5 for f in fr)
+            cdp_ok = all(f >= 0.5 for f in fr) if far else None
             if not far:
                 parts.append("no 2x2 depth beyond +-1 D")
-        holds = bool(agree_ok == agree_cells) and (cdp_ok is not False)
+        else:
+            parts.append("no 2x2 layout")
+        holds = _all_of([agree_ok == agree_cells if agree_cells else None, cdp_ok])
         claims.append(Claim(
             "3", "Strehl ratio predicts the same accommodation as VSOTF, except for 2x2 "
                  "viewpoints with points rendered more than 1 D from the CDP, where it predicts "
@@ -218,16 +255,17 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
             if np.isfinite(m) and np.isfinite(a):
                 diffs.append(a - m)
                 cells.append(f"{name} {r:+.1f}")
-    diffs = np.asarray(diffs)
+    diffs = np.asarray(diffs, float)
     within = np.abs(diffs) <= 0.2 + 1e-9
+    result4 = (f"within 0.2 D in {int(within.sum())}/{within.size} cells; mean difference "
+               f"{np.mean(diffs):+.3f} D; max |difference| {np.max(np.abs(diffs)):.2f} D"
+               if within.size else "no cell with both predictions")
     claims.append(Claim(
         "4", "The average eye is predicted to accommodate where the aberrated eyes do on "
              "average.",
         "VSOTF: |average-eye prediction - mean prediction of the aberrated eyes| <= 0.2 D (one "
         "grid step) in at least 90% of (layout, depth) cells.",
-        f"within 0.2 D in {int(within.sum())}/{within.size} cells; mean difference "
-        f"{np.mean(diffs):+.3f} D; max |difference| {np.max(np.abs(diffs)):.2f} D",
-        bool(within.size and within.mean() >= 0.9)))
+        result4, bool(within.mean() >= 0.9) if within.size else None))
 
     # (5) average eye's MTF better than the aberrated eyes' mean
     fmask = ds.frequency.values <= 60.0 + 1e-9
@@ -252,41 +290,50 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
         "('almost all cases').",
         f"better in {better}/{total} cells; ratio average/mean {np.min(ratios):.2f}…"
         f"{np.max(ratios):.2f}" if total else "no cells",
-        bool(total and better / total >= 0.9)))
+        bool(better / total >= 0.9) if total else None))
 
     # (6) DOF grows with viewpoint density; (7) best cut-off at the CDP falls with density
     if len(lf) >= 2 and rel.size >= 3:
         threshold = float(ds.attrs.get("config_cutoff_threshold", 0.05))
-        dofs, parts = {}, []
+        dofs, censored, parts = {}, {}, []
         for name in lf:
             c = ab.sel(layout=name).cutoff_frequency.sel(metric="vsotf").mean("eye").values
+            if not np.all(np.isfinite(c)):
+                dofs[name], censored[name] = float("nan"), True
+                parts.append(f"{name}: cut-off not finite at every depth")
+                continue
             d, cens = dof_D(rel, c, frac)
-            dofs[name] = d
+            dofs[name], censored[name] = d, cens
             others = []
             for f in (0.7, 0.9):
                 d2, c2 = dof_D(rel, c, f)
                 others.append(f"{'>=' if c2 else ''}{d2:.2f}")
             parts.append(f"{name}: DOF {'>=' if cens else ''}{d:.2f} D (at 0.7/0.9 of best: "
                          f"{others[0]}/{others[1]} D)")
-        vals = [dofs[n] for n in lf]
-        holds6 = bool(all(b >= a - 1e-9 for a, b in zip(vals, vals[1:]))
-                      and vals[-1] > vals[0] + 1e-9)
+        # a censored DOF is a lower bound: a comparison it would have to win is undecided
+        steps = [_compare(dofs[a], censored[a], dofs[b], censored[b], 1e-9, strict=False)
+                 for a, b in zip(lf, lf[1:])]
+        steps.append(_compare(dofs[lf[0]], censored[lf[0]], dofs[lf[-1]], censored[lf[-1]],
+                              1e-9, strict=True))
+        holds6 = _all_of(steps)
         claims.append(Claim(
             "6", "Depth of field (rendered-depth range keeping in-focus resolution high) grows "
                  "with viewpoint density.",
             f"DOF = length of the contiguous range of rendered depths around the best depth where "
             f"the mean cut-off frequency (MTF {threshold:g}"
             f" at the VSOTF-predicted accommodation) stays >= {frac:g} x its best, crossings "
-            f"linearly interpolated ('>=': reaches the end of the sampled depths). Holds if DOF "
-            f"never decreases from 2x2 to 3x3 to 4x4 and 4x4 > 2x2.",
+            f"linearly interpolated ('>=': reaches the end of the sampled depths, a lower "
+            f"bound). Holds if DOF never decreases from 2x2 to 3x3 to 4x4 and 4x4 > 2x2; n/a "
+            f"if that needs a lower bound to beat another value.",
             "; ".join(parts), holds6))
     else:
         claims.append(Claim("6", "DOF grows with density.", "needs >= 2 LF layouts and >= 3 depths",
                             "not evaluated", None))
     if len(lf) >= 2 and np.any(np.isclose(rel, 0.0)):
-        at_cdp, best_at_cdp, parts = [], [], []
+        at_cdp, best_at_cdp, parts, finite = [], [], [], True
         for name in lf:
             c = ab.sel(layout=name).cutoff_frequency.sel(metric="vsotf").mean("eye").values
+            finite &= bool(np.all(np.isfinite(c)))
             i0 = int(np.argmin(np.abs(rel)))
             at_cdp.append(c[i0])
             best_at_cdp.append(bool(c[i0] >= 0.98 * np.max(c)))
@@ -300,7 +347,7 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
             "Mean cut-off frequency of the aberrated eyes at the CDP strictly decreases from "
             "2x2 to 3x3 to 4x4, and for each layout the CDP value is within 2% of the best "
             "over depths.",
-            "; ".join(parts), bool(falling and all(best_at_cdp))))
+            "; ".join(parts), bool(falling and all(best_at_cdp)) if finite else None))
     else:
         claims.append(Claim("7", "Best cut-off falls with density.", "needs >= 2 LF layouts",
                             "not evaluated", None))

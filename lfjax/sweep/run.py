@@ -9,7 +9,9 @@ chunks that are not yet complete — in several processes, each its own share
 
 from __future__ import annotations
 
+import os
 import resource
+import signal
 import sys
 import time
 from dataclasses import dataclass, field
@@ -158,6 +160,10 @@ def run_sweep(
             run.chunk_seconds.append(time.perf_counter() - tc)
             run.computed_chunks.append(i)
             run.eyes_computed += stop - start
+            # test hook: die as a SIGKILLed sweep would, right after chunk i is marked
+            # complete, so the resume test kills at a known point instead of racing a poll
+            if os.environ.get("LFJAX_TEST_ABORT_AFTER_CHUNK") == str(i):
+                os.kill(os.getpid(), signal.SIGKILL)
             if bar is not None:
                 bar.update(stop - start)
     finally:
