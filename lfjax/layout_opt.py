@@ -1522,11 +1522,19 @@ class _CoordinateObjective:
     def __init__(self, template, problem: LayoutProblem, route: str):
         self.template, self.problem, self.route = template, problem, route
         self.constraints = problem.constraints
+        self._last = None  # (coordinates, result): jaxopt asks twice for an accepted step
 
     def value_and_grad(self, coords):
+        key = [np.asarray(x) for x in jax.tree_util.tree_leaves(coords)]
+        if self._last is not None and len(key) == len(self._last[0]) and all(
+                a.shape == b.shape and np.array_equal(a, b) for a, b in zip(key, self._last[0])):
+            return self._last[1]
         free = _coords_to_free(coords, self.template, self.constraints, self.route)
         value, grad_free = layout_value_and_grad(free, self.problem)
-        return value, _coords_pullback(coords, self.template, self.constraints, self.route, grad_free)
+        result = (value, _coords_pullback(coords, self.template, self.constraints, self.route,
+                                          grad_free))
+        self._last = (key, result)
+        return result
 
     def optimistix_fn(self):
         """fn(y, args) → (loss, None) for optimistix, differentiable through a custom JVP
@@ -1555,8 +1563,17 @@ def _lbfgsb(fun, tol: float):
         import jaxopt
     # jit=False: jaxopt's loop and line search run on the host around the compiled
     # objective; backtracking needs one objective + gradient per trial step (zoom ~2x more).
-    return jaxopt.LBFGSB(fun=fun, value_and_grad=True, tol=tol, maxls=20, jit=False,
-                         linesearch="backtracking")
+    solver = jaxopt.LBFGSB(fun=fun, value_and_grad=True, tol=tol, maxls=12, jit=False,
+                           linesearch="backtracking")
+    # Sufficient decrease alone (Armijo), halving the step. jaxopt's backtracking checks the
+    # strong Wolfe curvature condition by default, which a search that can only shrink the
+    # step rarely meets on a loss that is smooth only piecewise (the predicted peak's grid
+    # index switches): measured on the default objective, 4 eyes, 8 steps: 107 objective
+    # evaluations, most of them shrinking steps that already improved the loss.
+    line_search = solver.run_ls.__self__
+    line_search.condition = "armijo"
+    line_search.decrease_factor = 0.5
+    return solver
 
 
 class LayoutWarning(UserWarning):
