@@ -40,6 +40,7 @@ from .layouts import open_pupil as open_pupil
 from .options import ModelOptions as ModelOptions
 from .psf import monochromatic_psf as monochromatic_psf
 from .optics import polychromatic_otf as polychromatic_otf
+from .sampling import AliasingError as AliasingError
 from .sampling import Sampling as Sampling
 from .spectral import make_spectrum as make_spectrum
 

@@ -193,15 +193,35 @@ def blur_radius_arcmin(
     return (geometric + airy + aberration_slope_rad + extra) * ARCMIN_PER_RADIAN
 
 
+class AliasingError(ValueError):
+    """The frequency sampling's PSF field cannot hold the blur: the PSF would wrap.
+
+    Attributes
+    ----------
+    freq_step_cpd : the step that was refused, cpd
+    max_freq_step_cpd : the largest step whose field holds the blur, cpd (what to use)
+    radius_arcmin : the blur's radius, arcmin
+    """
+
+    def __init__(self, message: str, freq_step_cpd: float, max_freq_step_cpd: float,
+                 radius_arcmin: float):
+        super().__init__(message)
+        self.freq_step_cpd = float(freq_step_cpd)
+        self.max_freq_step_cpd = float(max_freq_step_cpd)
+        self.radius_arcmin = float(radius_arcmin)
+
+
 def check_field(sampling: Sampling, radius_arcmin: float, what: str) -> None:
-    """Raise if the PSF of radius ``radius_arcmin`` would wrap in the periodic field."""
+    """Raise :class:`AliasingError` if the PSF of radius ``radius_arcmin`` would wrap in the
+    periodic field."""
     half = 0.5 * sampling.field_arcmin
     if radius_arcmin > half:
         max_df = 30.0 / radius_arcmin
-        raise ValueError(
+        raise AliasingError(
             f"sampling too coarse for the requested defocus (aliasing): freq_step_cpd="
             f"{sampling.freq_step_cpd:g} gives a PSF field of ±{half:.1f} arcmin but {what} "
-            f"reaches {radius_arcmin:.1f} arcmin; use freq_step_cpd <= {max_df:.3g}"
+            f"reaches {radius_arcmin:.1f} arcmin; use freq_step_cpd <= {max_df:.3g}",
+            sampling.freq_step_cpd, max_df, radius_arcmin,
         )
 
 
@@ -226,6 +246,7 @@ def eye_slope_rad(zernike_um: np.ndarray, measured_pupil_mm: float, pupil_diamet
 
 
 __all__ = [
+    "AliasingError",
     "Sampling",
     "next_fast_size",
     "wavelength_bands",

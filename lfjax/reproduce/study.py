@@ -17,7 +17,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import re
 import time
 from collections.abc import Callable
 
@@ -29,7 +28,7 @@ from ..eyes import Eyes, aberration_free_eye
 from ..layouts import Layout, paper_layouts
 from ..optics import polychromatic_otf
 from ..options import ModelOptions
-from ..sampling import Sampling
+from ..sampling import AliasingError, Sampling
 from ..spectral import make_spectrum
 from ..through_focus import ThroughFocus, through_focus
 from .config import METRICS, StudyConfig, _planned_sampling, study_eyes
@@ -37,20 +36,11 @@ from .config import METRICS, StudyConfig, _planned_sampling, study_eyes
 # ----------------------------------------------------------------------------- one layout
 
 
-_SUGGESTED_STEP = re.compile(r"freq_step_cpd\s*<=\s*([0-9.eE+-]+)")
-
-
-def _finer_step(message: str, current: float) -> float:
-    """Next frequency step to try after an aliasing error (rounded down to 0.05 cpd)."""
-    match = _SUGGESTED_STEP.search(message)
-    if match:
-        try:
-            step = math.floor(float(match.group(1)) * 20.0 + 1e-9) / 20.0
-            if 0 < step < current:
-                return step
-        except ValueError:
-            pass
-    return round(current * 0.9, 6)
+def _finer_step(err: AliasingError, current: float) -> float:
+    """Next frequency step to try after an aliasing error: the largest safe step it carries,
+    rounded down to 0.05 cpd (or 90 % of the current step if that rounding would not shrink it)."""
+    step = math.floor(err.max_freq_step_cpd * 20.0 + 1e-9) / 20.0
+    return step if 0 < step < current else round(current * 0.9, 6)
 
 
 
@@ -81,11 +71,9 @@ def layout_through_focus(
                 continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
             )
             return jax.block_until_ready(tf), sampling
-        except ValueError as err:
-            if "aliasing" not in str(err):
-                raise
+        except AliasingError as err:
             sampling = dataclasses.replace(
-                sampling, freq_step_cpd=_finer_step(str(err), sampling.freq_step_cpd)
+                sampling, freq_step_cpd=_finer_step(err, sampling.freq_step_cpd)
             )
     raise RuntimeError(f"no aliasing-free sampling found for layout {layout.name}")
 

@@ -138,6 +138,7 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
     guard still refuses it.
     """
     from ..reproduce.study import _finer_step
+    from ..sampling import AliasingError
 
     spectrum = sweep_spectrum(config) if spectrum is None else spectrum
     _validate_coefficients(np.asarray(eyes.zernike_um))
@@ -163,11 +164,11 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
                                      config.cdp_D, grid_used, depths, layout, spectrum, sampling,
                                      pairs=pairs, display=config.display_optics())
                         break
-                    except ValueError as err:
-                        if "aliasing" not in str(err) or config.freq_step_cpd is not None:
+                    except AliasingError as err:
+                        if config.freq_step_cpd is not None:
                             raise
                         sampling = dataclasses.replace(
-                            sampling, freq_step_cpd=_finer_step(str(err), sampling.freq_step_cpd))
+                            sampling, freq_step_cpd=_finer_step(err, sampling.freq_step_cpd))
             # inputs are checked here on the host (config, population, layout files), so the
             # program carries no traced checks: JAX's persistent cache can then keep it for
             # the next process (a resumed sweep, another host)
