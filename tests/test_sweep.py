@@ -327,37 +327,67 @@ def test_sharded_over_four_devices_equals_unsharded(reference, tmp_path):
                         rtol=1e-9, atol=1e-12)
 
 
-DISTRIBUTED_SCRIPT = """
-import sys
+IMPORT_SCRIPT = """
+import importlib, pkgutil, socket
 import jax
-pid, port, toml, store = int(sys.argv[1]), sys.argv[2], sys.argv[3], sys.argv[4]
-jax.distributed.initialize(coordinator_address=f"localhost:{port}", num_processes=2,
-                           process_id=pid)
-from lfjax.sweep import load_config, run_sweep
-run = run_sweep(load_config(toml), store, progress=False)
-print("computed", run.computed_chunks, flush=True)
+from jax._src import xla_bridge
+import lfjax
+names = ["lfjax"] + [m.name for m in pkgutil.walk_packages(lfjax.__path__, "lfjax.")]
+for name in names:
+    importlib.import_module(name)
+    assert not xla_bridge.backends_are_initialized(), f"importing {name} started JAX's backend"
+# what the backend check stands for: jax.distributed can still start after these imports
+with socket.socket() as s:
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+jax.distributed.initialize(coordinator_address=f"127.0.0.1:{port}", num_processes=1,
+                           process_id=0)
+assert jax.process_count() == 1
+jax.distributed.shutdown()
+print(len(names), "modules")
 """
+
+
+def test_no_module_starts_a_jax_backend_at_import():
+    """``lfjax sweep --distributed`` imports lfjax before jax.distributed.initialize, which
+    refuses once any JAX backend exists: no module may create a JAX array at import."""
+    proc = subprocess.run([sys.executable, "-c", IMPORT_SCRIPT], env=subprocess_env(),
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert int(proc.stdout.split()[0]) > 30  # every module was imported
 
 
 def _free_port() -> int:
     with socket.socket() as s:
-        s.bind(("localhost", 0))
+        s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
 
 
-def test_two_processes_through_jax_distributed_write_one_store(reference, tmp_path):
+def test_readme_two_process_distributed_command_writes_the_one_process_store(reference,
+                                                                            tmp_path):
+    """The README's multi-host command, as two local processes through the command line
+    (coordinator on 127.0.0.1): the shared store equals the one-process run bit for bit."""
     config, ref_path, _ = reference
     toml = write_toml(tmp_path / "tiny.toml", config)
     store = tmp_path / "two_processes.zarr"
-    port = str(_free_port())
-    procs = [subprocess.Popen([sys.executable, "-c", DISTRIBUTED_SCRIPT, str(pid), port,
-                               str(toml), str(store)], env=subprocess_env(),
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-             for pid in (0, 1)]
-    outputs = [p.communicate(timeout=600) for p in procs]
+    port = _free_port()
+    procs = [subprocess.Popen(
+        [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out", str(store),
+         "--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2",
+         "--process-id", str(pid), "--no-progress"],
+        env=subprocess_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for pid in (0, 1)]
+    try:
+        outputs = [p.communicate(timeout=600) for p in procs]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
     for p, (out, err) in zip(procs, outputs):
         assert p.returncode == 0, err[-3000:]
-    assert "computed [0, 2]" in outputs[0][0] and "computed [1]" in outputs[1][0]
+    # process 0 computes chunks 0 and 2 (4 eyes), process 1 chunk 1 (2 eyes)
+    assert "4 eyes in 2 chunks computed (process 0 of 2)" in outputs[0][0], outputs[0]
+    assert "2 eyes in 1 chunks computed (process 1 of 2)" in outputs[1][0], outputs[1]
     assert_stores_equal(open_store(store), open_store(ref_path))
 
 
