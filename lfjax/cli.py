@@ -251,7 +251,14 @@ def _add_sweep_parser(sub) -> None:
             "--process-id); each computes its share of the chunks into the shared STORE."
         ),
     )
-    sw.add_argument("config", metavar="CONFIG.toml", help="sweep configuration (TOML)")
+    sw.add_argument("config", metavar="CONFIG.toml",
+                    help="sweep configuration (TOML); with --template the file to write; with "
+                         "--verify the STORE to check")
+    sw.add_argument("--dry-run", action="store_true",
+                    help="print the plan (eyes, layouts, depths, states, wavelengths, sampling, "
+                         "estimated time, memory and store size), check it fits, write nothing")
+    sw.add_argument("--template", action="store_true",
+                    help="write CONFIG.toml: a commented config with every key and its default")
     sw.add_argument("--out", metavar="STORE", default=None,
                     help="Zarr store to write (default: CONFIG's name with .zarr, in the "
                          "current folder); must not exist unless --resume")
@@ -579,14 +586,45 @@ def _sweep(args, t_start: float) -> int:
         except Exception as err:  # noqa: BLE001 - report any start-up failure in one line
             print(f"{prog}: error: jax.distributed.initialize failed: {err}", file=sys.stderr)
             return 2
-    from .sweep import StoreMismatchError, SweepConfigError, load_config, run_sweep
+    from .sweep import (
+        StoreMismatchError,
+        SweepConfigError,
+        SweepTooLargeError,
+        load_config,
+        plan_sweep,
+        run_sweep,
+    )
 
+    if args.template:
+        from .sweep.config import config_template
+
+        target = Path(args.config)
+        if target.exists():
+            print(f"{prog}: error: {target} already exists; --template writes a new file",
+                  file=sys.stderr)
+            return 2
+        target.write_text(config_template())
+        print(f"{prog}: wrote {target} (every key with its default; edit, then "
+              f"'lfjax sweep {target} --dry-run')")
+        return 0
     try:
         config = load_config(args.config)
     except SweepConfigError as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else Path(Path(args.config).stem + ".zarr")
+    if args.dry_run:
+        try:
+            *_, est = plan_sweep(config, None if out.exists() else out)
+        except SweepTooLargeError as err:
+            print(f"{prog}: error: {err}", file=sys.stderr)
+            return 2
+        except (ValueError, OSError) as err:
+            print(f"{prog}: error: {' '.join(str(err).split())}", file=sys.stderr)
+            return 2
+        print(f"{prog}: plan for {args.config} (dry run: nothing written)")
+        print(est.summary(out))
+        return 0
     if out.exists() and not args.resume:
         print(f"{prog}: error: --out {out} already exists: pass --resume to complete it, or "
               f"choose another --out", file=sys.stderr)
@@ -594,17 +632,25 @@ def _sweep(args, t_start: float) -> int:
     enable_compilation_cache()
     try:
         run = run_sweep(config, out, resume=args.resume, progress=not args.no_progress,
-                        max_chunks=args.max_chunks)
+                        max_chunks=args.max_chunks,
+                        on_plan=lambda est: print(f"{prog}: plan\n{est.summary(out)}",
+                                                  flush=True))
     except KeyboardInterrupt:
-        print(f"{prog}: interrupted; finished chunks are kept in {out} (continue with "
-              f"--resume)", file=sys.stderr)
+        if out.exists():
+            print(f"{prog}: interrupted; finished chunks are kept in {out} (continue with "
+                  f"--resume)", file=sys.stderr)
+        else:
+            print(f"{prog}: interrupted before any chunk finished; no store was kept",
+                  file=sys.stderr)
         return 130
-    except StoreMismatchError as err:
+    except (StoreMismatchError, SweepTooLargeError) as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     except Exception as err:  # one line, no traceback
         message = " ".join(str(err).split()) or type(err).__name__
-        print(f"{prog}: error: {type(err).__name__}: {message}", file=sys.stderr)
+        notes = " ".join(getattr(err, "__notes__", []))
+        print(f"{prog}: error: {type(err).__name__}: {message}" + (f" ({notes})" if notes else ""),
+              file=sys.stderr)
         if os.environ.get("LFJAX_DEBUG"):
             raise
         return 1

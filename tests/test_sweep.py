@@ -291,6 +291,8 @@ def test_cli_max_chunks_then_resume(reference, tmp_path, capsys):
     assert main(["sweep", str(toml), "--out", str(store), "--max-chunks", "1",
                  "--no-progress"]) == 0
     assert completed_chunks(store).tolist() == [True, False, False]
+    plan = capsys.readouterr().out  # the plan comes first, before the work
+    assert plan.index("eyes        6 in 3 chunks of 2") < plan.index("1 chunks computed")
     assert main(["sweep", str(toml), "--out", str(store), "--no-progress"]) == 2
     assert "--resume" in capsys.readouterr().err
     assert main(["sweep", str(toml), "--out", str(store), "--resume", "--no-progress"]) == 0

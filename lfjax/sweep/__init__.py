@@ -19,8 +19,9 @@ from .config import (
     config_to_toml,
     load_config,
 )
+from .guard import SweepEstimate, SweepTooLargeError, estimate
 from .report import sweep_report
-from .run import SweepRun, run_sweep
+from .run import SweepRun, plan_sweep, run_sweep
 from .store import StoreMismatchError, completed_chunks, open_store, study_view
 from .ten_eyes import ten_eye_claims, ten_eye_markdown
 
@@ -29,14 +30,18 @@ __all__ = [
     "StoreMismatchError",
     "SweepConfig",
     "SweepConfigError",
+    "SweepEstimate",
+    "SweepTooLargeError",
     "SweepRun",
     "Task",
     "build_tasks",
     "completed_chunks",
     "config_from_dict",
     "config_to_toml",
+    "estimate",
     "load_config",
     "open_store",
+    "plan_sweep",
     "population",
     "run_sweep",
     "study_view",

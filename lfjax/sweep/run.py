@@ -10,6 +10,7 @@ chunks that are not yet complete — in several processes, each its own share
 from __future__ import annotations
 
 import resource
+import shutil
 import sys
 import time
 from dataclasses import dataclass, field
@@ -19,6 +20,7 @@ import numpy as np
 
 from .compute import ChunkEvaluator, build_tasks, population, sweep_spectrum
 from .config import SweepConfig
+from .guard import check_fits, estimate
 from .store import (
     check_store_matches,
     chunk_dataset,
@@ -86,6 +88,29 @@ def peak_rss_mb() -> float:
     return peak / 1024.0 if sys.platform != "darwin" else peak / 2**20
 
 
+def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | None = None):
+    """Everything a sweep decides before it creates anything: the population, the spectrum,
+    each (pupil, layout)'s task (sampling planned on the whole population) and the
+    :class:`~lfjax.sweep.guard.SweepEstimate`; refuses (:class:`SweepTooLargeError`, with
+    the numbers) a sweep that cannot fit — the store on ``store``'s disk, the memory on this
+    host and its devices. Writes nothing.
+
+    Returns ``(eyes, is_average, spectrum, tasks, estimate)``.
+    """
+    import jax
+
+    n_devices = len(jax.local_devices() if devices is None else devices)
+    # sizes known from the config alone first: planning an impossible grid would itself
+    # take the memory or time the check is there to spare
+    check_fits(estimate(config, n_devices=n_devices), store=store)
+    eyes, is_average = population(config)
+    spectrum = sweep_spectrum(config)
+    tasks = build_tasks(config, eyes, spectrum, samplings)
+    est = estimate(config, tasks, n_devices=n_devices)
+    check_fits(est, store=store)
+    return eyes, is_average, spectrum, tasks, est
+
+
 def run_sweep(
     config: SweepConfig,
     store,
@@ -93,6 +118,7 @@ def run_sweep(
     progress: bool = True,
     devices=None,
     max_chunks: int | None = None,
+    on_plan=None,
 ) -> SweepRun:
     """Compute a population sweep into a Zarr store (see :mod:`lfjax.sweep`).
 
@@ -105,6 +131,12 @@ def run_sweep(
     progress : show a progress bar (eyes, eyes/s, ETA) on stderr
     devices : local devices to shard the eye axis over (default: all local devices)
     max_chunks : stop after computing this many chunks (the rest stays for ``resume``)
+    on_plan : called with the :class:`~lfjax.sweep.guard.SweepEstimate` once the sweep is
+        planned and checked, before the store is created (the command line prints it)
+
+    Sizes are checked before anything is created (:func:`plan_sweep`): a sweep that cannot
+    fit raises :class:`~lfjax.sweep.guard.SweepTooLargeError` and leaves no store. A store
+    this call created is removed again if the run fails before any chunk is finished.
 
     In a multi-process run (``jax.distributed.initialize`` called first), process 0 creates
     the store and each process computes the chunks ``i`` with ``i % process_count ==
@@ -120,13 +152,30 @@ def run_sweep(
             f"another --out")
     if exists:
         check_store_matches(store, config)
-    eyes, is_average = population(config)
-    spectrum = sweep_spectrum(config)
     samplings = stored_samplings(store) if exists else None
-    tasks = build_tasks(config, eyes, spectrum, samplings)
+    eyes, is_average, spectrum, tasks, est = plan_sweep(
+        config, None if exists else store, devices, samplings)
+    if on_plan is not None and pid == 0:
+        on_plan(est)
+    created = False
     if not exists and pid == 0:
         create_store(store, template(config, tasks, np.asarray(eyes.zernike_um), is_average),
                      config.chunk_size)
+        created = True
+    try:
+        return _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progress,
+                           pid, nproc, exists, t0)
+    except BaseException as err:
+        # a failed start (the first chunk out of memory, an interrupt during compilation)
+        # must not leave a store that blocks the next run: remove it if nothing finished
+        if created and nproc == 1 and store.exists() and not completed_chunks(store).any():
+            shutil.rmtree(store, ignore_errors=True)
+            err.add_note(f"{store} was removed: no chunk had finished")
+        raise
+
+
+def _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progress, pid, nproc,
+                exists, t0) -> SweepRun:
     _barrier("lfjax-sweep-store-created")
     if not exists and pid != 0:
         check_store_matches(store, config)
@@ -171,4 +220,4 @@ def run_sweep(
     return run
 
 
-__all__ = ["SweepRun", "run_sweep", "peak_rss_mb"]
+__all__ = ["SweepRun", "plan_sweep", "run_sweep", "peak_rss_mb"]

@@ -1,0 +1,165 @@
+"""Sweep inputs bounded before anything is created: impossible values and sizes refused
+with the numbers, no store left behind a failed start, the plan (--dry-run) and the
+commented template (--template)."""
+
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import pytest
+
+from lfjax.sweep import (
+    SweepConfig,
+    SweepConfigError,
+    SweepTooLargeError,
+    config_from_dict,
+    estimate,
+    load_config,
+    run_sweep,
+)
+from lfjax.sweep.config import config_template
+from lfjax.sweep.guard import check_fits
+
+ONE_EYE = {
+    "population": {"n_eyes": 1, "seed": 3},
+    "display": {"layouts": ["2x2"], "depth_offsets_D": [0.0]},
+    "accommodation": {"step_D": 0.5, "window_D": 1.0},
+    "spectrum": {"wavelengths_nm": [400.0, 700.0, 100.0]},
+    "run": {"chunk_size": 1},
+}
+
+
+def one_eye(**sections) -> dict:
+    data = {k: dict(v) for k, v in ONE_EYE.items()}
+    for section, body in sections.items():
+        data.setdefault(section, {}).update(body)
+    return data
+
+
+def toml_text(data: dict) -> str:
+    from lfjax.sweep.config import _toml_value
+
+    lines = []
+    for section, body in data.items():
+        lines.append(f"[{section}]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in body.items()]
+    return "\n".join(lines) + "\n"
+
+
+# ----------------------------------------------------------------------------- config values
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"population": {"pupil_diameters_mm": [0.01]}}, "must be >= 2 mm"),
+    ({"spectrum": {"wavelengths_nm": [400.0, 700.0, 0.001]}}, "step must be >= 1 nm"),
+    ({"accommodation": {"step_D": 1e-5}}, "at most 10000"),
+    ({"accommodation": {"step_D": 1e-320}}, "at most 10000"),
+])
+def test_grids_and_pupils_outside_the_model_are_refused_with_the_range(changes, message):
+    with pytest.raises(SweepConfigError) as err:
+        config_from_dict(one_eye(**changes))
+    assert message in str(err.value)
+
+
+def test_empty_config_file_and_a_folder_are_refused(tmp_path):
+    empty = tmp_path / "empty.toml"
+    empty.write_text("# nothing set yet\n")
+    with pytest.raises(SweepConfigError, match="sets nothing.*--template"):
+        load_config(empty)
+    with pytest.raises(SweepConfigError, match="is a folder, not a TOML config file"):
+        load_config(tmp_path)
+
+
+def test_eyes_inputs_are_checked():
+    import lfjax
+    from lfjax.eyes import Eyes
+    from lfjax.layouts import paper_layouts
+    from lfjax.through_focus import through_focus
+
+    for seed in (-1, 2**32):
+        with pytest.raises(ValueError, match=r"seed \(key\) must be in \[0, 2\*\*32\)"):
+            lfjax.sample_eyes(seed, 2)
+    with pytest.raises(ValueError, match="n_eyes must be <= 67108864"):
+        lfjax.sample_eyes(0, 2**32)
+    with pytest.raises(ValueError, match="at least one eye"):
+        Eyes(np.zeros((0, 15)), 3.0)
+    with pytest.raises(TypeError, match="eyes must be an lfjax.Eyes, got list"):
+        through_focus([[0.0] * 15], paper_layouts(3.0)["2x2"], [2.0], cdp_D=2.0,
+                      pupil_diameter_mm=3.0)
+
+
+# ----------------------------------------------------------------------------- sizes
+
+
+def test_estimate_counts_the_store_and_check_fits_names_the_numbers(tmp_path):
+    config = config_from_dict(one_eye(population={"n_eyes": 999}))
+    est = estimate(config)
+    assert est.n_eyes == 1000 and est.n_accommodation == config.accommodation_D.size
+    # vsotf and strehl (float32) alone: eyes x 1 pupil x 1 layout x 1 depth x states
+    assert est.store_bytes > 2 * 4 * 1000 * config.accommodation_D.size
+    check_fits(est, store=tmp_path / "s.zarr", host_bytes=1e12, disk_bytes=1e12)
+    with pytest.raises(SweepTooLargeError) as err:
+        check_fits(est, store=tmp_path / "s.zarr", host_bytes=1e3, disk_bytes=1e3)
+    text = str(err.value)
+    assert "host memory" in text and "1000 eyes" in text and "available" in text
+    assert "disk: the store may need up to" in text and "nothing was created" in text
+
+
+def test_a_frequency_step_that_cannot_fit_is_refused_before_any_store(tmp_path, capsys):
+    from lfjax.cli import main
+
+    toml = tmp_path / "fine.toml"
+    toml.write_text(toml_text(one_eye(sampling={"freq_step_cpd": 1e-4})))
+    store = tmp_path / "fine.zarr"
+    assert main(["sweep", str(toml), "--out", str(store), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "device memory" in err and "FFT" in err and "available" in err, err
+    assert not store.exists() and list(tmp_path.iterdir()) == [toml]
+
+
+def test_a_failed_start_leaves_no_store(tmp_path, monkeypatch):
+    from lfjax.sweep import compute
+
+    def out_of_memory(self, task, zernike_um):
+        raise MemoryError("the first chunk ran out of memory")
+
+    monkeypatch.setattr(compute.ChunkEvaluator, "evaluate", out_of_memory)
+    store = tmp_path / "failed.zarr"
+    with pytest.raises(MemoryError) as err:
+        run_sweep(config_from_dict(one_eye()), store, progress=False)
+    assert not store.exists() and list(tmp_path.iterdir()) == []
+    assert "was removed: no chunk had finished" in " ".join(err.value.__notes__)
+
+
+# ----------------------------------------------------------------------------- plan, template
+
+
+def test_dry_run_prints_the_plan_and_writes_nothing(tmp_path, capsys):
+    from lfjax.cli import main
+
+    toml = tmp_path / "plan.toml"
+    toml.write_text(toml_text(one_eye()))
+    assert main(["sweep", str(toml), "--out", str(tmp_path / "plan.zarr"), "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    for line in ("eyes        2 in 2 chunks of 1", "layouts     2x2", "depths      1: 2 D",
+                 "wavelengths 4", "sampling    3 mm 2x2: df", "time        ~",
+                 "host memory ~", "device mem  ~", "store       ≤"):
+        assert line in out, (line, out)
+    assert list(tmp_path.iterdir()) == [toml]
+
+
+def test_template_writes_every_key_with_its_default(tmp_path, capsys):
+    from lfjax.cli import main
+    from lfjax.sweep.config import _SCHEMA
+
+    text = config_template()
+    assert config_from_dict(tomllib.loads(text)).as_dict() == SweepConfig().as_dict()
+    for section, keys in _SCHEMA.items():
+        for key in keys:
+            assert f"\n{key} = " in text or f"\n# {key} = " in text, key
+    target = tmp_path / "new.toml"
+    assert main(["sweep", str(target), "--template"]) == 0
+    assert target.read_text() == text
+    assert main(["sweep", str(target), "--template"]) == 2  # never overwrites
+    assert "already exists" in capsys.readouterr().err
