@@ -257,6 +257,10 @@ def _add_sweep_parser(sub) -> None:
     sw.add_argument("--dry-run", action="store_true",
                     help="print the plan (eyes, layouts, depths, states, wavelengths, sampling, "
                          "estimated time, memory and store size), check it fits, write nothing")
+    sw.add_argument("--verify", action="store_true",
+                    help="check STORE (given in place of CONFIG.toml): read every finished chunk "
+                         "back and compare it with its checksum; exit 1 if any is corrupt "
+                         "(--resume recomputes those)")
     sw.add_argument("--template", action="store_true",
                     help="write CONFIG.toml: a commented config with every key and its default")
     sw.add_argument("--out", metavar="STORE", default=None,
@@ -594,7 +598,18 @@ def _sweep(args, t_start: float) -> int:
         plan_sweep,
         run_sweep,
     )
+    from .sweep.store import StoreLockedError, is_disk_full
 
+    if args.verify:
+        from .sweep.store import is_store, verify_store
+
+        if not is_store(args.config):
+            print(f"{prog}: error: --verify needs a sweep STORE (a folder written by 'lfjax "
+                  f"sweep'), got {args.config}", file=sys.stderr)
+            return 2
+        check = verify_store(args.config)
+        print(f"{prog}: {args.config}: {check.summary()}")
+        return 0 if check.healthy else 1
     if args.template:
         from .sweep.config import config_template
 
@@ -643,10 +658,15 @@ def _sweep(args, t_start: float) -> int:
             print(f"{prog}: interrupted before any chunk finished; no store was kept",
                   file=sys.stderr)
         return 130
-    except (StoreMismatchError, SweepTooLargeError) as err:
+    except (StoreMismatchError, SweepTooLargeError, StoreLockedError) as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     except Exception as err:  # one line, no traceback
+        if is_disk_full(err):
+            kept = (f"finished chunks are kept in {out}; free space and continue with --resume"
+                    if out.exists() else "no chunk had finished, so no store was kept")
+            print(f"{prog}: error: the disk is full: {kept}", file=sys.stderr)
+            return 1
         message = " ".join(str(err).split()) or type(err).__name__
         notes = " ".join(getattr(err, "__notes__", []))
         print(f"{prog}: error: {type(err).__name__}: {message}" + (f" ({notes})" if notes else ""),

@@ -22,12 +22,17 @@ from .compute import ChunkEvaluator, build_tasks, population, sweep_spectrum
 from .config import SweepConfig
 from .guard import check_fits, estimate
 from .store import (
+    StoreLock,
+    _now,
     check_store_matches,
     chunk_dataset,
     completed_chunks,
     create_store,
+    record_run,
     stored_samplings,
     template,
+    unmark_chunks,
+    verify_store,
     write_chunk,
 )
 
@@ -41,6 +46,8 @@ class SweepRun:
     store : path of the Zarr store
     computed_chunks : chunk indices this process computed (in order)
     skipped_chunks : chunk indices already complete when it started (resume)
+    recomputed_chunks : {chunk: why} complete chunks whose data failed verification on
+        resume (missing or corrupt), computed again
     eyes_computed : eyes in the computed chunks (the average eye counts as one)
     seconds : wall time of the chunk loop (excludes planning and store creation), s
     setup_seconds : drawing the eyes, planning the sampling and creating the store, s
@@ -53,6 +60,7 @@ class SweepRun:
     store: Path
     computed_chunks: list[int] = field(default_factory=list)
     skipped_chunks: list[int] = field(default_factory=list)
+    recomputed_chunks: dict = field(default_factory=dict)
     eyes_computed: int = 0
     seconds: float = 0.0
     setup_seconds: float = 0.0
@@ -143,6 +151,7 @@ def run_sweep(
     process_index``, writing them into the shared store.
     """
     t0 = time.perf_counter()
+    started = _now()
     store = Path(store)
     pid, nproc = _process()
     exists = store.exists()
@@ -150,28 +159,51 @@ def run_sweep(
         raise FileExistsError(
             f"{store} already exists: pass --resume (resume=True) to complete it, or choose "
             f"another --out")
+    lock = None
     if exists:
         check_store_matches(store, config)
-    samplings = stored_samplings(store) if exists else None
-    eyes, is_average, spectrum, tasks, est = plan_sweep(
-        config, None if exists else store, devices, samplings)
-    if on_plan is not None and pid == 0:
-        on_plan(est)
-    created = False
-    if not exists and pid == 0:
-        create_store(store, template(config, tasks, np.asarray(eyes.zernike_um), is_average),
-                     config.chunk_size)
-        created = True
+        if pid == 0:  # one writer per store (the processes of one run share it)
+            lock = _take_lock(store)
     try:
-        return _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progress,
-                           pid, nproc, exists, t0)
-    except BaseException as err:
-        # a failed start (the first chunk out of memory, an interrupt during compilation)
-        # must not leave a store that blocks the next run: remove it if nothing finished
-        if created and nproc == 1 and store.exists() and not completed_chunks(store).any():
-            shutil.rmtree(store, ignore_errors=True)
-            err.add_note(f"{store} was removed: no chunk had finished")
-        raise
+        samplings = stored_samplings(store) if exists else None
+        eyes, is_average, spectrum, tasks, est = plan_sweep(
+            config, None if exists else store, devices, samplings)
+        if on_plan is not None and pid == 0:
+            on_plan(est)
+        created = False
+        if not exists and pid == 0:
+            create_store(store, template(config, tasks, np.asarray(eyes.zernike_um), is_average),
+                         config.chunk_size)
+            created = True
+            lock = _take_lock(store)
+        try:
+            run = _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks,
+                              progress, pid, nproc, exists, t0)
+        except BaseException as err:
+            # a failed start (the first chunk out of memory, an interrupt during compilation)
+            # must not leave a store that blocks the next run: remove it if nothing finished
+            if created and nproc == 1 and store.exists() and not completed_chunks(store).any():
+                lock.release()
+                lock = None
+                shutil.rmtree(store, ignore_errors=True)
+                err.add_note(f"{store} was removed: no chunk had finished")
+            raise
+        if pid == 0:
+            record_run(store, started, run.computed_chunks)
+        return run
+    finally:
+        if lock is not None:
+            lock.release()
+
+
+def _take_lock(store: Path) -> StoreLock:
+    lock = StoreLock(store).acquire()
+    if lock.recovered is not None:
+        held = lock.recovered
+        print(f"lfjax sweep: {store}: took over a stale lock (host {held.get('host')}, PID "
+              f"{held.get('pid')} since {held.get('started_utc')}: that process is gone)",
+              file=sys.stderr)
+    return lock
 
 
 def _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progress, pid, nproc,
@@ -182,11 +214,22 @@ def _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progr
     evaluator = ChunkEvaluator(config, eyes.measured_pupil_mm, spectrum, devices)
     done = completed_chunks(store)
     mine = [i for i in range(config.n_chunks) if i % nproc == pid]
+    recomputed = {}
+    if exists:
+        # a resumed store's finished chunks are read back and checked against their
+        # checksums: a deleted or damaged chunk file is computed again, not trusted
+        recomputed = verify_store(store, [i for i in mine if done[i]]).corrupt
+        if recomputed:
+            unmark_chunks(store, recomputed)
+            done = completed_chunks(store)
+            print(f"lfjax sweep: {store}: recomputing {len(recomputed)} chunk(s) whose data "
+                  f"failed verification: {sorted(recomputed)}", file=sys.stderr)
     todo = [i for i in mine if not done[i]]
     if max_chunks is not None:
         todo = todo[: int(max_chunks)]
     run = SweepRun(store, skipped_chunks=[i for i in mine if done[i]], process_index=pid,
-                   process_count=nproc, setup_seconds=time.perf_counter() - t0)
+                   process_count=nproc, setup_seconds=time.perf_counter() - t0,
+                   recomputed_chunks=recomputed)
     zernike = np.asarray(eyes.zernike_um)
     size = int(config.chunk_size)
     bar = None
