@@ -541,3 +541,34 @@ def test_a_real_display_sweeps_as_through_focus_computes_it(tmp_path):
                           cdp_D=config.cdp_D, spectrum=spectrum, sampling=task.sampling,
                           options=config.options)
     assert np.nanmax(np.abs(np.asarray(ideal.vsotf) - np.asarray(tf.vsotf))) > 1e-3
+
+
+def test_a_full_disk_keeps_the_finished_chunks_and_says_how_to_resume(reference, tmp_path,
+                                                                       capsys, monkeypatch):
+    import errno
+
+    from lfjax.cli import main
+    from lfjax.sweep import run as sweep_run
+
+    config, ref_path, _ = reference
+    toml = write_toml(tmp_path / "full.toml", config)
+    store = tmp_path / "full.zarr"
+    real_write = sweep_run.write_chunk
+    calls = []
+
+    def second_write_fails(*args):
+        calls.append(args[1])
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_write(*args)
+
+    monkeypatch.setattr(sweep_run, "write_chunk", second_write_fails)
+    assert main(["sweep", str(toml), "--out", str(store), "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert f"the disk is full: finished chunks are kept in {store}" in err
+    assert "continue with --resume" in err
+    assert completed_chunks(store).tolist() == [True, False, False]
+    assert not lock_path(store).exists()
+    monkeypatch.setattr(sweep_run, "write_chunk", real_write)
+    assert main(["sweep", str(toml), "--out", str(store), "--resume", "--no-progress"]) == 0
+    assert_stores_equal(open_store(store), open_store(ref_path))

@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._files import owned_temp_dir, remove_orphans
 from .alternatives import ALTERNATIVES, run_alternatives
 from .claims import Claim, dof_D, evaluate_claims
 from .config import LF_LAYOUTS, METRICS, StudyConfig, study_eyes
@@ -266,7 +267,9 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         state["first"] = False
         bar.set_description(name)
 
-    tmp = Path(tempfile.mkdtemp(prefix=".lfjax-reproduce-", dir=anchor))
+    # named after this process: a killed run's folder is removed by the next run
+    remove_orphans(anchor, ".lfjax-reproduce", "an interrupted lfjax reproduce")
+    tmp = owned_temp_dir(anchor, ".lfjax-reproduce")
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it private; the result is an ordinary folder

@@ -28,11 +28,11 @@ import os
 import shutil
 import socket
 import subprocess
-import uuid
 from pathlib import Path
 
 import numpy as np
 
+from .._files import owned_temp_dir, pid_alive, remove_orphans
 from ..peaks import METRICS
 from .compute import FREQUENCIES_CPD, Task, layout_name, sweep_spectrum
 from .config import SweepConfig, config_differences, config_to_toml
@@ -272,8 +272,8 @@ def create_store(path, ds, chunk_size: int) -> Path:
         raise FileExistsError(f"{path} already exists")
     path.parent.mkdir(parents=True, exist_ok=True)
     clean_interrupted_creations(path)
-    tmp = path.with_name(f".{path.name}.creating-{socket.gethostname()}-{os.getpid()}-"
-                         f"{uuid.uuid4().hex[:8]}")
+    tmp = owned_temp_dir(path.parent, f".{path.name}.creating")
+    tmp.rmdir()  # to_zarr(mode="w-") creates it
     try:
         ds.to_zarr(tmp, mode="w-", encoding=_encoding(ds, chunk_size), zarr_format=ZARR_FORMAT,
                    consolidated=True)
@@ -284,36 +284,12 @@ def create_store(path, ds, chunk_size: int) -> Path:
     return path
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # alive, another user's
-        return True
-    return True
-
-
 def clean_interrupted_creations(path) -> list[Path]:
     """Remove the hidden folders (``.NAME.creating-HOST-PID-…``) that a store creation on
-    this host left when it was killed (its process is gone); returns them. Folders of a
-    live process or another host are left alone."""
+    this host left when it was killed (its process is gone); returns them."""
     path = Path(path)
-    removed = []
-    host = socket.gethostname()
-    for tmp in path.parent.glob(f".{path.name}.creating-*"):
-        parts = tmp.name[len(f".{path.name}.creating-"):].rsplit("-", 2)
-        if len(parts) != 3 or parts[0] != host or not parts[1].isdigit():
-            continue
-        if not _pid_alive(int(parts[1])):
-            shutil.rmtree(tmp, ignore_errors=True)
-            removed.append(tmp)
-    if removed:
-        import sys
-
-        print(f"lfjax sweep: removed {len(removed)} folder(s) left by an interrupted store "
-              f"creation: {', '.join(p.name for p in removed)}", file=sys.stderr)
-    return removed
+    return remove_orphans(path.parent, f".{path.name}.creating",
+                          "an interrupted store creation")
 
 
 # --------------------------------------------------------------------------- lock
@@ -359,7 +335,7 @@ class StoreLock:
                 holder = self._holder()
                 if (holder.get("host") == self.record["host"]
                         and isinstance(holder.get("pid"), int)
-                        and not _pid_alive(holder["pid"])):
+                        and not pid_alive(holder["pid"])):
                     self.recovered = holder  # stale: its process died (SIGKILL, power)
                     self.file.unlink(missing_ok=True)
                     continue
