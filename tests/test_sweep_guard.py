@@ -163,3 +163,32 @@ def test_template_writes_every_key_with_its_default(tmp_path, capsys):
     assert target.read_text() == text
     assert main(["sweep", str(target), "--template"]) == 2  # never overwrites
     assert "already exists" in capsys.readouterr().err
+
+
+def test_a_killed_reproduce_leaves_no_hidden_folder_after_the_next_run(tmp_path, capsys,
+                                                                        monkeypatch):
+    """A SIGKILLed ``lfjax reproduce`` cannot clean its temporary folder; the next run in
+    the same place removes it (its process is gone) and says so."""
+    import socket
+    import subprocess
+    import sys
+
+    from lfjax import cli
+    from lfjax import reproduce as rep
+
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    orphan = tmp_path / f".lfjax-reproduce-{socket.gethostname()}-{int(gone.stdout)}-x1y2"
+    orphan.mkdir()
+    (orphan / "results.nc").write_text("half written")
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("simulated failure")
+
+    monkeypatch.setattr(rep, "compute_examples", boom)
+    monkeypatch.setattr(rep, "run_study", lambda config, options=None, stage=None: None)
+    monkeypatch.setattr(cli, "enable_compilation_cache", lambda folder=None: None)
+    code = cli.main(["reproduce", "--quick", "--no-progress", "--out", str(tmp_path / "res")])
+    assert code == 1
+    assert "removed 1 folder(s) left by an interrupted lfjax reproduce" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
