@@ -261,7 +261,7 @@ def test_wilson_interval():
     np.testing.assert_allclose(high[0], z2 / (10 + z2))   # 0 of n: [0, z²/(n + z²)]
     np.testing.assert_allclose(low[1], 10 / (10 + z2))
     np.testing.assert_allclose(low[2] + high[2], 1.0)     # symmetric about 1/2
-    assert low[0] == pytest.approx(0.0, abs=1e-15) and high[1] == pytest.approx(1.0)
+    assert low[0] == 0.0 and high[1] == 1.0  # exactly: tables print 0, not 2.8e-17
     assert np.isnan(te.wilson_interval(0, 0)[0])
     with pytest.raises(ValueError, match="successes"):
         te.wilson_interval(3, 2)
@@ -269,14 +269,22 @@ def test_wilson_interval():
 
 def test_interval_brackets_the_fraction_and_shrinks(ds):
     few = te.ten_eye_claims(ds, n_draws=20, seed=0)
-    many = te.ten_eye_claims(ds, n_draws=200, seed=0)
+    # 12 eyes hold only C(12, 10) = 66 distinct samples of ten: 200 draws repeat them
+    with pytest.warns(UserWarning, match="only 66 distinct samples of 10 exist among 12 eyes"):
+        many = te.ten_eye_claims(ds, n_draws=200, seed=0)
+    assert many.attrs["n_possible_samples"] == 66 and many.attrs["n_distinct_samples"] <= 66
+    # a claim n/a on every sample (claim 3 here: no 2x2 depth beyond +-1 D) has no interval
+    judged = (few.n_holds + few.n_fails).values > 0
+    assert judged.sum() >= 5
     for r in (few, many):
-        assert np.all(r.ci_low.values <= r.fraction_holds.values)
-        assert np.all(r.fraction_holds.values <= r.ci_high.values)
-        assert np.all((0 <= r.ci_low.values) & (r.ci_high.values <= 1))
+        assert np.array_equal((r.n_holds + r.n_fails).values > 0, judged)
+        assert np.isnan(r.ci_low.values[~judged]).all()
+        low, frac, high = (r[k].values[judged] for k in ("ci_low", "fraction_holds", "ci_high"))
+        assert np.all(low <= frac) and np.all(frac <= high)
+        assert np.all((0 <= low) & (high <= 1))
     # Wilson widths: <= 0.137 at n = 200 for any fraction, >= 0.161 at n = 20
     def width(r):
-        return r.ci_high.values - r.ci_low.values
+        return (r.ci_high.values - r.ci_low.values)[judged]
 
     assert np.all(width(many) < width(few))
 
@@ -392,3 +400,29 @@ def test_reproduce_population_checked_before_any_work(store, tmp_path, capsys, m
     with pytest.raises(ValueError, match="sample_size"):
         rep.reproduce(out, rep.StudyConfig.quick(n_eyes=N_EYES + 1), progress=False,
                       population_store=store)
+
+
+def test_claims_the_data_cannot_judge_are_na(ds):
+    """Claim 2 is "for every density" and claim 3's exception is about 2x2 beyond +-1 D: a
+    store without 4x4, or without such depths, cannot confirm them (n/a), though data that
+    refute them still make them fail."""
+    from lfjax.reproduce.claims import evaluate_claims
+    from lfjax.sweep import study_view
+
+    view = study_view(ds)
+    assert "4x4" not in view.layout.values and np.abs(view.depth_rel_cdp.values).max() <= 1.0
+    # data on which both claims would hold if 2x2 and 3x3 were all there is
+    grid = view.predicted_accommodation
+    agreeing = grid.where(grid.metric != "strehl", grid.sel(metric="vsotf"))
+    small = view.predicted_accommodation_continuous.where(
+        view.metric != "vsotf", view.depth - 0.05)
+    good = view.assign(predicted_accommodation=agreeing,
+                       predicted_accommodation_continuous=small,
+                       continuous_peak_success=view.continuous_peak_success | True)
+    claims = {c.id: c for c in evaluate_claims(good)}
+    assert claims["2"].verdict == "n/a" and "no 4x4 in the data" in claims["2"].result
+    assert claims["3"].verdict == "n/a"
+    assert "part (b) n/a: no 2x2 depth beyond +-1 D" in claims["3"].result
+    # refuted by the data present: fails, whatever is missing
+    far = view.assign(predicted_accommodation_continuous=small + 0.5 * (view.layout == "3x3"))
+    assert {c.id: c for c in evaluate_claims(far)}["2"].verdict == "fails"

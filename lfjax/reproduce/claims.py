@@ -147,6 +147,11 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
                 f"{'' if converged else ' [some continuous peaks did not converge]'}"
                 f" (0.2 D grid peaks: {_fmt(np.min(grid_e))}…{_fmt(np.max(grid_e))} D, negative "
                 f"at {int(np.sum(grid_e[check] < 0))}/{int(np.sum(check))})")
+        # "for every density": a density the data lack cannot confirm it (n/a), though
+        # one that is present can refute it
+        missing = [name for name in LF_LAYOUTS if name not in lf]
+        if missing:
+            parts.append(f"n/a unless it fails: no {', '.join(missing)} in the data")
         claims.append(Claim(
             "2", "Rendered points (2x2, 3x3, 4x4): VSOTF predicts small accommodation errors, "
                  "negative and about constant across rendered depths, for every viewpoint "
@@ -157,7 +162,7 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
             "forbids negative errors there) (negative); max - min over depths <= 0.2 D "
             "(constant). Continuous peaks remove the 0.2 D grid's ±0.1 D alternation between "
             "half-dioptre depths; the grid peaks are shown for reference.",
-            "; ".join(parts), ok_all))
+            "; ".join(parts), (None if missing and ok_all else ok_all)))
     else:
         claims.append(Claim("2", "VSOTF errors small/negative/constant.", "needs LF layouts",
                             "not evaluated", None))
@@ -192,10 +197,13 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
                 fr.append(float(np.mean(closer)))
                 parts.append(f"2x2 {rel[di]:+.1f} D: {int(np.sum(closer))}/{closer.size} eyes' "
                              f"Strehl peak closer to the CDP (mean {np.mean(p_sr):.2f} D)")
-            cdp_ok = bool(far) and all(f >= 0.5 for f in fr)
-            if not far:
-                parts.append("no 2x2 depth beyond +-1 D")
-        holds = bool(agree_ok == agree_cells) and (cdp_ok is not False)
+            cdp_ok = all(f >= 0.5 for f in fr) if far else None
+        if cdp_ok is None:
+            # part (b) needs 2x2 points beyond +-1 D: without them the claim is not judged
+            # (part (a) failing still refutes it)
+            parts.append("part (b) n/a: no 2x2 depth beyond +-1 D in the data")
+        agree = bool(agree_ok == agree_cells)
+        holds = (agree and cdp_ok) if cdp_ok is not None else (None if agree else False)
         claims.append(Claim(
             "3", "Strehl ratio predicts the same accommodation as VSOTF, except for 2x2 "
                  "viewpoints with points rendered more than 1 D from the CDP, where it predicts "
