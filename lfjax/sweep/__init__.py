@@ -8,7 +8,8 @@ xarray Dataset (:mod:`lfjax.sweep.store`), a chunk of eyes per compiled call
 :func:`sweep_report` draws the distributions and writes percentiles and a summary;
 :func:`ten_eye_claims` asks how often ten random eyes reproduce each of the paper's claims.
 
-Layers (imports go one way): config → compute → store → run → report (with ten_eyes).
+Layers (imports go one way): config → compute → guard, store → run → report (with
+ten_eyes).
 """
 
 from .compute import ChunkEvaluator, Task, build_tasks, population
