@@ -572,3 +572,20 @@ def test_a_full_disk_keeps_the_finished_chunks_and_says_how_to_resume(reference,
     monkeypatch.setattr(sweep_run, "write_chunk", real_write)
     assert main(["sweep", str(toml), "--out", str(store), "--resume", "--no-progress"]) == 0
     assert_stores_equal(open_store(store), open_store(ref_path))
+
+
+def test_progress_says_what_it_plans_and_compiles(reference, tmp_path, capsys):
+    from lfjax.sweep.store import unmark_chunks
+
+    config, ref_path, _ = reference
+    store = tmp_path / "progress.zarr"
+    shutil.copytree(ref_path, store)
+    unmark_chunks(store, [2])
+    run = run_sweep(config, store, resume=True, progress=True)
+    assert run.computed_chunks == [2]
+    err = capsys.readouterr().err
+    said = [err.index(s) for s in (
+        "drew 6 eyes; reading the stored sampling of 2 (pupil, layout) pair(s)",
+        "planned in", "compiling 2 chunk function(s) with the first chunk")]
+    assert said == sorted(said), err
+    assert "2/2" in err  # the bar, in eyes

@@ -426,3 +426,43 @@ def test_claims_the_data_cannot_judge_are_na(ds):
     # refuted by the data present: fails, whatever is missing
     far = view.assign(predicted_accommodation_continuous=small + 0.5 * (view.layout == "3x3"))
     assert {c.id: c for c in evaluate_claims(far)}["2"].verdict == "fails"
+
+
+def _texts_outside(fig) -> list[str]:
+    """Titles and axis labels of ``fig`` that reach beyond the figure (clipped when saved)."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    box = fig.bbox
+    texts = [t for ax in fig.axes for t in (ax.title, ax.xaxis.label, ax.yaxis.label)]
+    texts += [t for t in (fig._suptitle, fig._supylabel) if t is not None]
+    outside = []
+    for text in texts:
+        if not text.get_text():
+            continue
+        e = text.get_window_extent(renderer)
+        if e.x0 < box.x0 - 0.5 or e.x1 > box.x1 + 0.5 or e.y0 < box.y0 - 0.5 or e.y1 > box.y1 + 0.5:
+            outside.append(f"{text.get_text()!r} at {tuple(round(v) for v in e.extents)}")
+    return outside
+
+
+def test_report_figures_keep_their_titles_and_labels_inside(ds):
+    from lfjax.layouts import paper_layouts
+
+    table = sr.percentile_table(ds)
+    layouts = {(p, n): paper_layouts(p)[n] for p in (3.0, 6.0)
+               for n in ("natural", "2x2", "3x3", "4x4")}
+    for fig in (sr.fig_accommodation_error(table), sr.fig_cutoff_frequency(table, 0.05),
+                sr.fig_layouts(layouts, [3.0, 6.0]),
+                sr.fig_layouts({k: v for k, v in layouts.items() if k[0] == 3.0}, [3.0])):
+        assert not _texts_outside(fig), _texts_outside(fig)
+
+
+def test_tables_print_zero_not_roundoff():
+    from lfjax._tables import printable
+
+    table = pd.DataFrame({"p50": [2.2 - 2.0 - 0.2, 0.25, np.nan], "n": [1, 2, 3],
+                          "layout": ["a", "b", "c"]})
+    assert table.p50[0] != 0.0  # 2.8e-17: what a grid difference leaves
+    text = printable(table).to_csv(index=False, float_format="%.6g")
+    assert text.splitlines()[1] == "0,1,a" and "e-17" not in text
+    assert np.isnan(printable(table).p50[2]) and printable(table).p50[1] == 0.25

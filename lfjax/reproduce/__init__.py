@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from .._files import owned_temp_dir, remove_orphans
+from .._tables import printable
 from .alternatives import ALTERNATIVES, run_alternatives
 from .claims import Claim, dof_D, evaluate_claims
 from .config import LF_LAYOUTS, METRICS, StudyConfig, study_eyes
@@ -301,10 +302,11 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         if alternatives:
             tables["alternatives"] = alternatives_table(claims, alternatives)
         for key, table in tables.items():
-            table.to_csv(tmp / TABLES[key], index=False, float_format="%.6g")
+            printable(table).to_csv(tmp / TABLES[key], index=False, float_format="%.6g")
             files.append(TABLES[key])
         if population is not None:
-            population[1].to_csv(tmp / POPULATION_TABLE, index=False, float_format="%.6g")
+            printable(population[1]).to_csv(tmp / POPULATION_TABLE, index=False,
+                                             float_format="%.6g")
             files.append(POPULATION_TABLE)
         stage("figures")
         files += save_figures(ds, examples, tmp, config)

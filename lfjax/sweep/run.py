@@ -96,12 +96,19 @@ def peak_rss_mb() -> float:
     return peak / 1024.0 if sys.platform != "darwin" else peak / 2**20
 
 
-def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | None = None):
+def _say(text: str) -> None:
+    print(f"lfjax sweep: {text}", file=sys.stderr, flush=True)
+
+
+def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | None = None,
+               progress: bool = False):
     """Everything a sweep decides before it creates anything: the population, the spectrum,
     each (pupil, layout)'s task (sampling planned on the whole population) and the
     :class:`~lfjax.sweep.guard.SweepEstimate`; refuses (:class:`SweepTooLargeError`, with
     the numbers) a sweep that cannot fit — the store on ``store``'s disk, the memory on this
     host and its devices. Writes nothing.
+
+    ``progress``: say on stderr what is being drawn and planned, and how long it took.
 
     Returns ``(eyes, is_average, spectrum, tasks, estimate)``.
     """
@@ -111,9 +118,17 @@ def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | 
     # sizes known from the config alone first: planning an impossible grid would itself
     # take the memory or time the check is there to spare
     check_fits(estimate(config, n_devices=n_devices), store=store)
+    t0 = time.perf_counter()
     eyes, is_average = population(config)
     spectrum = sweep_spectrum(config)
+    n_tasks = len(config.pupil_diameters_mm) * len(config.layouts)
+    if progress:
+        _say(f"drew {config.n_total_eyes} eyes; "
+             + ("reading the stored sampling of" if samplings else "planning the sampling of")
+             + f" {n_tasks} (pupil, layout) pair(s) on them ...")
     tasks = build_tasks(config, eyes, spectrum, samplings)
+    if progress:
+        _say(f"planned in {time.perf_counter() - t0:.1f} s")
     est = estimate(config, tasks, n_devices=n_devices)
     check_fits(est, store=store)
     return eyes, is_average, spectrum, tasks, est
@@ -167,7 +182,7 @@ def run_sweep(
     try:
         samplings = stored_samplings(store) if exists else None
         eyes, is_average, spectrum, tasks, est = plan_sweep(
-            config, None if exists else store, devices, samplings)
+            config, None if exists else store, devices, samplings, progress=progress and pid == 0)
         if on_plan is not None and pid == 0:
             on_plan(est)
         created = False
@@ -233,6 +248,9 @@ def _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progr
     zernike = np.asarray(eyes.zernike_um)
     size = int(config.chunk_size)
     bar = None
+    if progress and todo:
+        _say(f"compiling {len(tasks)} chunk function(s) with the first chunk (or loading them "
+             f"from the compilation cache) ...")
     if progress:
         from tqdm.auto import tqdm
 
