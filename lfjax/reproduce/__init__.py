@@ -75,7 +75,7 @@ def write_display_outputs(study, sweep, folder: Path) -> list[str]:
     return [DISPLAY_TABLE, DISPLAY_SWEEP_TABLE] + save_display_figures(study, sweep, folder)
 
 
-def _display_effects(config: StudyConfig, n_eyes: int, stage):
+def _display_effects(config: StudyConfig, n_eyes: int, stage, note=None):
     """The display-effects study on the average eye and the first ``n_eyes`` study eyes:
     (study Dataset, 2×2 sweep Dataset, report markdown)."""
     from ..display_effects import (
@@ -99,9 +99,10 @@ def _display_effects(config: StudyConfig, n_eyes: int, stage):
         display_config = dataclasses.replace(display_config, wavelength_step_nm=50.0,
                                              sweep_distances_mm=(100.0, 400.0))
     stage("display effects")
-    study = run_display_study(subset, names, display_config, progress=False)
+    # minutes per stage: each scene is named on the stage bar as it starts
+    study = run_display_study(subset, names, display_config, progress=False, on_scene=note)
     stage("display: 2x2 lenslet sweep")
-    sweep = lenslet_sweep(subset, names, display_config, progress=False)
+    sweep = lenslet_sweep(subset, names, display_config, progress=False, on_scene=note)
     return study, sweep, display_effects_markdown(study, sweep)
 """With a population store: how often samples of the run's size reproduce each claim."""
 
@@ -288,7 +289,8 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
                                             population_draws)
         display_parts = None
         if display_effects_eyes is not None:
-            display_parts = _display_effects(config, display_effects_eyes, stage)
+            display_parts = _display_effects(config, display_effects_eyes, stage,
+                                             note=lambda text: bar.set_postfix_str(text))
         stage("tables")
         files = [RESULTS_FILE, EXAMPLES_FILE]
         ds.to_netcdf(tmp / RESULTS_FILE, engine="h5netcdf")
