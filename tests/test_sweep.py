@@ -589,3 +589,29 @@ def test_progress_says_what_it_plans_and_compiles(reference, tmp_path, capsys):
         "planned in", "compiling 2 chunk function(s) with the first chunk")]
     assert said == sorted(said), err
     assert "2/2" in err  # the bar, in eyes
+
+
+def test_a_store_is_created_from_one_chunk_and_equals_the_whole_template(reference,
+                                                                          tmp_path):
+    """Creating a store holds one chunk's template in memory and extends the eye axis on
+    disk: the result reads exactly as a store written from the whole population's template."""
+    from lfjax.sweep.store import create_store, stored_samplings, template
+
+    config, ref_path, _ = reference
+    eyes, is_average = population(config)
+    tasks = build_tasks(config, eyes, sweep_spectrum(config), stored_samplings(ref_path))
+    z = np.asarray(eyes.zernike_um)
+    whole = create_store(tmp_path / "whole.zarr", template(config, tasks, z, is_average),
+                         config.chunk_size)
+    size = config.chunk_size
+    part = create_store(tmp_path / "part.zarr", template(config, tasks, z[:size],
+                                                         is_average[:size]),
+                        config.chunk_size, eyes=(z, is_average))
+    a, b = open_store(whole), open_store(part)
+    assert a.sizes == b.sizes and b.sizes["eye"] == config.n_total_eyes
+    assert_stores_equal(a, b)
+    for name in a.coords:
+        assert np.array_equal(a[name].values, b[name].values), name
+    assert a.vsotf.attrs == b.vsotf.attrs and np.isnan(b.vsotf.values).all()
+    assert not b.continuous_peak_success.values.any()
+    assert (tmp_path / "part.zarr" / ".zmetadata").is_file()

@@ -192,3 +192,57 @@ def test_a_killed_reproduce_leaves_no_hidden_folder_after_the_next_run(tmp_path,
     assert code == 1
     assert "removed 1 folder(s) left by an interrupted lfjax reproduce" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+# ----------------------------------------------------------------------------- memory
+
+
+def test_radial_mtf_bins_in_memory_of_the_plane_not_its_cube():
+    """The ring average of an L x (L/2+1) OTF keeps O(L²) host data (a dense binning matrix
+    is O(L³): 5.8 GiB at L = 1458) and equals the dense matrix's average."""
+    import jax.numpy as jnp
+
+    from lfjax import metrics
+
+    index, weights, _ = metrics._radial_bins(1458)
+    assert index.nbytes + weights.nbytes < 64 * 2**20
+    n = 33
+    fy = np.fft.fftfreq(n, 1.0 / n)
+    fx = np.fft.rfftfreq(n, 1.0 / n)
+    ring = np.rint(np.hypot(fx[None, :], fy[:, None])).ravel().astype(int)
+    mult = np.broadcast_to(np.r_[1.0, np.full(n // 2, 2.0)], (n, n // 2 + 1)).ravel()
+    dense = np.zeros((n // 2 + 1, ring.size))
+    keep = ring <= n // 2
+    dense[ring[keep], np.flatnonzero(keep)] = mult[keep]
+    dense /= dense.sum(axis=1, keepdims=True)
+    otf = np.random.default_rng(1).normal(size=(2, n, n // 2 + 1)) + 0.5j
+    got, freq = metrics.radial_mtf(jnp.asarray(otf), n, 0.5)
+    np.testing.assert_allclose(np.asarray(got), np.abs(otf).reshape(2, -1) @ dense.T,
+                               rtol=1e-5)
+    np.testing.assert_allclose(np.asarray(freq), 0.5 * np.arange(n // 2 + 1))
+
+
+def test_host_guards_hold_a_block_of_eyes_not_the_population(monkeypatch):
+    """The field guard's ray angles and the planner's order RMS evaluate eyes in blocks:
+    the same answers, with memory of one block (the whole population at once took ~90 KB
+    per eye: 9 GB for 100,000 eyes)."""
+    import tracemalloc
+
+    from lfjax import planner, sampling
+
+    z = np.asarray(__import__("lfjax").sample_eyes(0, 5000, 6.0).zernike_um)
+    tracemalloc.start()
+    slope = sampling.eye_slope_rad(z, 6.0, 3.0)
+    rms = planner._order_rms_um(z, 6.0, 3.0)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 200 * 2**20, peak / 2**20  # one block: ~90 MiB; all 5,000 eyes: ~450 MiB
+    monkeypatch.setattr(sampling, "EYE_BLOCK", 7)
+    monkeypatch.setattr(planner, "EYE_BLOCK", 7)
+    assert sampling.eye_slope_rad(z[:20], 6.0, 3.0) == pytest.approx(
+        max(sampling.eye_slope_rad(z[i:i + 1], 6.0, 3.0) for i in range(20)), rel=1e-12)
+    small = planner._order_rms_um(z[:20], 6.0, 3.0)
+    for order, value in small.items():
+        assert value == pytest.approx(max(planner._order_rms_um(z[i:i + 1], 6.0, 3.0)[order]
+                                          for i in range(20)), rel=1e-12)
+    assert slope > 0 and set(rms) == set(small)

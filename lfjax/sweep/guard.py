@@ -23,11 +23,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..peaks import METRICS
+from ..sampling import EYE_BLOCK
 from .config import SweepConfig
 
 N_FREQUENCIES = 61  # the stored MTF's 0 ... 60 cpd axis (compute.FREQUENCIES_CPD)
 N_MODES = 45  # Zernike coefficients per eye (Thibos et al. 2002: OSA j = 0 ... 44)
-PLANNER_FLOATS_PER_EYE = 1804  # the planner's per-eye float64 working row (lfjax.planner)
+GUARD_GRID = 48  # samples across the pupil of the host guards' wavefronts (lfjax.sampling)
 
 DEVICE_ALLOWANCE = 3.0
 """Device working set / the pipeline's largest arrays (elemental OTFs and the rendered
@@ -183,9 +184,10 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
     n_eyes = config.n_total_eyes
     eye_bytes = _eye_bytes(config, n_acc)
     store = n_eyes * eye_bytes
-    # the template is held whole while the store is created; the planner holds one float64
-    # row per eye; the population itself
-    setup = store + n_eyes * (PLANNER_FLOATS_PER_EYE * 8 + N_MODES * 8)
+    # the population's coefficients (a few copies), the host guards' block of wavefronts
+    # and gradients (lfjax.sampling.EYE_BLOCK eyes, 48 x 48 samples, five arrays); the store
+    # is created from one chunk's template, so its size does not count here
+    setup = n_eyes * N_MODES * 8 * 4 + EYE_BLOCK * GUARD_GRID**2 * 8 * 5
     chunk = 2 * config.chunk_size * eye_bytes  # the chunk's arrays and their Dataset
     import jax
 
@@ -275,10 +277,11 @@ def check_fits(est: SweepEstimate, store=None, host_bytes: float | None = None,
     need = est.host_setup_bytes + est.host_chunk_bytes
     if not need <= host:
         problems.append(
-            f"host memory: ~{_bytes(need)} needed ({est.n_eyes} eyes x {est.n_accommodation} "
-            f"states x {len(est.layouts)} layouts x {len(est.depths_D)} depths x "
-            f"{len(est.pupils_mm)} pupils), {_bytes(host)} available; use fewer eyes, "
-            f"a coarser accommodation.step_D, or fewer depths/layouts")
+            f"host memory: ~{_bytes(need)} needed ({est.n_eyes} eyes, chunks of "
+            f"{est.chunk_size} x {est.n_accommodation} states x {len(est.layouts)} layouts x "
+            f"{len(est.depths_D)} depths x {len(est.pupils_mm)} pupils), {_bytes(host)} "
+            f"available; use fewer eyes, a smaller run.chunk_size, a coarser "
+            f"accommodation.step_D, or fewer depths/layouts")
     if est.tasks:
         device = device_memory_bytes() if device_bytes is None else device_bytes
         worst = max(est.tasks, key=lambda t: t.device_bytes_per_eye)

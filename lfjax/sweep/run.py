@@ -187,8 +187,10 @@ def run_sweep(
             on_plan(est)
         created = False
         if not exists and pid == 0:
-            create_store(store, template(config, tasks, np.asarray(eyes.zernike_um), is_average),
-                         config.chunk_size)
+            zernike = np.asarray(eyes.zernike_um)
+            first = min(int(config.chunk_size), zernike.shape[0])  # memory of one chunk
+            create_store(store, template(config, tasks, zernike[:first], is_average[:first]),
+                         config.chunk_size, eyes=(zernike, is_average))
             created = True
             lock = _take_lock(store)
         try:

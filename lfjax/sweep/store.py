@@ -66,11 +66,14 @@ def _stored_record(config: SweepConfig) -> dict:
 
 
 def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> "xr.Dataset":  # noqa: F821
-    """The whole store as an xarray Dataset before any chunk is computed."""
+    """The store as an xarray Dataset before any chunk is computed, for the eyes given
+    (``zernike_um`` (n, n_modes) µm, ``is_average`` (n,)): all of them, or the first chunk's
+    when :func:`create_store` extends the eye axis to the population (``eyes``), so that
+    creating a store takes memory of one chunk, not of the whole population."""
     import jax
     import xarray as xr
 
-    n_eye = config.n_total_eyes
+    n_eye = int(np.shape(zernike_um)[0])
     n_pupil, n_layout = len(config.pupil_diameters_mm), len(config.layouts)
     depths = config.depths_D
     acc = config.accommodation_D
@@ -254,8 +257,11 @@ def stored_samplings(path) -> dict:
     return out
 
 
-def _encoding(ds, chunk_size: int) -> dict:
+def _encoding(ds, chunk_size: int, n_eye: int | None = None) -> dict:
     enc = {}
+    if n_eye is not None:  # the eye coordinates in one chunk, after create_store resizes them
+        enc["eye"] = {"chunks": (int(n_eye),)}
+        enc["is_average"] = {"chunks": (int(n_eye),)}
     for name, var in ds.data_vars.items():
         if "eye" in var.dims:
             enc[name] = {"chunks": tuple(chunk_size if d == "eye" else n
@@ -265,8 +271,16 @@ def _encoding(ds, chunk_size: int) -> dict:
     return enc
 
 
-def create_store(path, ds, chunk_size: int) -> Path:
-    """Write the template ``ds`` at ``path`` atomically (temporary folder, then rename)."""
+def create_store(path, ds, chunk_size: int, eyes=None) -> Path:
+    """Write the template ``ds`` at ``path`` atomically (temporary folder, then rename).
+
+    ``eyes`` = (zernike_um (n, n_modes), is_average (n,)) of the whole population when
+    ``ds`` holds only its first eyes: the eye axis of every array is then extended to n
+    (unwritten chunks read as the fill value, NaN) and the eyes' coefficients written, so
+    the population's result arrays are never held in memory.
+    """
+    import zarr
+
     path = Path(path)
     if path.exists():
         raise FileExistsError(f"{path} already exists")
@@ -274,9 +288,23 @@ def create_store(path, ds, chunk_size: int) -> Path:
     clean_interrupted_creations(path)
     tmp = owned_temp_dir(path.parent, f".{path.name}.creating")
     tmp.rmdir()  # to_zarr(mode="w-") creates it
+    n_eye = None if eyes is None else int(np.shape(eyes[0])[0])
     try:
-        ds.to_zarr(tmp, mode="w-", encoding=_encoding(ds, chunk_size), zarr_format=ZARR_FORMAT,
-                   consolidated=True)
+        ds.to_zarr(tmp, mode="w-", encoding=_encoding(ds, chunk_size, n_eye),
+                   zarr_format=ZARR_FORMAT, consolidated=n_eye is None)
+        if n_eye is not None and n_eye != ds.sizes["eye"]:
+            group = zarr.open_group(str(tmp), mode="r+", zarr_format=ZARR_FORMAT)
+            for name in list(ds.variables):
+                dims = ds[name].dims
+                if "eye" in dims:
+                    array = group[name]
+                    array.resize(tuple(n_eye if d == "eye" else n
+                                       for d, n in zip(dims, array.shape)))
+            group["eye"][:] = np.arange(n_eye)
+            group["is_average"][:] = np.asarray(eyes[1], bool)
+            group["zernike_um"][:] = np.asarray(eyes[0], float)
+        if n_eye is not None:
+            zarr.consolidate_metadata(str(tmp), zarr_format=ZARR_FORMAT)
         os.replace(tmp, path)
     finally:
         if tmp.exists():
