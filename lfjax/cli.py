@@ -244,6 +244,9 @@ def _add_sweep_parser(sub) -> None:
             "Results go to STORE, a Zarr store of one xarray Dataset (open it with\n"
             "lfjax.sweep.open_store or xarray.open_zarr), written one chunk of eyes at a time;\n"
             "an interrupted sweep continues with --resume and recomputes no finished chunk.\n"
+            "The plan (sizes, estimated time, memory, store size) is printed first, and a\n"
+            "sweep that cannot fit this machine is refused before anything is written.\n"
+            "One writer per STORE: STORE.lock names it (host, PID, start).\n"
             "The eye axis is sharded over all local JAX devices (run.chunk_size must be a\n"
             "multiple of their number). Several processes or hosts: start one process per\n"
             "host with --distributed (jax.distributed.initialize; the coordinator is found\n"
@@ -268,8 +271,8 @@ def _add_sweep_parser(sub) -> None:
                          "current folder); must not exist unless --resume")
     sw.add_argument("--resume", action="store_true",
                     help="complete an existing STORE made by the same config (finished chunks "
-                         "are skipped; a store of another config is refused, listing the "
-                         "differences)")
+                         "are skipped, those whose data fail their checksum recomputed; a store "
+                         "of another config is refused, listing the differences)")
     sw.add_argument("--max-chunks", metavar="N", type=_positive_int, default=None,
                     help="stop after computing N chunks (continue later with --resume)")
     sw.add_argument("--no-progress", action="store_true",
