@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -648,6 +649,16 @@ def _sweep(args, t_start: float) -> int:
               f"choose another --out", file=sys.stderr)
         return 2
     enable_compilation_cache()
+
+    def terminated(signum, frame):
+        # a batch scheduler's SIGTERM (preemption, time limit) ends the run as Ctrl-C does:
+        # the lock is released and finished chunks are kept for --resume
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, terminated)
+    except ValueError:  # not the main thread: leave signals alone
+        previous = None
     try:
         run = run_sweep(config, out, resume=args.resume, progress=not args.no_progress,
                         max_chunks=args.max_chunks,
@@ -677,6 +688,9 @@ def _sweep(args, t_start: float) -> int:
         if os.environ.get("LFJAX_DEBUG"):
             raise
         return 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     who = f" (process {run.process_index} of {run.process_count})" if run.process_count > 1 else ""
     print(f"{prog}: {run.eyes_computed} eyes in {len(run.computed_chunks)} chunks computed"
           f"{who}, {len(run.skipped_chunks)} chunks already complete; "

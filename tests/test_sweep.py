@@ -255,7 +255,11 @@ def test_resume_of_a_complete_store_computes_nothing(reference):
 # ----------------------------------------------------------------------------- interruption
 
 
-def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_path):
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
+def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_path, sig):
+    """SIGKILL: nothing runs after it (the lock stays, stale); SIGTERM (a scheduler's
+    preemption): the command stops as on Ctrl-C, releasing the lock. Both resume to the
+    uninterrupted store."""
     config, ref_path, _ = reference
     toml = write_toml(tmp_path / "tiny.toml", config)
     store = tmp_path / "killed.zarr"
@@ -276,15 +280,20 @@ def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_
                 if done.any():
                     break
             time.sleep(0.02)
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(30)
+        proc.send_signal(sig)
+        proc.wait(60)
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == -signal.SIGKILL, log.read_text()[-2000:]
     finished = completed_chunks(store)
+    if sig == signal.SIGKILL:
+        assert proc.returncode == -signal.SIGKILL, log.read_text()[-2000:]
+        assert lock_path(store).exists()  # the killed writer's lock, now stale
+    else:
+        assert proc.returncode == 130, log.read_text()[-2000:]
+        assert "finished chunks are kept" in log.read_text()
+        assert not lock_path(store).exists()
     assert finished.any() and not finished.all(), finished
-    assert lock_path(store).exists()  # the killed writer's lock, now stale
     run = run_sweep(config, store, resume=True, progress=False)
     assert not lock_path(store).exists()
     assert run.computed_chunks == [i for i in range(config.n_chunks) if not finished[i]]
