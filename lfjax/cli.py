@@ -13,6 +13,7 @@ import argparse
 import json
 import math
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -245,6 +246,9 @@ def _add_sweep_parser(sub) -> None:
             "Results go to STORE, a Zarr store of one xarray Dataset (open it with\n"
             "lfjax.sweep.open_store or xarray.open_zarr), written one chunk of eyes at a time;\n"
             "an interrupted sweep continues with --resume and recomputes no finished chunk.\n"
+            "The plan (sizes, estimated time, memory, store size) is printed first, and a\n"
+            "sweep that cannot fit this machine is refused before anything is written.\n"
+            "One writer per STORE: STORE.lock names it (host, PID, start).\n"
             "The eye axis is sharded over all local JAX devices (run.chunk_size must be a\n"
             "multiple of their number). Several processes or hosts: start one process per\n"
             "host with --distributed (jax.distributed.initialize; the coordinator is found\n"
@@ -252,14 +256,25 @@ def _add_sweep_parser(sub) -> None:
             "--process-id); each computes its share of the chunks into the shared STORE."
         ),
     )
-    sw.add_argument("config", metavar="CONFIG.toml", help="sweep configuration (TOML)")
+    sw.add_argument("config", metavar="CONFIG.toml",
+                    help="sweep configuration (TOML); with --template the file to write; with "
+                         "--verify the STORE to check")
+    sw.add_argument("--dry-run", action="store_true",
+                    help="print the plan (eyes, layouts, depths, states, wavelengths, sampling, "
+                         "estimated time, memory and store size), check it fits, write nothing")
+    sw.add_argument("--verify", action="store_true",
+                    help="check STORE (given in place of CONFIG.toml): read every finished chunk "
+                         "back and compare it with its checksum; exit 1 if any is corrupt "
+                         "(--resume recomputes those)")
+    sw.add_argument("--template", action="store_true",
+                    help="write CONFIG.toml: a commented config with every key and its default")
     sw.add_argument("--out", metavar="STORE", default=None,
                     help="Zarr store to write (default: CONFIG's name with .zarr, in the "
                          "current folder); must not exist unless --resume")
     sw.add_argument("--resume", action="store_true",
                     help="complete an existing STORE made by the same config (finished chunks "
-                         "are skipped; a store of another config is refused, listing the "
-                         "differences)")
+                         "are skipped, those whose data fail their checksum recomputed; a store "
+                         "of another config is refused, listing the differences)")
     sw.add_argument("--max-chunks", metavar="N", type=_positive_int, default=None,
                     help="stop after computing N chunks (continue later with --resume)")
     sw.add_argument("--no-progress", action="store_true",
@@ -638,35 +653,103 @@ def _sweep(args, t_start: float) -> int:
         except Exception as err:  # noqa: BLE001 - report any start-up failure in one line
             print(f"{prog}: error: jax.distributed.initialize failed: {err}", file=sys.stderr)
             return 2
-    from .sweep import StoreMismatchError, SweepConfigError, load_config, run_sweep
+    from .sweep import (
+        StoreMismatchError,
+        SweepConfigError,
+        SweepTooLargeError,
+        load_config,
+        plan_sweep,
+        run_sweep,
+    )
+    from .sweep.store import StoreLockedError, is_disk_full
 
+    if args.verify:
+        from .sweep.store import is_store, verify_store
+
+        if not is_store(args.config):
+            print(f"{prog}: error: --verify needs a sweep STORE (a folder written by 'lfjax "
+                  f"sweep'), got {args.config}", file=sys.stderr)
+            return 2
+        check = verify_store(args.config)
+        print(f"{prog}: {args.config}: {check.summary()}")
+        return 0 if check.healthy else 1
+    if args.template:
+        from .sweep.config import config_template
+
+        target = Path(args.config)
+        if target.exists():
+            print(f"{prog}: error: {target} already exists; --template writes a new file",
+                  file=sys.stderr)
+            return 2
+        target.write_text(config_template())
+        print(f"{prog}: wrote {target} (every key with its default; edit, then "
+              f"'lfjax sweep {target} --dry-run')")
+        return 0
     try:
         config = load_config(args.config)
     except SweepConfigError as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else Path(Path(args.config).stem + ".zarr")
+    if args.dry_run:
+        try:
+            *_, est = plan_sweep(config, None if out.exists() else out)
+        except SweepTooLargeError as err:
+            print(f"{prog}: error: {err}", file=sys.stderr)
+            return 2
+        except (ValueError, OSError) as err:
+            print(f"{prog}: error: {' '.join(str(err).split())}", file=sys.stderr)
+            return 2
+        print(f"{prog}: plan for {args.config} (dry run: nothing written)")
+        print(est.summary(out))
+        return 0
     if out.exists() and not args.resume:
         print(f"{prog}: error: --out {out} already exists: pass --resume to complete it, or "
               f"choose another --out", file=sys.stderr)
         return 2
     enable_compilation_cache()
+
+    def terminated(signum, frame):
+        # a batch scheduler's SIGTERM (preemption, time limit) ends the run as Ctrl-C does:
+        # the lock is released and finished chunks are kept for --resume
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, terminated)
+    except ValueError:  # not the main thread: leave signals alone
+        previous = None
     try:
         run = run_sweep(config, out, resume=args.resume, progress=not args.no_progress,
-                        max_chunks=args.max_chunks)
+                        max_chunks=args.max_chunks,
+                        on_plan=lambda est: print(f"{prog}: plan\n{est.summary(out)}",
+                                                  flush=True))
     except KeyboardInterrupt:
-        print(f"{prog}: interrupted; finished chunks are kept in {out} (continue with "
-              f"--resume)", file=sys.stderr)
+        if out.exists():
+            print(f"{prog}: interrupted; finished chunks are kept in {out} (continue with "
+                  f"--resume)", file=sys.stderr)
+        else:
+            print(f"{prog}: interrupted before any chunk finished; no store was kept",
+                  file=sys.stderr)
         return 130
-    except StoreMismatchError as err:
+    except (StoreMismatchError, SweepTooLargeError, StoreLockedError) as err:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     except Exception as err:  # one line, no traceback
+        if is_disk_full(err):
+            kept = (f"finished chunks are kept in {out}; free space and continue with --resume"
+                    if out.exists() else "no chunk had finished, so no store was kept")
+            print(f"{prog}: error: the disk is full: {kept}", file=sys.stderr)
+            return 1
         message = " ".join(str(err).split()) or type(err).__name__
-        print(f"{prog}: error: {type(err).__name__}: {message}", file=sys.stderr)
+        notes = " ".join(getattr(err, "__notes__", []))
+        print(f"{prog}: error: {type(err).__name__}: {message}" + (f" ({notes})" if notes else ""),
+              file=sys.stderr)
         if os.environ.get("LFJAX_DEBUG"):
             raise
         return 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     who = f" (process {run.process_index} of {run.process_count})" if run.process_count > 1 else ""
     print(f"{prog}: {run.eyes_computed} eyes in {len(run.computed_chunks)} chunks computed"
           f"{who}, {len(run.skipped_chunks)} chunks already complete; "

@@ -127,8 +127,18 @@ class DisplayOptics(eqx.Module):
         return DisplayOptics(self.diffraction, self.aperture, z, w)
 
 
-IDEAL_DISPLAY = DisplayOptics()
-"""The paper's ideal display: geometric circular subapertures, point emitters."""
+def ideal_display() -> DisplayOptics:
+    """The paper's ideal display: geometric circular subapertures, point emitters."""
+    return DisplayOptics()
+
+
+def __getattr__(name: str):
+    # IDEAL_DISPLAY is built on first use, not at import: its leaves are JAX arrays, and
+    # creating one starts JAX's backend, after which jax.distributed.initialize refuses
+    # (``lfjax sweep --distributed`` imports lfjax first).
+    if name == "IDEAL_DISPLAY":
+        return ideal_display()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _check_positive(name: str, value, allow_inf: bool = False) -> None:
@@ -401,6 +411,7 @@ def pixel_transfer(fx_cpr, fy_cpr, display: DisplayOptics | None):
 __all__ = [
     "DisplayOptics",
     "IDEAL_DISPLAY",
+    "ideal_display",
     "LensletArray",
     "lenslets_for_layout",
     "display_optics_at",

@@ -194,7 +194,7 @@ def _evaluate(eyes: Eyes, config: DisplayStudyConfig, layout, spectrum, display,
 
 
 def run_display_study(eyes: Eyes, eye_names, config: DisplayStudyConfig = DisplayStudyConfig(),  # noqa: B008
-                      progress: bool = True):
+                      progress: bool = True, on_scene=None):
     """The four cumulative steps (:data:`STEPS`) for every layout: an xarray Dataset with
     dims (step, layout, eye, depth) holding ``predicted_accommodation`` (continuous VSOTF
     peak, D), ``accommodation_error`` (D), ``peak_vsotf``, ``cutoff_frequency`` (cpd, at
@@ -230,6 +230,9 @@ def run_display_study(eyes: Eyes, eye_names, config: DisplayStudyConfig = Displa
         sampling = shared_sampling(eyes, config, layout, with_pixels, white, display_white)
         for si, (spectrum, display) in enumerate(scenes):
             bar.set_description(f"{name} {STEPS[si]}")
+            if on_scene is not None:
+                on_scene(f"{name} {STEPS[si]} ({li * len(STEPS) + si + 1}/"
+                         f"{len(STEPS) * len(names)})")
             t0 = time.perf_counter()
             r = _evaluate(eyes, config, layout, spectrum, display, sampling)
             seconds[si, li] = time.perf_counter() - t0
@@ -259,7 +262,7 @@ def run_display_study(eyes: Eyes, eye_names, config: DisplayStudyConfig = Displa
 
 
 def lenslet_sweep(eyes: Eyes, eye_names, config: DisplayStudyConfig = DisplayStudyConfig(),  # noqa: B008
-                  progress: bool = True):
+                  progress: bool = True, on_scene=None):
     """2×2 tangent views made by lenslet arrays at each of ``config.sweep_distances_mm``
     (diffraction on, point emitters, V(λ) white): Dataset with dims (distance, eye, depth)
     holding ``predicted_accommodation``, ``accommodation_error`` (D), ``cutoff_frequency``
@@ -280,6 +283,8 @@ def lenslet_sweep(eyes: Eyes, eye_names, config: DisplayStudyConfig = DisplayStu
     aperture, fresnel = np.zeros(distances.size), np.zeros(distances.size)
     bar = tqdm(total=distances.size + 1, disable=not progress, unit="scene")
     bar.set_description("2x2 ideal")
+    if on_scene is not None:
+        on_scene(f"2x2 ideal (1/{distances.size + 1})")
     # diffraction's field guard does not depend on the distance: one sampling for all
     window = config.sweep_window_D
     sampling = shared_sampling(eyes, config, layout, config.lenslets(2, float(distances[0])).optics(),
@@ -288,6 +293,8 @@ def lenslet_sweep(eyes: Eyes, eye_names, config: DisplayStudyConfig = DisplayStu
     bar.update(1)
     for i, distance in enumerate(distances):
         bar.set_description(f"2x2 lenslets at {distance:g} mm")
+        if on_scene is not None:
+            on_scene(f"2x2 lenslets at {distance:g} mm ({i + 2}/{distances.size + 1})")
         lenslets = config.lenslets(2, float(distance))
         aperture[i] = float(lenslets.aperture_mm)
         fresnel[i] = float(lenslets.fresnel_number(550.0))

@@ -44,6 +44,11 @@ class Eyes(eqx.Module):
             raise ValueError(
                 f"Eyes.zernike_um must have shape (n_eyes, n_modes), got {self.zernike_um.shape}"
             )
+        if self.zernike_um.shape[0] < 1:
+            raise ValueError(
+                f"Eyes.zernike_um must hold at least one eye (a row), got shape "
+                f"{self.zernike_um.shape}"
+            )
         nm_from_ansi(self.zernike_um.shape[1] - 1)  # raises for unsupported orders
         if not (self.measured_pupil_mm > 0):
             raise ValueError(
@@ -78,6 +83,23 @@ class Eyes(eqx.Module):
         return Eyes(
             self.zernike_um.at[:, :3].set(0.0), self.measured_pupil_mm, self.orientation
         )
+
+
+def check_eyes(eyes, name: str = "eyes") -> Eyes:
+    """``eyes`` if it is an :class:`Eyes`; a clear TypeError otherwise (a plain list or array
+    of coefficients does not say which pupil it was measured on)."""
+    if not isinstance(eyes, Eyes):
+        raise TypeError(
+            f"{name} must be an lfjax.Eyes, got {type(eyes).__name__}: build one with "
+            f"lfjax.sample_eyes(seed, n_eyes), lfjax.average_eye() or "
+            f"lfjax.eyes.make_eyes(coefficients_um, measured_pupil_mm)"
+        )
+    return eyes
+
+
+MAX_SAMPLED_EYES = 2**26
+"""Most eyes one :func:`sample_eyes` call draws (67 million; 45 float64 coefficients each
+are 24 GiB): a larger population is drawn in parts (seeds) or chunks."""
 
 
 def make_eyes(zernike_um, measured_pupil_mm: float, orientation: str = "left") -> Eyes:
@@ -170,10 +192,19 @@ def sample_eyes(
     in float64 on the host) and ``z`` standard normal from ``key`` (drawn in float32): same
     key, same eyes, in float32 and float64 alike.
     """
-    if int(n_eyes) != n_eyes or n_eyes < 1:
+    if isinstance(n_eyes, bool) or int(n_eyes) != n_eyes or n_eyes < 1:
         raise ValueError(f"n_eyes must be an integer >= 1, got {n_eyes}")
-    if isinstance(key, int):
-        key = jax.random.key(key)
+    if n_eyes > MAX_SAMPLED_EYES:
+        raise ValueError(
+            f"n_eyes must be <= {MAX_SAMPLED_EYES} per call (their coefficients alone would "
+            f"take {int(n_eyes) * 45 * 8 / 2**30:.3g} GiB in float64), got {n_eyes}"
+        )
+    if isinstance(key, (int, np.integer)) and not isinstance(key, bool):
+        # jax.random.key folds an int seed modulo 2**32 (-1 draws the eyes of 2**32 - 1),
+        # so only [0, 2**32) names a draw uniquely, as the command line's --seed does
+        if not 0 <= int(key) < 2**32:
+            raise ValueError(f"seed (key) must be in [0, 2**32), got {key}")
+        key = jax.random.key(int(key))
     mean, cov, _ = thibos_statistics(measured_pupil_mm)
     chol = np.linalg.cholesky(cov)
     # Draw in float32 whatever the precision, so a seed gives the same eyes with and without
@@ -190,6 +221,8 @@ def sample_eyes(
 __all__ = [
     "THIBOS_PUPILS_MM",
     "Eyes",
+    "MAX_SAMPLED_EYES",
+    "check_eyes",
     "make_eyes",
     "aberration_free_eye",
     "thibos_statistics",

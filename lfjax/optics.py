@@ -24,7 +24,7 @@ from jaxtyping import Array, ArrayLike, Complex, Float, Real
 
 from ._types import FULL, is_concrete, shape_checked
 from .display import aperture_edge_distance, fresnel_propagate
-from .eyes import Eyes
+from .eyes import Eyes, check_eyes
 from .layouts import Layout
 from .options import ModelOptions
 from .sampling import Sampling, blur_radius_arcmin, check_field, eye_slope_rad
@@ -569,6 +569,7 @@ def polychromatic_otf(
     """
     from .pipeline import Accommodation, PipelineConfig, Scene, otf_stack_jit
 
+    check_eyes(eyes)
     validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
     validate_states(accommodation_D, depths_D, cdp_D)
     _validate_coefficients(eyes.zernike_um)

@@ -225,6 +225,10 @@ def check_field(sampling: Sampling, radius_arcmin: float, what: str) -> None:
         )
 
 
+EYE_BLOCK = 1024
+"""Eyes whose wavefronts the host-side guards evaluate at once (memory ∝ the block)."""
+
+
 def eye_slope_rad(zernike_um: np.ndarray, measured_pupil_mm: float, pupil_diameter_mm: float) -> float:
     """Largest wavefront slope (ray angle, rad) of eyes inside the calculation pupil (host)."""
     from .zernike import zernike_basis
@@ -238,11 +242,15 @@ def eye_slope_rad(zernike_um: np.ndarray, measured_pupil_mm: float, pupil_diamet
     xx, yy = np.meshgrid(t, t)
     inside = xx**2 + yy**2 <= r_cal**2
     basis = np.asarray(zernike_basis(z.shape[1], xx / r_meas, yy / r_meas))
-    w = np.tensordot(z, basis, axes=([1], [0]))  # µm
     h = t[1] - t[0]
-    gy, gx = np.gradient(w, h, axis=(1, 2))
-    slope = np.hypot(gx, gy)[:, inside].max(initial=0.0)  # µm/mm = 1e-3 rad
-    return float(slope) * 1e-3
+    slope = 0.0
+    # blocks of eyes: the wavefronts and their gradients take ~90 KB per eye, so a whole
+    # population at once would grow with it (9 GB for 100,000 eyes)
+    for first in range(0, z.shape[0], EYE_BLOCK):
+        w = np.tensordot(z[first:first + EYE_BLOCK], basis, axes=([1], [0]))  # µm
+        gy, gx = np.gradient(w, h, axis=(1, 2))
+        slope = max(slope, float(np.hypot(gx, gy)[:, inside].max(initial=0.0)))  # µm/mm
+    return slope * 1e-3  # rad
 
 
 __all__ = [

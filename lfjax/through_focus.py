@@ -19,7 +19,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, Real
 
 from ._types import shape_checked
 from .display import DisplayOptics
-from .eyes import Eyes
+from .eyes import Eyes, check_eyes
 from .layouts import Layout, open_pupil
 from .metrics import cutoff_frequency
 from .optics import _field_check, _is_concrete, _validate_coefficients, validate_pupil, validate_states
@@ -304,6 +304,7 @@ def through_focus(
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
     aberration-free, focused and rendered at the CDP, accommodation SA and LCA kept).
     """
+    check_eyes(eyes)
     validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
     validate_states(None, depths_D, cdp_D)
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
@@ -414,6 +415,7 @@ def metrics_at(
     -------
     (vsotf, strehl), each (n_eyes, n_depth, n_acc).
     """
+    check_eyes(eyes)
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
     validate_states(accommodation_D, depths_D, cdp_D)
     _validate_coefficients(eyes.zernike_um)

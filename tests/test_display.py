@@ -354,18 +354,24 @@ def test_reproduce_display_section_studies_the_average_eye_and_the_first_eyes(mo
 
     seen = {}
 
-    def fake_study(eyes, names, config, progress=True):
+    def fake_study(eyes, names, config, progress=True, on_scene=None):
         seen.update(eyes=eyes, names=names, config=config)
+        on_scene("a study scene")
         return "study"
 
+    def fake_sweep(eyes, names, config, progress=True, on_scene=None):
+        on_scene("a sweep scene")
+        return "sweep"
+
     monkeypatch.setattr(de, "run_display_study", fake_study)
-    monkeypatch.setattr(de, "lenslet_sweep", lambda eyes, names, config, progress=True: "sweep")
+    monkeypatch.setattr(de, "lenslet_sweep", fake_sweep)
     monkeypatch.setattr(de, "display_effects_markdown", lambda study, sweep: f"{study}+{sweep}")
     config = StudyConfig.quick(n_eyes=3, depth_offsets_D=(-2.0, -0.5, 0.0, 1.0))
-    stages = []
-    study, sweep, markdown = _display_effects(config, 1, stages.append)
+    stages, notes = [], []
+    study, sweep, markdown = _display_effects(config, 1, stages.append, notes.append)
     assert (study, sweep, markdown) == ("study", "sweep", "study+sweep")
     assert stages == ["display effects", "display: 2x2 lenslet sweep"]
+    assert notes == ["a study scene", "a sweep scene"]  # each scene shown as it starts
     eyes, labels = study_eyes(config)
     assert seen["names"] == ["eye01", "average"]
     np.testing.assert_array_equal(np.asarray(seen["eyes"].zernike_um),
@@ -437,3 +443,33 @@ def test_reproduce_writes_the_display_tables_figures_and_report_section(tmp_path
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     markdown = display_effects_markdown(study, sweep)
     assert "| 3x3 | +spectrum |" in markdown and "Strehl gain 1.00" in markdown
+
+
+def test_display_study_names_each_scene_as_it_starts(monkeypatch):
+    """The display-effects stages run minutes each: every scene is announced (on_scene)
+    before it is computed, with its position among all of them."""
+    from lfjax import display_effects as de
+    from lfjax.eyes import sample_eyes
+
+    config = de.DisplayStudyConfig(layouts=("2x2", "3x3"), depth_offsets_D=(0.0, 1.0),
+                                   sweep_distances_mm=(100.0, 400.0))
+    events = []
+
+    def fake_evaluate(eyes, config, layout, spectrum, display, sampling=None, window_D=None):
+        events.append("computed")
+        shape = (eyes.n_eyes, config.depths_D.size)
+        return dict(predicted=np.zeros(shape), success=np.ones(shape, bool),
+                    peak_vsotf=np.ones(shape), cutoff=np.ones(shape), df=1.0,
+                    strehl_grid=np.zeros(shape))
+
+    monkeypatch.setattr(de, "_evaluate", fake_evaluate)
+    monkeypatch.setattr(de, "shared_sampling", lambda *args, **kwargs: None)
+    eyes = sample_eyes(0, 1)
+    de.run_display_study(eyes, ["eye01"], config, progress=False, on_scene=events.append)
+    n = len(de.STEPS) * 2
+    assert events[0] == f"2x2 {de.STEPS[0]} (1/{n})" and events[-2] == f"3x3 {de.STEPS[-1]} ({n}/{n})"
+    assert events[1::2] == ["computed"] * n  # each announced before it is computed
+    events.clear()
+    de.lenslet_sweep(eyes, ["eye01"], config, progress=False, on_scene=events.append)
+    assert events == ["2x2 ideal (1/3)", "computed", "2x2 lenslets at 100 mm (2/3)", "computed",
+                      "2x2 lenslets at 400 mm (3/3)", "computed"]

@@ -8,7 +8,9 @@ stores are comparable with the in-process reference bit for bit.
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -31,6 +33,12 @@ from lfjax.sweep import (
     study_view,
 )
 from lfjax.sweep.compute import build_tasks, population, sweep_spectrum
+from lfjax.sweep.store import (
+    StoreLockedError,
+    clean_interrupted_creations,
+    lock_path,
+    verify_store,
+)
 
 TINY = {
     "population": {"n_eyes": 5, "seed": 3},
@@ -246,11 +254,14 @@ def test_resume_of_a_complete_store_computes_nothing(reference):
 # ----------------------------------------------------------------------------- interruption
 
 
-def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_path):
-    """The sweep SIGKILLs itself right after chunk 0 is marked complete (the test hook
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
+def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_path, sig):
+    """The sweep signals itself right after chunk 0 is marked complete (the test hook
     ``LFJAX_TEST_ABORT_AFTER_CHUNK``, read in lfjax.sweep.run): a deterministic kill point,
-    not a poll that a loaded machine can miss. Resuming computes only chunks 1 and 2 and
-    gives the uninterrupted store bit for bit."""
+    not a poll that a loaded machine can miss. SIGKILL: nothing runs after it (the lock
+    stays, stale); SIGTERM (a scheduler's preemption): the command stops as on Ctrl-C,
+    releasing the lock. Resuming computes only chunks 1 and 2 and gives the uninterrupted
+    store bit for bit."""
     config, ref_path, _ = reference
     toml = write_toml(tmp_path / "tiny.toml", config)
     store = tmp_path / "killed.zarr"
@@ -258,12 +269,21 @@ def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_
     with open(log, "w") as log_file:
         proc = subprocess.run(
             [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out", str(store),
-             "--no-progress"], env=subprocess_env(LFJAX_TEST_ABORT_AFTER_CHUNK="0"),
+             "--no-progress"],
+            env=subprocess_env(LFJAX_TEST_ABORT_AFTER_CHUNK="0",
+                               LFJAX_TEST_ABORT_SIGNAL=signal.Signals(sig).name[3:]),
             stdout=log_file, stderr=log_file, timeout=600)
-    assert proc.returncode == -signal.SIGKILL, log.read_text()[-2000:]
     finished = completed_chunks(store)
+    if sig == signal.SIGKILL:
+        assert proc.returncode == -signal.SIGKILL, log.read_text()[-2000:]
+        assert lock_path(store).exists()  # the killed writer's lock, now stale
+    else:
+        assert proc.returncode == 130, log.read_text()[-2000:]
+        assert "finished chunks are kept" in log.read_text()
+        assert not lock_path(store).exists()
     assert finished.tolist() == [True, False, False], finished
     run = run_sweep(config, store, resume=True, progress=False)
+    assert not lock_path(store).exists()
     assert run.computed_chunks == [1, 2] and run.skipped_chunks == [0]
     assert_stores_equal(open_store(store), open_store(ref_path))  # bit for bit
 
@@ -277,12 +297,109 @@ def test_cli_max_chunks_then_resume(reference, tmp_path, capsys):
     assert main(["sweep", str(toml), "--out", str(store), "--max-chunks", "1",
                  "--no-progress"]) == 0
     assert completed_chunks(store).tolist() == [True, False, False]
+    plan = capsys.readouterr().out  # the plan comes first, before the work
+    assert plan.index("eyes        6 in 3 chunks of 2") < plan.index("1 chunks computed")
     assert main(["sweep", str(toml), "--out", str(store), "--no-progress"]) == 2
     assert "--resume" in capsys.readouterr().err
     assert main(["sweep", str(toml), "--out", str(store), "--resume", "--no-progress"]) == 0
     out = capsys.readouterr().out
     assert "4 eyes in 2 chunks computed" in out and "1 chunks already complete" in out
     assert_stores_equal(open_store(store), open_store(ref_path))
+
+
+# ----------------------------------------------------------------------------- guarded stores
+
+
+def test_store_opens_consolidated_and_records_its_provenance(reference):
+    import warnings
+
+    import jax
+    import xarray as xr
+
+    import lfjax
+
+    _, path, _ = reference
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "consolidated metadata not found" warning
+        ds = xr.open_zarr(path)
+    made = json.loads(ds.attrs["provenance_json"])
+    assert made["lfjax_version"] == lfjax.__version__ and made["jax_version"] == jax.__version__
+    assert made["host"] == socket.gethostname() and made["jax_devices"] == "1 x cpu"
+    assert "lfjax_git_commit" in made and made["created_utc"].endswith("+00:00")
+    first = json.loads(ds.attrs["runs_json"])[0]
+    assert first["chunks_computed"] == 3 and first["host"] == socket.gethostname()
+    assert made["created_utc"] <= first["ended_utc"] <= ds.attrs["completed_utc"]
+
+
+def test_a_second_writer_is_refused_and_a_stale_lock_taken_over(reference, tmp_path, capsys):
+    from lfjax.cli import main
+
+    config, ref_path, _ = reference
+    store = tmp_path / "locked.zarr"
+    shutil.copytree(ref_path, store)
+    toml = write_toml(tmp_path / "locked.toml", config)
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(300)"])
+    try:
+        lock_path(store).write_text(json.dumps({"host": socket.gethostname(), "pid": holder.pid,
+                                                "started_utc": "2026-01-02T03:04:05+00:00"}))
+        with pytest.raises(StoreLockedError) as err:
+            run_sweep(config, store, resume=True, progress=False)
+        for part in (f"host {socket.gethostname()}", f"PID {holder.pid}",
+                     "since 2026-01-02T03:04:05+00:00", str(lock_path(store))):
+            assert part in str(err.value), part
+        assert main(["sweep", str(toml), "--out", str(store), "--resume", "--no-progress"]) == 2
+        assert f"PID {holder.pid}" in capsys.readouterr().err
+    finally:
+        holder.kill()
+        holder.wait()
+    # its process is gone: the lock is stale, taken over and released
+    run_sweep(config, store, resume=True, progress=False)
+    assert "took over a stale lock" in capsys.readouterr().err
+    assert not lock_path(store).exists()
+    # a holder on another host cannot be checked from here: refused, never broken
+    lock_path(store).write_text(json.dumps({"host": "elsewhere", "pid": 1,
+                                            "started_utc": "2026-01-02T03:04:05+00:00"}))
+    with pytest.raises(StoreLockedError, match="host elsewhere, PID 1"):
+        run_sweep(config, store, resume=True, progress=False)
+
+
+def test_verify_finds_missing_and_truncated_chunks_and_resume_recomputes_them(
+        reference, tmp_path, capsys):
+    from lfjax.cli import main
+
+    config, ref_path, _ = reference
+    store = tmp_path / "damaged.zarr"
+    shutil.copytree(ref_path, store)
+    assert main(["sweep", str(store), "--verify"]) == 0
+    assert "3 of 3 chunks verified, 0 corrupt" in capsys.readouterr().out
+    (store / "vsotf" / "1.0.0.0.0").unlink()  # reads back as NaN without a checksum
+    damaged = store / "mtf_at_peak" / "2.0.0.0.0.0"
+    damaged.write_bytes(damaged.read_bytes()[:20])
+    check = verify_store(store)
+    assert check.ok == [0] and sorted(check.corrupt) == [1, 2], check
+    assert "checksum" in check.corrupt[1] and "unreadable" in check.corrupt[2]
+    assert main(["sweep", str(store), "--verify"]) == 1
+    out = capsys.readouterr().out
+    assert "1 of 3 chunks verified, 2 corrupt" in out and "chunk 2: unreadable" in out
+    run = run_sweep(config, store, resume=True, progress=False)
+    assert run.computed_chunks == [1, 2] and sorted(run.recomputed_chunks) == [1, 2]
+    assert "recomputing 2 chunk(s)" in capsys.readouterr().err
+    assert verify_store(store).ok == [0, 1, 2]
+    assert_stores_equal(open_store(store), open_store(ref_path))  # bit for bit again
+
+
+def test_an_interrupted_store_creation_leaves_no_hidden_folder(tmp_path, capsys):
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    host = socket.gethostname()
+    left = tmp_path / f".s.zarr.creating-{host}-{int(gone.stdout)}-0123abcd"
+    left.mkdir()
+    (left / ".zgroup").write_text("{}")
+    alive = tmp_path / f".s.zarr.creating-{host}-{os.getpid()}-0123abcd"
+    alive.mkdir()
+    assert clean_interrupted_creations(tmp_path / "s.zarr") == [left]
+    assert not left.exists() and alive.exists()  # a live creation is left alone
+    assert "removed 1 folder(s) left by an interrupted store creation" in capsys.readouterr().err
 
 
 # ----------------------------------------------------------------------------- devices, hosts
@@ -309,41 +426,71 @@ def test_sharded_over_four_devices_equals_unsharded(reference, tmp_path):
     # Each device maps its eye alone, the unsharded reference maps two per call: the same
     # float64 arithmetic up to round-off of the batch shape (stated tolerance 1e-9 relative).
     a, b = open_store(sharded), open_store(ref_path)
-    assert_stores_equal(a.drop_vars("chunk_complete"), b.drop_vars("chunk_complete"),
-                        rtol=1e-9, atol=1e-12)
+    chunked = ["chunk_complete", "chunk_checksum"]  # 4-eye chunks against 2-eye chunks
+    assert_stores_equal(a.drop_vars(chunked), b.drop_vars(chunked), rtol=1e-9, atol=1e-12)
 
 
-DISTRIBUTED_SCRIPT = """
-import sys
+IMPORT_SCRIPT = """
+import importlib, pkgutil, socket
 import jax
-pid, port, toml, store = int(sys.argv[1]), sys.argv[2], sys.argv[3], sys.argv[4]
-jax.distributed.initialize(coordinator_address=f"localhost:{port}", num_processes=2,
-                           process_id=pid)
-from lfjax.sweep import load_config, run_sweep
-run = run_sweep(load_config(toml), store, progress=False)
-print("computed", run.computed_chunks, flush=True)
+from jax._src import xla_bridge
+import lfjax
+names = ["lfjax"] + [m.name for m in pkgutil.walk_packages(lfjax.__path__, "lfjax.")]
+for name in names:
+    importlib.import_module(name)
+    assert not xla_bridge.backends_are_initialized(), f"importing {name} started JAX's backend"
+# what the backend check stands for: jax.distributed can still start after these imports
+with socket.socket() as s:
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+jax.distributed.initialize(coordinator_address=f"127.0.0.1:{port}", num_processes=1,
+                           process_id=0)
+assert jax.process_count() == 1
+jax.distributed.shutdown()
+print(len(names), "modules")
 """
+
+
+def test_no_module_starts_a_jax_backend_at_import():
+    """``lfjax sweep --distributed`` imports lfjax before jax.distributed.initialize, which
+    refuses once any JAX backend exists: no module may create a JAX array at import."""
+    proc = subprocess.run([sys.executable, "-c", IMPORT_SCRIPT], env=subprocess_env(),
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert int(proc.stdout.split()[0]) > 30  # every module was imported
 
 
 def _free_port() -> int:
     with socket.socket() as s:
-        s.bind(("localhost", 0))
+        s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
 
 
-def test_two_processes_through_jax_distributed_write_one_store(reference, tmp_path):
+def test_readme_two_process_distributed_command_writes_the_one_process_store(reference,
+                                                                            tmp_path):
+    """The README's multi-host command, as two local processes through the command line
+    (coordinator on 127.0.0.1): the shared store equals the one-process run bit for bit."""
     config, ref_path, _ = reference
     toml = write_toml(tmp_path / "tiny.toml", config)
     store = tmp_path / "two_processes.zarr"
-    port = str(_free_port())
-    procs = [subprocess.Popen([sys.executable, "-c", DISTRIBUTED_SCRIPT, str(pid), port,
-                               str(toml), str(store)], env=subprocess_env(),
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-             for pid in (0, 1)]
-    outputs = [p.communicate(timeout=600) for p in procs]
+    port = _free_port()
+    procs = [subprocess.Popen(
+        [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out", str(store),
+         "--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2",
+         "--process-id", str(pid), "--no-progress"],
+        env=subprocess_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for pid in (0, 1)]
+    try:
+        outputs = [p.communicate(timeout=600) for p in procs]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
     for p, (out, err) in zip(procs, outputs):
         assert p.returncode == 0, err[-3000:]
-    assert "computed [0, 2]" in outputs[0][0] and "computed [1]" in outputs[1][0]
+    # process 0 computes chunks 0 and 2 (4 eyes), process 1 chunk 1 (2 eyes)
+    assert "4 eyes in 2 chunks computed (process 0 of 2)" in outputs[0][0], outputs[0]
+    assert "2 eyes in 1 chunks computed (process 1 of 2)" in outputs[1][0], outputs[1]
     assert_stores_equal(open_store(store), open_store(ref_path))
 
 
@@ -390,3 +537,77 @@ def test_a_real_display_sweeps_as_through_focus_computes_it(tmp_path):
                           cdp_D=config.cdp_D, spectrum=spectrum, sampling=task.sampling,
                           options=config.options)
     assert np.nanmax(np.abs(np.asarray(ideal.vsotf) - np.asarray(tf.vsotf))) > 1e-3
+
+
+def test_a_full_disk_keeps_the_finished_chunks_and_says_how_to_resume(reference, tmp_path,
+                                                                       capsys, monkeypatch):
+    import errno
+
+    from lfjax.cli import main
+    from lfjax.sweep import run as sweep_run
+
+    config, ref_path, _ = reference
+    toml = write_toml(tmp_path / "full.toml", config)
+    store = tmp_path / "full.zarr"
+    real_write = sweep_run.write_chunk
+    calls = []
+
+    def second_write_fails(*args):
+        calls.append(args[1])
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_write(*args)
+
+    monkeypatch.setattr(sweep_run, "write_chunk", second_write_fails)
+    assert main(["sweep", str(toml), "--out", str(store), "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert f"the disk is full: finished chunks are kept in {store}" in err
+    assert "continue with --resume" in err
+    assert completed_chunks(store).tolist() == [True, False, False]
+    assert not lock_path(store).exists()
+    monkeypatch.setattr(sweep_run, "write_chunk", real_write)
+    assert main(["sweep", str(toml), "--out", str(store), "--resume", "--no-progress"]) == 0
+    assert_stores_equal(open_store(store), open_store(ref_path))
+
+
+def test_progress_says_what_it_plans_and_compiles(reference, tmp_path, capsys):
+    from lfjax.sweep.store import unmark_chunks
+
+    config, ref_path, _ = reference
+    store = tmp_path / "progress.zarr"
+    shutil.copytree(ref_path, store)
+    unmark_chunks(store, [2])
+    run = run_sweep(config, store, resume=True, progress=True)
+    assert run.computed_chunks == [2]
+    err = capsys.readouterr().err
+    said = [err.index(s) for s in (
+        "drew 6 eyes; reading the stored sampling of 2 (pupil, layout) pair(s)",
+        "planned in", "compiling 2 chunk function(s) with the first chunk")]
+    assert said == sorted(said), err
+    assert "2/2" in err  # the bar, in eyes
+
+
+def test_a_store_is_created_from_one_chunk_and_equals_the_whole_template(reference,
+                                                                          tmp_path):
+    """Creating a store holds one chunk's template in memory and extends the eye axis on
+    disk: the result reads exactly as a store written from the whole population's template."""
+    from lfjax.sweep.store import create_store, stored_samplings, template
+
+    config, ref_path, _ = reference
+    eyes, is_average = population(config)
+    tasks = build_tasks(config, eyes, sweep_spectrum(config), stored_samplings(ref_path))
+    z = np.asarray(eyes.zernike_um)
+    whole = create_store(tmp_path / "whole.zarr", template(config, tasks, z, is_average),
+                         config.chunk_size)
+    size = config.chunk_size
+    part = create_store(tmp_path / "part.zarr", template(config, tasks, z[:size],
+                                                         is_average[:size]),
+                        config.chunk_size, eyes=(z, is_average))
+    a, b = open_store(whole), open_store(part)
+    assert a.sizes == b.sizes and b.sizes["eye"] == config.n_total_eyes
+    assert_stores_equal(a, b)
+    for name in a.coords:
+        assert np.array_equal(a[name].values, b[name].values), name
+    assert a.vsotf.attrs == b.vsotf.attrs and np.isnan(b.vsotf.values).all()
+    assert not b.continuous_peak_success.values.any()
+    assert (tmp_path / "part.zarr" / ".zmetadata").is_file()

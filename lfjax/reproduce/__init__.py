@@ -38,6 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._files import owned_temp_dir, remove_orphans
+from .._tables import printable
 from .alternatives import ALTERNATIVES, run_alternatives
 from .claims import Claim, dof_D, evaluate_claims
 from .config import LF_LAYOUTS, METRICS, StudyConfig, study_eyes
@@ -73,7 +75,7 @@ def write_display_outputs(study, sweep, folder: Path) -> list[str]:
     return [DISPLAY_TABLE, DISPLAY_SWEEP_TABLE] + save_display_figures(study, sweep, folder)
 
 
-def _display_effects(config: StudyConfig, n_eyes: int, stage):
+def _display_effects(config: StudyConfig, n_eyes: int, stage, note=None):
     """The display-effects study on the average eye and the first ``n_eyes`` study eyes:
     (study Dataset, 2×2 sweep Dataset, report markdown)."""
     from ..display_effects import (
@@ -97,9 +99,10 @@ def _display_effects(config: StudyConfig, n_eyes: int, stage):
         display_config = dataclasses.replace(display_config, wavelength_step_nm=50.0,
                                              sweep_distances_mm=(100.0, 400.0))
     stage("display effects")
-    study = run_display_study(subset, names, display_config, progress=False)
+    # minutes per stage: each scene is named on the stage bar as it starts
+    study = run_display_study(subset, names, display_config, progress=False, on_scene=note)
     stage("display: 2x2 lenslet sweep")
-    sweep = lenslet_sweep(subset, names, display_config, progress=False)
+    sweep = lenslet_sweep(subset, names, display_config, progress=False, on_scene=note)
     return study, sweep, display_effects_markdown(study, sweep)
 """With a population store: how often samples of the run's size reproduce each claim."""
 
@@ -266,7 +269,9 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         state["first"] = False
         bar.set_description(name)
 
-    tmp = Path(tempfile.mkdtemp(prefix=".lfjax-reproduce-", dir=anchor))
+    # named after this process: a killed run's folder is removed by the next run
+    remove_orphans(anchor, ".lfjax-reproduce", "an interrupted lfjax reproduce")
+    tmp = owned_temp_dir(anchor, ".lfjax-reproduce")
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it private; the result is an ordinary folder
@@ -284,7 +289,8 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
                                             population_draws)
         display_parts = None
         if display_effects_eyes is not None:
-            display_parts = _display_effects(config, display_effects_eyes, stage)
+            display_parts = _display_effects(config, display_effects_eyes, stage,
+                                             note=lambda text: bar.set_postfix_str(text))
         stage("tables")
         files = [RESULTS_FILE, EXAMPLES_FILE]
         ds.to_netcdf(tmp / RESULTS_FILE, engine="h5netcdf")
@@ -298,10 +304,11 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         if alternatives:
             tables["alternatives"] = alternatives_table(claims, alternatives)
         for key, table in tables.items():
-            table.to_csv(tmp / TABLES[key], index=False, float_format="%.6g")
+            printable(table).to_csv(tmp / TABLES[key], index=False, float_format="%.6g")
             files.append(TABLES[key])
         if population is not None:
-            population[1].to_csv(tmp / POPULATION_TABLE, index=False, float_format="%.6g")
+            printable(population[1]).to_csv(tmp / POPULATION_TABLE, index=False,
+                                             float_format="%.6g")
             files.append(POPULATION_TABLE)
         stage("figures")
         files += save_figures(ds, examples, tmp, config)

@@ -182,6 +182,11 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
                 f"{'' if converged else ' [some continuous peaks did not converge]'}"
                 f" (0.2 D grid peaks: {_fmt(np.min(grid_e))}…{_fmt(np.max(grid_e))} D, negative "
                 f"at {int(np.sum(grid_e[check] < 0))}/{int(np.sum(check))})")
+        # "for every density": a density the data lack cannot confirm it (n/a), though
+        # one that is present can refute it
+        missing = [name for name in LF_LAYOUTS if name not in lf]
+        if missing:
+            parts.append(f"n/a unless it fails: no {', '.join(missing)} in the data")
         claims.append(Claim(
             "2", "Rendered points (2x2, 3x3, 4x4): VSOTF predicts small accommodation errors, "
                  "negative and about constant across rendered depths, for every viewpoint "
@@ -192,7 +197,7 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
             "forbids negative errors there) (negative); max - min over depths <= 0.2 D "
             "(constant). Continuous peaks remove the 0.2 D grid's ±0.1 D alternation between "
             "half-dioptre depths; the grid peaks are shown for reference.",
-            "; ".join(parts), _all_of(verdicts)))
+            "; ".join(parts), _all_of(verdicts + ([None] if missing else []))))
     else:
         claims.append(Claim("2", "VSOTF errors small/negative/constant.", "needs LF layouts",
                             "not evaluated", None))

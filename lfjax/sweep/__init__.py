@@ -8,7 +8,8 @@ xarray Dataset (:mod:`lfjax.sweep.store`), a chunk of eyes per compiled call
 :func:`sweep_report` draws the distributions and writes percentiles and a summary;
 :func:`ten_eye_claims` asks how often ten random eyes reproduce each of the paper's claims.
 
-Layers (imports go one way): config → compute → store → run → report (with ten_eyes).
+Layers (imports go one way): config → compute → guard, store → run → report (with
+ten_eyes).
 """
 
 from .compute import ChunkEvaluator, Task, build_tasks, population
@@ -19,8 +20,9 @@ from .config import (
     config_to_toml,
     load_config,
 )
+from .guard import SweepEstimate, SweepTooLargeError, estimate
 from .report import sweep_report
-from .run import SweepRun, run_sweep
+from .run import SweepRun, plan_sweep, run_sweep
 from .store import StoreMismatchError, completed_chunks, open_store, study_view
 from .ten_eyes import ten_eye_claims, ten_eye_markdown
 
@@ -29,14 +31,18 @@ __all__ = [
     "StoreMismatchError",
     "SweepConfig",
     "SweepConfigError",
+    "SweepEstimate",
+    "SweepTooLargeError",
     "SweepRun",
     "Task",
     "build_tasks",
     "completed_chunks",
     "config_from_dict",
     "config_to_toml",
+    "estimate",
     "load_config",
     "open_store",
+    "plan_sweep",
     "population",
     "run_sweep",
     "study_view",

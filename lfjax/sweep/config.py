@@ -31,6 +31,16 @@ from ..peaks import METRICS, PEAK_METHODS
 
 CONFIG_FORMAT = "lfjax-sweep/1"
 
+MIN_PUPIL_MM = 2.0
+"""Smallest calculation pupil a sweep accepts, mm: the human pupil constricts to about 2 mm
+in bright light; below it every eye is nearly diffraction-limited and the through-focus
+curves lose the peak that predicts accommodation."""
+MIN_WAVELENGTH_STEP_NM = 1.0
+"""Finest wavelength step, nm: the CIE 2008 luminous-efficiency data are tabulated at 1 nm."""
+MAX_ACCOMMODATION_STATES = 10_000
+"""Most accommodation states on the grid (0.0005 D steps over 5 D); the store holds every
+state for every eye, and continuous peaks refine off the grid."""
+
 
 class SweepConfigError(ValueError):
     """A sweep configuration with one or more problems (``problems``: one string each)."""
@@ -398,8 +408,10 @@ def _range_problems(v: dict, base_dir: Path) -> list[str]:
     pupils = v["pupil_diameters_mm"]
     if not pupils:
         p.append("population.pupil_diameters_mm must list at least one pupil (mm)")
-    elif any(d <= 0 for d in pupils):
-        p.append(f"population.pupil_diameters_mm must be > 0 mm, got {list(pupils)}")
+    elif any(d < MIN_PUPIL_MM - 1e-9 for d in pupils):
+        p.append(f"population.pupil_diameters_mm must be >= {MIN_PUPIL_MM:g} mm (the human "
+                 f"pupil's range; the eye model and its Thibos statistics are for "
+                 f"{MIN_PUPIL_MM:g}-{max(THIBOS_PUPILS_MM):g} mm), got {list(pupils)}")
     elif len(set(pupils)) != len(pupils):
         p.append(f"population.pupil_diameters_mm has repeated values: {list(pupils)}")
     measured = v["measured_pupil_mm"]
@@ -451,6 +463,14 @@ def _range_problems(v: dict, base_dir: Path) -> list[str]:
                      "(natural view is evaluated at the CDP)")
     if v["accommodation_step_D"] <= 0:
         p.append(f"accommodation.step_D must be > 0 D, got {v['accommodation_step_D']}")
+    elif (v["accommodation_max_D"] > 0
+          and v["accommodation_max_D"] / v["accommodation_step_D"] > MAX_ACCOMMODATION_STATES):
+        p.append(f"accommodation.step_D = {v['accommodation_step_D']:g} D makes "
+                 f"{v['accommodation_max_D'] / v['accommodation_step_D']:.3g} states on "
+                 f"0 ... max_D = {v['accommodation_max_D']:g} D: at most "
+                 f"{MAX_ACCOMMODATION_STATES} (step >= "
+                 f"{v['accommodation_max_D'] / MAX_ACCOMMODATION_STATES:.2g} D); continuous peaks "
+                 f"(metrics.continuous_peaks) refine off the grid")
     if v["accommodation_max_D"] <= 0:
         p.append(f"accommodation.max_D must be > 0 D, got {v['accommodation_max_D']}")
     if v["window_D"] <= 0:
@@ -469,6 +489,11 @@ def _range_problems(v: dict, base_dir: Path) -> list[str]:
         start, stop, step = wl
         if not (step > 0 and stop >= start):
             p.append(f"spectrum.wavelengths_nm: need step > 0 and stop >= start, got {list(wl)}")
+        elif step < MIN_WAVELENGTH_STEP_NM - 1e-12:
+            p.append(f"spectrum.wavelengths_nm step must be >= {MIN_WAVELENGTH_STEP_NM:g} nm "
+                     f"(the tabulation interval of the luminous-efficiency data; a finer step "
+                     f"only interpolates), got {step:g} nm ({(stop - start) / step + 1:.3g} "
+                     f"wavelengths)")
         sce_on = v["options"].sce != "off"
         lo, hi = (400.0, 700.0) if sce_on else (390.0, 830.0)
         if start < lo - 1e-9 or stop > hi + 1e-9:
@@ -515,12 +540,22 @@ def _range_problems(v: dict, base_dir: Path) -> list[str]:
 def load_config(path) -> SweepConfig:
     """Read and validate a sweep TOML file (relative layout paths are relative to it)."""
     path = Path(path)
+    if path.is_dir():
+        raise SweepConfigError([f"{str(path)!r} is a folder, not a TOML config file (lfjax "
+                                f"sweep --template CONFIG.toml writes one)"], str(path))
     try:
         data = tomllib.loads(path.read_text())
     except FileNotFoundError:
         raise SweepConfigError([f"config file {str(path)!r} does not exist"], str(path)) from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise SweepConfigError([f"cannot read the config file: {err}"], str(path)) from None
     except tomllib.TOMLDecodeError as err:
         raise SweepConfigError([f"not valid TOML: {err}"], str(path)) from None
+    if not data:
+        # an empty file would otherwise start the default sweep (1,000 eyes, hours)
+        raise SweepConfigError(["the config file sets nothing: write at least one section "
+                                "(lfjax sweep --template CONFIG.toml writes every key with "
+                                "its default)"], str(path))
     return config_from_dict(data, base_dir=path.parent, source=str(path))
 
 
@@ -534,6 +569,64 @@ def config_to_toml(config: SweepConfig) -> str:
             lines.append(f"{key} = {_toml_value(value)}")
         lines.append("")
     return "\n".join(lines)
+
+
+_KEY_HELP = {
+    "n_eyes": "virtual eyes, Thibos et al. (2002), sample_eyes(seed, n)",
+    "seed": "seed of the draw, 0 <= seed < 2**32",
+    "measured_pupil_mm": "Thibos fit (3, 4.5, 6 or 7.5 mm); default: the smallest holding "
+                         "the largest pupil",
+    "pupil_diameters_mm": f"calculation pupils, mm ({MIN_PUPIL_MM:g} mm up to the measured pupil)",
+    "average_eye": "append the Thibos average eye (claims 4 and 5 need it)",
+    "layouts": "paper layouts (natural, 2x2, 3x3, 4x4) or layout JSON files",
+    "cdp_D": "central depth plane, D",
+    "depth_offsets_D": "rendered depths relative to the CDP, D",
+    "lenslet_distance_mm": "lenslet diffraction of an array this far from the eye, mm",
+    "pixel_width_arcmin": "emitters' angular width, arcmin (0: points)",
+    "step_D": "absolute accommodation grid 0 ... max_D, step in D",
+    "max_D": "last state of the grid, D",
+    "window_D": "each depth is evaluated within +-window_D of it, D",
+    "wavelengths_nm": f"start, stop, step in nm (step >= {MIN_WAVELENGTH_STEP_NM:g} nm)",
+    "display": "a display's white (crt, lcd, oled, laser) instead of V(lambda) white",
+    "freq_step_cpd": "OTF frequency step, cpd, or \"planned\" (once, on the whole population)",
+    "vsotf_tolerance": "plan for this VSOTF accuracy (the planner's proxy)",
+    "continuous_peaks": "metrics refined off the grid (lfjax.peaks)",
+    "peak_method": f"refinement: {', '.join(PEAK_METHODS)}",
+    "cutoff_threshold": "MTF value defining the cut-off frequency",
+    "dof_fraction": "depth of field fraction (claim 6)",
+    "chunk_size": "eyes per compiled call; memory grows with it",
+}
+_EXAMPLES = {"measured_pupil_mm": 6.0, "lenslet_distance_mm": 300.0, "display": "oled",
+             "vsotf_tolerance": 1e-3}
+
+
+def config_template() -> str:
+    """A commented TOML config with every key at its default (keys whose default is "not
+    set" are commented out with an example value); :func:`load_config` reads it as
+    ``SweepConfig()``. ``lfjax sweep --template CONFIG.toml`` writes it."""
+    default = SweepConfig()
+    lines = [f"# lfjax sweep configuration ({CONFIG_FORMAT}): every key with its default.",
+             "# Units are in the key names: _D dioptres, _mm millimetres, _nm nanometres,",
+             "# _cpd cycles per degree. Run: lfjax sweep THIS.toml --dry-run", ""]
+    for section, keys in _SCHEMA.items():
+        lines.append(f"[{section}]")
+        for key, (name, kind) in keys.items():
+            value = getattr(default, name)
+            if kind == "float_or_planned" and value is None:
+                text, prefix = '"planned"', ""
+            elif value is None:
+                text, prefix = _toml_value(_EXAMPLES[key]), "# "
+            else:
+                text, prefix = _toml_value(value), ""
+            lines.append(f"{prefix}{key} = {text}  # {_KEY_HELP[key]}")
+        lines.append("")
+    lines.append("[model]  # lfjax.ModelOptions fields")
+    for key, value in ModelOptions().as_dict().items():
+        if value is not None:
+            lines.append(f"{key} = {_toml_value(value)}")
+        else:
+            lines.append(f"# {key} = (not set)")
+    return "\n".join(lines) + "\n"
 
 
 def _toml_value(value) -> str:
@@ -564,6 +657,7 @@ __all__ = [
     "SweepConfigError",
     "config_from_dict",
     "config_differences",
+    "config_template",
     "config_to_toml",
     "load_config",
 ]

@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._tables import printable
+
 PERCENTILES = (5, 25, 50, 75, 95)
 """Percentiles (%) reported over the eyes of each cell."""
 
@@ -250,7 +252,7 @@ def fig_layouts(layouts: dict, pupils_mm) -> object:
 
     labels = list(dict.fromkeys(label for _, label in layouts))
     pupils = list(pupils_mm)
-    fig = Figure(figsize=(2.9 * len(labels), 3.0 * len(pupils)), layout="constrained")
+    fig = Figure(figsize=(2.9 * len(labels), 3.0 * len(pupils)), layout="compressed")
     FigureCanvasAgg(fig)
     for r, pupil in enumerate(pupils):
         for c, label in enumerate(labels):
@@ -458,7 +460,7 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
                    for label, entry in zip(ds.layout.values, ds.layout_entry.values)}
 
     table = percentile_table(ds)
-    table.to_csv(files["percentiles"], index=False, float_format="%.6g")
+    printable(table).to_csv(files["percentiles"], index=False, float_format="%.6g")
     figures = {
         "accommodation_error": fig_accommodation_error(table),
         "cutoff_frequency": fig_cutoff_frequency(table, float(config.cutoff_threshold)),
@@ -482,7 +484,8 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
             tables.append(ten_eye_table(result))
         ten["markdown"] = "\n".join(parts)
         files["ten_eyes_md"].write_text("# What ten eyes cannot tell\n\n" + ten["markdown"])
-        pd.concat(tables).to_csv(files["ten_eyes_csv"], index=False, float_format="%.6g")
+        printable(pd.concat(tables)).to_csv(files["ten_eyes_csv"], index=False,
+                                            float_format="%.6g")
     else:
         files.pop("ten_eyes_md")
         files.pop("ten_eyes_csv")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import resource
+import shutil
 import signal
 import sys
 import time
@@ -21,13 +22,19 @@ import numpy as np
 
 from .compute import ChunkEvaluator, build_tasks, population, sweep_spectrum
 from .config import SweepConfig
+from .guard import check_fits, estimate
 from .store import (
+    StoreLock,
+    _now,
     check_store_matches,
     chunk_dataset,
     completed_chunks,
     create_store,
+    record_run,
     stored_samplings,
     template,
+    unmark_chunks,
+    verify_store,
     write_chunk,
 )
 
@@ -41,6 +48,8 @@ class SweepRun:
     store : path of the Zarr store
     computed_chunks : chunk indices this process computed (in order)
     skipped_chunks : chunk indices already complete when it started (resume)
+    recomputed_chunks : {chunk: why} complete chunks whose data failed verification on
+        resume (missing or corrupt), computed again
     eyes_computed : eyes in the computed chunks (the average eye counts as one)
     seconds : wall time of the chunk loop (excludes planning and store creation), s
     setup_seconds : drawing the eyes, planning the sampling and creating the store, s
@@ -53,6 +62,7 @@ class SweepRun:
     store: Path
     computed_chunks: list[int] = field(default_factory=list)
     skipped_chunks: list[int] = field(default_factory=list)
+    recomputed_chunks: dict = field(default_factory=dict)
     eyes_computed: int = 0
     seconds: float = 0.0
     setup_seconds: float = 0.0
@@ -88,6 +98,44 @@ def peak_rss_mb() -> float:
     return peak / 1024.0 if sys.platform != "darwin" else peak / 2**20
 
 
+def _say(text: str) -> None:
+    print(f"lfjax sweep: {text}", file=sys.stderr, flush=True)
+
+
+def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | None = None,
+               progress: bool = False):
+    """Everything a sweep decides before it creates anything: the population, the spectrum,
+    each (pupil, layout)'s task (sampling planned on the whole population) and the
+    :class:`~lfjax.sweep.guard.SweepEstimate`; refuses (:class:`SweepTooLargeError`, with
+    the numbers) a sweep that cannot fit — the store on ``store``'s disk, the memory on this
+    host and its devices. Writes nothing.
+
+    ``progress``: say on stderr what is being drawn and planned, and how long it took.
+
+    Returns ``(eyes, is_average, spectrum, tasks, estimate)``.
+    """
+    import jax
+
+    n_devices = len(jax.local_devices() if devices is None else devices)
+    # sizes known from the config alone first: planning an impossible grid would itself
+    # take the memory or time the check is there to spare
+    check_fits(estimate(config, n_devices=n_devices), store=store)
+    t0 = time.perf_counter()
+    eyes, is_average = population(config)
+    spectrum = sweep_spectrum(config)
+    n_tasks = len(config.pupil_diameters_mm) * len(config.layouts)
+    if progress:
+        _say(f"drew {config.n_total_eyes} eyes; "
+             + ("reading the stored sampling of" if samplings else "planning the sampling of")
+             + f" {n_tasks} (pupil, layout) pair(s) on them ...")
+    tasks = build_tasks(config, eyes, spectrum, samplings)
+    if progress:
+        _say(f"planned in {time.perf_counter() - t0:.1f} s")
+    est = estimate(config, tasks, n_devices=n_devices)
+    check_fits(est, store=store)
+    return eyes, is_average, spectrum, tasks, est
+
+
 def run_sweep(
     config: SweepConfig,
     store,
@@ -95,6 +143,7 @@ def run_sweep(
     progress: bool = True,
     devices=None,
     max_chunks: int | None = None,
+    on_plan=None,
 ) -> SweepRun:
     """Compute a population sweep into a Zarr store (see :mod:`lfjax.sweep`).
 
@@ -107,12 +156,19 @@ def run_sweep(
     progress : show a progress bar (eyes, eyes/s, ETA) on stderr
     devices : local devices to shard the eye axis over (default: all local devices)
     max_chunks : stop after computing this many chunks (the rest stays for ``resume``)
+    on_plan : called with the :class:`~lfjax.sweep.guard.SweepEstimate` once the sweep is
+        planned and checked, before the store is created (the command line prints it)
+
+    Sizes are checked before anything is created (:func:`plan_sweep`): a sweep that cannot
+    fit raises :class:`~lfjax.sweep.guard.SweepTooLargeError` and leaves no store. A store
+    this call created is removed again if the run fails before any chunk is finished.
 
     In a multi-process run (``jax.distributed.initialize`` called first), process 0 creates
     the store and each process computes the chunks ``i`` with ``i % process_count ==
     process_index``, writing them into the shared store.
     """
     t0 = time.perf_counter()
+    started = _now()
     store = Path(store)
     pid, nproc = _process()
     exists = store.exists()
@@ -120,29 +176,85 @@ def run_sweep(
         raise FileExistsError(
             f"{store} already exists: pass --resume (resume=True) to complete it, or choose "
             f"another --out")
+    lock = None
     if exists:
         check_store_matches(store, config)
-    eyes, is_average = population(config)
-    spectrum = sweep_spectrum(config)
-    samplings = stored_samplings(store) if exists else None
-    tasks = build_tasks(config, eyes, spectrum, samplings)
-    if not exists and pid == 0:
-        create_store(store, template(config, tasks, np.asarray(eyes.zernike_um), is_average),
-                     config.chunk_size)
+        if pid == 0:  # one writer per store (the processes of one run share it)
+            lock = _take_lock(store)
+    try:
+        samplings = stored_samplings(store) if exists else None
+        eyes, is_average, spectrum, tasks, est = plan_sweep(
+            config, None if exists else store, devices, samplings, progress=progress and pid == 0)
+        if on_plan is not None and pid == 0:
+            on_plan(est)
+        created = False
+        if not exists and pid == 0:
+            zernike = np.asarray(eyes.zernike_um)
+            first = min(int(config.chunk_size), zernike.shape[0])  # memory of one chunk
+            create_store(store, template(config, tasks, zernike[:first], is_average[:first]),
+                         config.chunk_size, eyes=(zernike, is_average))
+            created = True
+            lock = _take_lock(store)
+        try:
+            run = _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks,
+                              progress, pid, nproc, exists, t0)
+        except BaseException as err:
+            # a failed start (the first chunk out of memory, an interrupt during compilation)
+            # must not leave a store that blocks the next run: remove it if nothing finished
+            if created and nproc == 1 and store.exists() and not completed_chunks(store).any():
+                lock.release()
+                lock = None
+                shutil.rmtree(store, ignore_errors=True)
+                err.add_note(f"{store} was removed: no chunk had finished")
+            raise
+        if pid == 0:
+            record_run(store, started, run.computed_chunks)
+        return run
+    finally:
+        if lock is not None:
+            lock.release()
+
+
+def _take_lock(store: Path) -> StoreLock:
+    lock = StoreLock(store).acquire()
+    if lock.recovered is not None:
+        held = lock.recovered
+        print(f"lfjax sweep: {store}: took over a stale lock (host {held.get('host')}, PID "
+              f"{held.get('pid')} since {held.get('started_utc')}: that process is gone)",
+              file=sys.stderr)
+    return lock
+
+
+def _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progress, pid, nproc,
+                exists, t0) -> SweepRun:
     _barrier("lfjax-sweep-store-created")
     if not exists and pid != 0:
         check_store_matches(store, config)
     evaluator = ChunkEvaluator(config, eyes.measured_pupil_mm, spectrum, devices)
     done = completed_chunks(store)
     mine = [i for i in range(config.n_chunks) if i % nproc == pid]
+    recomputed = {}
+    if exists:
+        # a resumed store's finished chunks are read back and checked against their
+        # checksums: a deleted or damaged chunk file is computed again, not trusted
+        recomputed = verify_store(store, [i for i in mine if done[i]]).corrupt
+        if recomputed:
+            unmark_chunks(store, recomputed)
+            done = completed_chunks(store)
+            print(f"lfjax sweep: {store}: recomputing {len(recomputed)} chunk(s) whose data "
+                  f"failed verification: {sorted(recomputed)}", file=sys.stderr)
     todo = [i for i in mine if not done[i]]
     if max_chunks is not None:
         todo = todo[: int(max_chunks)]
     run = SweepRun(store, skipped_chunks=[i for i in mine if done[i]], process_index=pid,
-                   process_count=nproc, setup_seconds=time.perf_counter() - t0)
+                   process_count=nproc, setup_seconds=time.perf_counter() - t0,
+                   recomputed_chunks=recomputed)
     zernike = np.asarray(eyes.zernike_um)
     size = int(config.chunk_size)
     bar = None
+    if progress and todo:
+        _say(f"compiling {len(tasks)} chunk function(s) with the first chunk (or loading them "
+             f"from the compilation cache) ...")
     if progress:
         from tqdm.auto import tqdm
 
@@ -160,10 +272,12 @@ def run_sweep(
             run.chunk_seconds.append(time.perf_counter() - tc)
             run.computed_chunks.append(i)
             run.eyes_computed += stop - start
-            # test hook: die as a SIGKILLed sweep would, right after chunk i is marked
-            # complete, so the resume test kills at a known point instead of racing a poll
+            # test hook: signal this process (SIGKILL unless LFJAX_TEST_ABORT_SIGNAL names
+            # another, e.g. TERM) right after chunk i is marked complete, so the interruption
+            # tests stop the sweep at a known point instead of racing a poll
             if os.environ.get("LFJAX_TEST_ABORT_AFTER_CHUNK") == str(i):
-                os.kill(os.getpid(), signal.SIGKILL)
+                name = os.environ.get("LFJAX_TEST_ABORT_SIGNAL", "KILL")
+                os.kill(os.getpid(), getattr(signal, f"SIG{name}"))
             if bar is not None:
                 bar.update(stop - start)
     finally:
@@ -177,4 +291,4 @@ def run_sweep(
     return run
 
 
-__all__ = ["SweepRun", "run_sweep", "peak_rss_mb"]
+__all__ = ["SweepRun", "plan_sweep", "run_sweep", "peak_rss_mb"]

@@ -5,8 +5,11 @@ Zarr chunks take no space), in a temporary folder renamed into place, so a store
 exists with its full metadata or not at all. Each chunk of eyes is then written into its
 own region of the ``eye`` axis — the Zarr chunking along ``eye`` equals the compute chunk,
 so no two writers (processes) ever touch the same file — and only after its data is written
-is the chunk marked in ``chunk_complete``. A chunk interrupted half-way is therefore
-unmarked and recomputed on resume, and a finished one is never recomputed.
+is the chunk marked in ``chunk_complete``, with the checksum of what was written in
+``chunk_checksum``. A chunk interrupted half-way is therefore unmarked and recomputed on
+resume; a finished one is recomputed only when its data no longer match its checksum
+(:func:`verify_store`). One writer at a time holds :class:`StoreLock` (``STORE.lock``).
+The metadata are consolidated, and the attributes record the provenance.
 
 Dataset (dims ``eye, pupil, layout, depth, accommodation, metric, frequency, zernike_j,
 chunk``), see :func:`template` for every variable's units. :func:`study_view` presents one
@@ -17,14 +20,19 @@ pupil of a store as the reproduction's study Dataset, so the paper's claims
 from __future__ import annotations
 
 import dataclasses
+import datetime
+import errno
+import hashlib
 import json
 import os
 import shutil
-import uuid
+import socket
+import subprocess
 from pathlib import Path
 
 import numpy as np
 
+from .._files import owned_temp_dir, pid_alive, remove_orphans
 from ..peaks import METRICS
 from .compute import FREQUENCIES_CPD, Task, layout_name, sweep_spectrum
 from .config import SweepConfig, config_differences, config_to_toml
@@ -58,11 +66,14 @@ def _stored_record(config: SweepConfig) -> dict:
 
 
 def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> "xr.Dataset":  # noqa: F821
-    """The whole store as an xarray Dataset before any chunk is computed."""
+    """The store as an xarray Dataset before any chunk is computed, for the eyes given
+    (``zernike_um`` (n, n_modes) µm, ``is_average`` (n,)): all of them, or the first chunk's
+    when :func:`create_store` extends the eye axis to the population (``eyes``), so that
+    creating a store takes memory of one chunk, not of the whole population."""
     import jax
     import xarray as xr
 
-    n_eye = config.n_total_eyes
+    n_eye = int(np.shape(zernike_um)[0])
     n_pupil, n_layout = len(config.pupil_diameters_mm), len(config.layouts)
     depths = config.depths_D
     acc = config.accommodation_D
@@ -107,6 +118,7 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
                                "spectrum": config.display_spectrum or "V(lambda) white"}),
         "n_chunks": int(config.n_chunks),
         "chunk_size": int(config.chunk_size),
+        "provenance_json": json.dumps(provenance(), sort_keys=True),
     }
     metric_note = "metric axis: vsotf, strehl"
     ds = xr.Dataset(
@@ -150,6 +162,9 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
             n_fft=(("pupil", "layout"), n_fft, {"long_name": "FFT size of the OTF grid"}),
             chunk_complete=(("chunk",), np.zeros(config.n_chunks, bool), {
                 "long_name": "the chunk's eyes are written (eyes chunk*chunk_size …)"}),
+            chunk_checksum=(("chunk",), np.zeros(config.n_chunks, np.uint64), {
+                "long_name": "BLAKE2b-64 of the chunk's eye variables as written "
+                             "(lfjax.sweep.store.chunk_checksum; 0: not written)"}),
         ),
         coords=dict(
             eye=("eye", np.arange(n_eye)),
@@ -177,6 +192,59 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
     return ds
 
 
+def _now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+def _git_commit() -> str | None:
+    """The commit of the lfjax source tree, when it is a git checkout (else None)."""
+    here = Path(__file__).resolve().parents[2]
+    if not (here / ".git").exists():
+        return None
+    try:
+        out = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
+                             text=True, timeout=5)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return (out.stdout.strip() or None) if out.returncode == 0 else None
+
+
+def provenance() -> dict:
+    """Who made a store: lfjax version and git commit, JAX version and devices, host, time."""
+    import jax
+
+    import lfjax
+
+    devices = jax.devices()
+    return {
+        "lfjax_version": lfjax.__version__,
+        "lfjax_git_commit": _git_commit(),
+        "jax_version": jax.__version__,
+        "jax_backend": jax.default_backend(),
+        "jax_devices": f"{len(devices)} x {devices[0].device_kind}",
+        "process_count": jax.process_count(),
+        "host": socket.gethostname(),
+        "created_utc": _now(),
+    }
+
+
+def record_run(path, started_utc: str, computed: list[int]) -> None:
+    """Append this run (host, PID, start and end, chunks computed) to the store's
+    ``runs_json`` attribute, mark ``completed_utc`` once every chunk is written, and
+    re-consolidate the metadata. Process 0 only (attributes are one file)."""
+    import zarr
+
+    group = zarr.open_group(str(path), mode="r+", zarr_format=ZARR_FORMAT)
+    runs = json.loads(group.attrs.get("runs_json", "[]"))
+    runs.append({"host": socket.gethostname(), "pid": os.getpid(), "started_utc": started_utc,
+                 "ended_utc": _now(), "chunks_computed": len(computed)})
+    update = {"runs_json": json.dumps(runs)}
+    if np.asarray(group["chunk_complete"][:], bool).all():
+        update["completed_utc"] = runs[-1]["ended_utc"]
+    group.attrs.update(update)
+    zarr.consolidate_metadata(str(path), zarr_format=ZARR_FORMAT)
+
+
 def stored_samplings(path) -> dict:
     """{(pupil_index, layout_index): Sampling} recorded in a store."""
     from ..sampling import Sampling
@@ -189,32 +257,137 @@ def stored_samplings(path) -> dict:
     return out
 
 
-def _encoding(ds, chunk_size: int) -> dict:
+def _encoding(ds, chunk_size: int, n_eye: int | None = None) -> dict:
     enc = {}
+    if n_eye is not None:  # the eye coordinates in one chunk, after create_store resizes them
+        enc["eye"] = {"chunks": (int(n_eye),)}
+        enc["is_average"] = {"chunks": (int(n_eye),)}
     for name, var in ds.data_vars.items():
         if "eye" in var.dims:
             enc[name] = {"chunks": tuple(chunk_size if d == "eye" else n
                                          for d, n in zip(var.dims, var.shape))}
-        elif name == "chunk_complete":
+        elif name in ("chunk_complete", "chunk_checksum"):
             enc[name] = {"chunks": (1,)}
     return enc
 
 
-def create_store(path, ds, chunk_size: int) -> Path:
-    """Write the template ``ds`` at ``path`` atomically (temporary folder, then rename)."""
+def create_store(path, ds, chunk_size: int, eyes=None) -> Path:
+    """Write the template ``ds`` at ``path`` atomically (temporary folder, then rename).
+
+    ``eyes`` = (zernike_um (n, n_modes), is_average (n,)) of the whole population when
+    ``ds`` holds only its first eyes: the eye axis of every array is then extended to n
+    (unwritten chunks read as the fill value, NaN) and the eyes' coefficients written, so
+    the population's result arrays are never held in memory.
+    """
+    import zarr
+
     path = Path(path)
     if path.exists():
         raise FileExistsError(f"{path} already exists")
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.creating-{uuid.uuid4().hex[:8]}")
+    clean_interrupted_creations(path)
+    tmp = owned_temp_dir(path.parent, f".{path.name}.creating")
+    tmp.rmdir()  # to_zarr(mode="w-") creates it
+    n_eye = None if eyes is None else int(np.shape(eyes[0])[0])
     try:
-        ds.to_zarr(tmp, mode="w-", encoding=_encoding(ds, chunk_size), zarr_format=ZARR_FORMAT,
-                   consolidated=False)
+        ds.to_zarr(tmp, mode="w-", encoding=_encoding(ds, chunk_size, n_eye),
+                   zarr_format=ZARR_FORMAT, consolidated=n_eye is None)
+        if n_eye is not None and n_eye != ds.sizes["eye"]:
+            group = zarr.open_group(str(tmp), mode="r+", zarr_format=ZARR_FORMAT)
+            for name in list(ds.variables):
+                dims = ds[name].dims
+                if "eye" in dims:
+                    array = group[name]
+                    array.resize(tuple(n_eye if d == "eye" else n
+                                       for d, n in zip(dims, array.shape)))
+            group["eye"][:] = np.arange(n_eye)
+            group["is_average"][:] = np.asarray(eyes[1], bool)
+            group["zernike_um"][:] = np.asarray(eyes[0], float)
+        if n_eye is not None:
+            zarr.consolidate_metadata(str(tmp), zarr_format=ZARR_FORMAT)
         os.replace(tmp, path)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
     return path
+
+
+def clean_interrupted_creations(path) -> list[Path]:
+    """Remove the hidden folders (``.NAME.creating-HOST-PID-…``) that a store creation on
+    this host left when it was killed (its process is gone); returns them."""
+    path = Path(path)
+    return remove_orphans(path.parent, f".{path.name}.creating",
+                          "an interrupted store creation")
+
+
+# --------------------------------------------------------------------------- lock
+
+LOCK_SUFFIX = ".lock"
+
+
+def lock_path(path) -> Path:
+    """The lock file of the store at ``path``: ``STORE.lock`` beside it."""
+    path = Path(path)
+    return path.with_name(path.name + LOCK_SUFFIX)
+
+
+class StoreLockedError(RuntimeError):
+    """Another live process is writing the store (``holder``: its host, PID, start)."""
+
+    def __init__(self, path, holder: dict):
+        self.holder = holder
+        super().__init__(
+            f"{path} is being written by another process: host {holder.get('host')}, PID "
+            f"{holder.get('pid')}, since {holder.get('started_utc')}. Wait for it to finish; if "
+            f"that process is gone (another host cannot be checked from here), delete "
+            f"{lock_path(path)} and resume.")
+
+
+class StoreLock:
+    """An exclusive writer's lock on a store: the file ``STORE.lock`` beside it (inside, Zarr
+    would list it as a stray node) holding the host, PID and start time of its holder,
+    created atomically (O_EXCL). A lock whose holder ran on this host and is no longer alive
+    is stale: it is taken over (``recovered`` names it). Use as a context manager."""
+
+    def __init__(self, path):
+        self.file = lock_path(path)
+        self.path = Path(path)
+        self.recovered: dict | None = None
+        self.record = {"host": socket.gethostname(), "pid": os.getpid(), "started_utc": _now()}
+
+    def acquire(self) -> StoreLock:
+        for _ in range(2):
+            try:
+                fd = os.open(self.file, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                holder = self._holder()
+                if (holder.get("host") == self.record["host"]
+                        and isinstance(holder.get("pid"), int)
+                        and not pid_alive(holder["pid"])):
+                    self.recovered = holder  # stale: its process died (SIGKILL, power)
+                    self.file.unlink(missing_ok=True)
+                    continue
+                raise StoreLockedError(self.path, holder) from None
+            with os.fdopen(fd, "w") as f:
+                json.dump(self.record, f)
+            return self
+        raise StoreLockedError(self.path, self._holder())
+
+    def _holder(self) -> dict:
+        try:
+            return json.loads(self.file.read_text())
+        except (OSError, ValueError):
+            return {"host": "?", "pid": "?", "started_utc": "? (unreadable lock file)"}
+
+    def release(self) -> None:
+        if self._holder().get("pid") == self.record["pid"]:
+            self.file.unlink(missing_ok=True)
+
+    def __enter__(self) -> StoreLock:
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()
 
 
 def _open_group(path):
@@ -300,15 +473,110 @@ def chunk_dataset(config: SweepConfig, tasks: list[Task], results: dict, start: 
                        for name, a in arrays.items()})
 
 
+def chunk_checksum(part) -> int:
+    """BLAKE2b-64 of a chunk's eye variables (name, dtype, shape and values; every NaN
+    counted alike), as an unsigned 64-bit integer; never 0."""
+    h = hashlib.blake2b(digest_size=8)
+    for name in sorted(_EYE_VARIABLES):
+        a = np.asarray(part[name].values)
+        if a.dtype.kind == "f":
+            a = np.where(np.isnan(a), np.nan, a).astype(a.dtype)
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(np.ascontiguousarray(a).tobytes())
+    return int.from_bytes(h.digest(), "little") or 1
+
+
 def write_chunk(path, chunk_index: int, part, start: int, stop: int) -> None:
-    """Write one chunk's variables into its region, then mark the chunk complete."""
+    """Write one chunk's variables into its region, then mark the chunk complete with the
+    checksum of what was written."""
     import xarray as xr
 
     part.to_zarr(str(path), region={"eye": slice(start, stop)}, mode="r+", consolidated=False,
                  zarr_format=ZARR_FORMAT)
-    xr.Dataset({"chunk_complete": (("chunk",), np.ones(1, bool))}).to_zarr(
-        str(path), region={"chunk": slice(chunk_index, chunk_index + 1)}, mode="r+",
-        consolidated=False, zarr_format=ZARR_FORMAT)
+    xr.Dataset({"chunk_complete": (("chunk",), np.ones(1, bool)),
+                "chunk_checksum": (("chunk",), np.array([chunk_checksum(part)], np.uint64))}
+               ).to_zarr(str(path), region={"chunk": slice(chunk_index, chunk_index + 1)},
+                         mode="r+", consolidated=False, zarr_format=ZARR_FORMAT)
+
+
+def unmark_chunks(path, chunks) -> None:
+    """Mark ``chunks`` not complete (their data are to be recomputed)."""
+    import zarr
+
+    group = zarr.open_group(str(path), mode="r+", zarr_format=ZARR_FORMAT)
+    for i in chunks:
+        group["chunk_complete"][int(i)] = False
+        if "chunk_checksum" in group:
+            group["chunk_checksum"][int(i)] = 0
+
+
+@dataclasses.dataclass
+class Verification:
+    """What :func:`verify_store` found, chunk indices in each list.
+
+    ok : complete and their data match the checksum
+    corrupt : complete but their data are missing, unreadable or do not match ({i: why})
+    unchecked : complete, written without a checksum (a store from before checksums)
+    incomplete : not yet computed
+    """
+
+    ok: list[int]
+    corrupt: dict[int, str]
+    unchecked: list[int]
+    incomplete: list[int]
+
+    @property
+    def healthy(self) -> bool:
+        return not self.corrupt
+
+    def summary(self) -> str:
+        n = len(self.ok) + len(self.corrupt) + len(self.unchecked) + len(self.incomplete)
+        lines = [f"{len(self.ok)} of {n} chunks verified, {len(self.corrupt)} corrupt, "
+                 f"{len(self.incomplete)} not computed"
+                 + (f", {len(self.unchecked)} without checksum" if self.unchecked else "")]
+        lines += [f"  chunk {i}: {why}" for i, why in sorted(self.corrupt.items())]
+        if self.corrupt:
+            lines.append("  (lfjax sweep CONFIG --out STORE --resume recomputes them)")
+        return "\n".join(lines)
+
+
+def verify_store(path, chunks=None) -> Verification:
+    """Read every complete chunk (or those in ``chunks``) back from the store and compare it
+    with the checksum written with it. A deleted chunk file reads as fill values (NaN) and a
+    truncated one fails to decode: both are reported corrupt, naming the reason."""
+    import xarray as xr
+    import zarr
+
+    path = Path(path)
+    if not is_store(path):
+        raise ValueError(f"{path} is not an lfjax sweep store")
+    group = zarr.open_group(str(path), mode="r", zarr_format=ZARR_FORMAT)
+    done = np.asarray(group["chunk_complete"][:], bool)
+    sums = (np.asarray(group["chunk_checksum"][:], np.uint64) if "chunk_checksum" in group
+            else np.zeros(done.size, np.uint64))
+    size = int(group.attrs["chunk_size"])
+    ds = xr.open_zarr(str(path), consolidated=False, zarr_format=ZARR_FORMAT)
+    n_eye = ds.sizes["eye"]
+    result = Verification([], {}, [], [])
+    for i in range(done.size) if chunks is None else chunks:
+        if not done[i]:
+            result.incomplete.append(i)
+            continue
+        if not sums[i]:
+            result.unchecked.append(i)
+            continue
+        start, stop = i * size, min((i + 1) * size, n_eye)
+        try:
+            part = ds[list(_EYE_VARIABLES)].isel(eye=slice(start, stop)).load()
+        except Exception as err:  # noqa: BLE001 - any decode failure means corrupt data
+            result.corrupt[i] = f"unreadable ({type(err).__name__}: {' '.join(str(err).split())[:120]})"
+            continue
+        if chunk_checksum(part) != int(sums[i]):
+            result.corrupt[i] = "data do not match the checksum written with them (a chunk " \
+                                "file missing or altered)"
+            continue
+        result.ok.append(i)
+    return result
 
 
 def open_store(path, complete_only: bool = False):
@@ -319,12 +587,26 @@ def open_store(path, complete_only: bool = False):
     path = Path(path)
     if not is_store(path):
         raise ValueError(f"{path} is not an lfjax sweep store")
-    ds = xr.open_zarr(str(path), consolidated=False, zarr_format=ZARR_FORMAT).load()
+    ds = xr.open_zarr(str(path), consolidated=_has_consolidated(path),
+                      zarr_format=ZARR_FORMAT).load()
     if complete_only:
         size = int(ds.attrs["chunk_size"])
         done = np.repeat(ds.chunk_complete.values, size)[: ds.sizes["eye"]]
         ds = ds.isel(eye=np.flatnonzero(done))
     return ds
+
+
+def _has_consolidated(path) -> bool:
+    return (Path(path) / ".zmetadata").is_file()
+
+
+def is_disk_full(err: BaseException) -> bool:
+    """The error (or one it was raised from) is 'no space left on device'."""
+    while err is not None:
+        if isinstance(err, OSError) and err.errno in (errno.ENOSPC, errno.EDQUOT):
+            return True
+        err = err.__cause__ or err.__context__
+    return False
 
 
 def study_view(ds, pupil_mm: float | None = None):
@@ -339,7 +621,7 @@ def study_view(ds, pupil_mm: float | None = None):
         raise ValueError(f"pupil_mm={pupil_mm} is not in the store (pupils "
                          f"{ds.pupil.values.tolist()} mm)")
     view = ds.sel(pupil=pupil_mm, method="nearest").drop_vars(
-        ["chunk_complete"], errors="ignore")
+        ["chunk_complete", "chunk_checksum"], errors="ignore")
     labels = [("average" if avg else f"eye{int(e) + 1:05d}")
               for e, avg in zip(view.eye.values, view.is_average.values)]
     view = view.assign_coords(eye=("eye", labels))
@@ -351,7 +633,19 @@ def study_view(ds, pupil_mm: float | None = None):
 
 
 __all__ = [
+    "LOCK_SUFFIX",
+    "lock_path",
     "STORE_FORMAT",
+    "StoreLock",
+    "StoreLockedError",
+    "Verification",
+    "chunk_checksum",
+    "clean_interrupted_creations",
+    "is_disk_full",
+    "provenance",
+    "record_run",
+    "unmark_chunks",
+    "verify_store",
     "StoreMismatchError",
     "check_store_matches",
     "chunk_dataset",

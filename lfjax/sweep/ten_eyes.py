@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -79,8 +80,10 @@ def wilson_interval(successes, trials, z: float = Z_95) -> tuple[np.ndarray, np.
         denom = 1.0 + z2 / n
         centre = (p + z2 / (2.0 * n)) / denom
         half = z / denom * np.sqrt(p * (1.0 - p) / n + z2 / (4.0 * n * n))
-        low = np.where(n > 0, np.clip(centre - half, 0.0, 1.0), np.nan)
-        high = np.where(n > 0, np.clip(centre + half, 0.0, 1.0), np.nan)
+        # at 0 (all) successes the bound is exactly 0 (1); the formula leaves round-off
+        # (2.8e-17) that tables would print and that can exceed the fraction itself
+        low = np.where(n > 0, np.where(k == 0, 0.0, np.clip(centre - half, 0.0, 1.0)), np.nan)
+        high = np.where(n > 0, np.where(k == n, 1.0, np.clip(centre + half, 0.0, 1.0)), np.nan)
     return low, high
 
 
@@ -397,6 +400,15 @@ def ten_eye_claims(ds_or_view, n_draws: int = 1000, sample_size: int = 10, seed:
     population = evaluate_claims(view)
     ids = [c.id for c in population]
     samples = draw_samples(virtual.size, int(n_draws), int(sample_size), int(seed))
+    n_possible = math.comb(int(virtual.size), int(sample_size))
+    n_distinct = int(np.unique(samples, axis=0).shape[0])
+    if n_possible < n_draws:
+        warnings.warn(
+            f"only {n_possible} distinct samples of {sample_size} exist among "
+            f"{virtual.size} eyes, and {n_draws} draws repeat them ({n_distinct} distinct "
+            f"drawn): the intervals, which count {n_draws} samples, overstate the "
+            f"precision; use a larger population or n_draws <= {n_possible}",
+            UserWarning, stacklevel=2)
     rows = np.concatenate([virtual[samples], np.broadcast_to(average, (samples.shape[0], 1))],
                           axis=1)
 
@@ -470,6 +482,7 @@ def ten_eye_claims(ds_or_view, n_draws: int = 1000, sample_size: int = 10, seed:
         attrs=dict(
             n_draws=int(n_draws), sample_size=int(sample_size), seed=int(seed),
             n_population=int(virtual.size),
+            n_possible_samples=float(n_possible), n_distinct_samples=n_distinct,
             pupil_mm=float(view.attrs.get("pupil_diameter_mm", np.nan)),
             interval=INTERVAL, evaluation=evaluation,
             evaluation_note=reason, fallback_draws=int(fallback),

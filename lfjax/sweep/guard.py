@@ -1,0 +1,313 @@
+"""What a sweep will cost, known before anything is created: sizes, memory, time, a summary.
+
+:func:`estimate` sizes a sweep from its config (and, once planned, its tasks' FFT sizes):
+the store on disk, the host memory of setup and of one chunk, the device memory of one
+chunk, and the compute time. :func:`check_fits` refuses, with the numbers, a sweep whose
+store exceeds the free disk or whose memory exceeds what this machine has, so that an
+impossible sweep fails before a store exists rather than after (RESOURCE_EXHAUSTED,
+MemoryError). :meth:`SweepEstimate.summary` is what ``lfjax sweep --dry-run`` prints, and a
+normal run prints first.
+
+The figures are estimates: array sizes are exact (dense, uncompressed), the device working
+set is the pipeline's largest arrays times a stated allowance for FFT workspaces and
+temporaries, and the time model is calibrated on one measured sweep (see
+:data:`SECONDS_PER_UNIT`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..peaks import METRICS
+from ..sampling import EYE_BLOCK
+from .config import SweepConfig
+
+N_FREQUENCIES = 61  # the stored MTF's 0 ... 60 cpd axis (compute.FREQUENCIES_CPD)
+N_MODES = 45  # Zernike coefficients per eye (Thibos et al. 2002: OSA j = 0 ... 44)
+GUARD_GRID = 48  # samples across the pupil of the host guards' wavefronts (lfjax.sampling)
+
+DEVICE_ALLOWANCE = 3.0
+"""Device working set / the pipeline's largest arrays (elemental OTFs and the rendered
+block): FFT workspaces, the scan's carry and its update, and XLA temporaries."""
+
+SECONDS_PER_UNIT = 1.26e-9
+"""Seconds per cost unit (one complex FFT point·log2 size, or one rendered view-pixel):
+the 1,000-eye benchmark sweep (benchmarks/sweep_1000/sweep.toml, 1.25e12 units) took
+26.2 min on 2 CPU cores (benchmarks/RESULTS.md §11). Other machines differ; the first
+chunks' eyes/s on the progress bar is the measured rate."""
+
+
+class SweepTooLargeError(ValueError):
+    """A sweep that cannot fit this machine (``problems``: one line each, with numbers)."""
+
+    def __init__(self, problems: list[str]):
+        self.problems = list(problems)
+        lines = "\n".join(f"  - {p}" for p in self.problems)
+        super().__init__(f"the sweep cannot run here ({len(self.problems)} problem(s); "
+                         f"nothing was created):\n{lines}")
+
+
+def _bytes(n: float) -> str:
+    if not math.isfinite(n):
+        return "inf"
+    for unit, size in (("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n:.0f} B"
+
+
+def _duration(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "inf"
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 2 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
+
+
+@dataclass
+class TaskSize:
+    """One (pupil, layout): its grid and per-eye cost."""
+
+    pupil_mm: float
+    layout: str
+    n_fft: int
+    freq_step_cpd: float
+    n_subapertures: int
+    n_depths: int
+    n_states: int  # accommodation states the task evaluates
+    n_pairs_per_depth: int
+    bands: tuple  # ((start, stop, n_fft), ...) wavelength bands
+    device_bytes_per_eye: float
+    units_per_eye: float
+
+
+@dataclass
+class SweepEstimate:
+    """Sizes of a sweep (bytes, seconds); ``tasks`` empty until the sampling is planned."""
+
+    n_eyes: int
+    n_chunks: int
+    chunk_size: int
+    pupils_mm: tuple
+    layouts: tuple
+    depths_D: tuple
+    n_accommodation: int
+    n_wavelengths: int
+    store_bytes: float
+    host_setup_bytes: float
+    host_chunk_bytes: float
+    tasks: list[TaskSize] = field(default_factory=list)
+    n_devices: int = 1
+    complex_bytes: int = 16
+
+    @property
+    def device_chunk_bytes(self) -> float:
+        """Largest task's working set for one chunk on one device."""
+        if not self.tasks:
+            return float("nan")
+        # the pipeline maps over a chunk's eyes one at a time (lax.map), so the working set
+        # is one eye's on each device; the chunk's outputs are small beside it
+        return max(t.device_bytes_per_eye for t in self.tasks)
+
+    @property
+    def seconds(self) -> float:
+        """Estimated compute time of the whole sweep on one device, s (nan unplanned)."""
+        if not self.tasks:
+            return float("nan")
+        units = sum(t.units_per_eye for t in self.tasks) * self.n_eyes
+        return units * SECONDS_PER_UNIT / max(self.n_devices, 1)
+
+    def summary(self, store=None) -> str:
+        """Human-readable plan: what is computed and what it costs."""
+        depths = ", ".join(f"{d:g}" for d in self.depths_D)
+        lines = [
+            f"eyes        {self.n_eyes} in {self.n_chunks} chunks of {self.chunk_size}",
+            f"pupils      {', '.join(f'{p:g}' for p in self.pupils_mm)} mm",
+            f"layouts     {', '.join(self.layouts)}",
+            f"depths      {len(self.depths_D)}: {depths} D",
+            f"states      {self.n_accommodation} accommodation states on the grid",
+            f"wavelengths {self.n_wavelengths}",
+        ]
+        for t in self.tasks:
+            lines.append(f"sampling    {t.pupil_mm:g} mm {t.layout}: df {t.freq_step_cpd:.4g} cpd, "
+                         f"FFT {t.n_fft}, {t.n_states} states x {t.n_subapertures} views")
+        if not self.tasks:
+            lines.append("sampling    planned when the sweep starts")
+        lines += [
+            f"time        ~{_duration(self.seconds)} estimated on {self.n_devices} device(s) "
+            f"(calibrated on 2 CPU cores)",
+            f"host memory ~{_bytes(self.host_setup_bytes + self.host_chunk_bytes)} "
+            f"(setup {_bytes(self.host_setup_bytes)}, one chunk {_bytes(self.host_chunk_bytes)})",
+            f"device mem  ~{_bytes(self.device_chunk_bytes)} per device for one chunk",
+            f"store       ≤ {_bytes(self.store_bytes)} uncompressed"
+            + (f" at {store}" if store is not None else ""),
+        ]
+        return "\n".join(lines)
+
+
+def _count(start: float, stop: float, step: float) -> float:
+    """Points of the grid start … stop by step, without building it (inf if absurd)."""
+    try:
+        n = math.floor((stop - start) / step + 1e-9) + 1
+    except (OverflowError, ZeroDivisionError, ValueError):
+        return math.inf
+    return float(n)
+
+
+def _eye_bytes(config: SweepConfig, n_acc: float) -> float:
+    """Bytes of one eye's row in every eye-dimensioned store variable."""
+    n_pl = len(config.pupil_diameters_mm) * len(config.layouts) * len(config.depth_offsets_D)
+    m = len(METRICS)
+    return n_pl * (
+        2 * n_acc * 4  # vsotf, strehl (float32)
+        + m * (8 * 4 + 1 + 4 * 2)  # 4 float64 peaks/errors, success, 2 float32 values
+        + m * N_FREQUENCIES * 4  # mtf_at_peak
+    ) + N_MODES * 8
+
+
+def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstimate:
+    """Sizes of ``config``'s sweep; with its planned ``tasks`` (:func:`build_tasks`) also the
+    device memory and time. Computes nothing large (grids are counted, not built)."""
+    n_acc = _count(0.0, config.accommodation_max_D, config.accommodation_step_D)
+    if config.display_spectrum is None:
+        n_wl = _count(*config.wavelengths_nm)
+    else:
+        n_wl = float(len(_display_wavelengths(config)))
+    n_eyes = config.n_total_eyes
+    eye_bytes = _eye_bytes(config, n_acc)
+    store = n_eyes * eye_bytes
+    # the population's coefficients (a few copies), the host guards' block of wavefronts
+    # and gradients (lfjax.sampling.EYE_BLOCK eyes, 48 x 48 samples, five arrays); the store
+    # is created from one chunk's template, so its size does not count here
+    setup = n_eyes * N_MODES * 8 * 4 + EYE_BLOCK * GUARD_GRID**2 * 8 * 5
+    chunk = 2 * config.chunk_size * eye_bytes  # the chunk's arrays and their Dataset
+    import jax
+
+    complex_bytes = 16 if jax.config.jax_enable_x64 else 8
+    sizes = []
+    for task in tasks or ():
+        pc = task.pipeline_config
+        n_fft = pc.n_fft
+        n_states = int(task.accommodation.states_D.shape[0])
+        n_k = int(task.accommodation.pair_index.shape[1])
+        n_sub = int(task.layout.n_subapertures)
+        n_depth = len(task.depth_slots)
+        plane = n_fft * (n_fft // 2 + 1) * complex_bytes
+        elemental = n_states * n_sub * plane
+        rendered = n_depth * n_k * plane
+        device = DEVICE_ALLOWANCE * (elemental + 2 * rendered)
+        ffts = sum((b - a) * n_states * n_sub * size * size * math.log2(max(size, 2))
+                   for a, b, size in pc.bands)
+        render = n_sub * n_depth * n_k * n_fft * (n_fft // 2 + 1)
+        sizes.append(TaskSize(
+            float(task.pupil_mm), task.layout_label, int(n_fft), float(pc.freq_step_cpd), n_sub,
+            n_depth, n_states, n_k, tuple(pc.bands), float(device), float(ffts + render)))
+    return SweepEstimate(
+        n_eyes=n_eyes, n_chunks=config.n_chunks, chunk_size=int(config.chunk_size),
+        pupils_mm=tuple(config.pupil_diameters_mm), layouts=tuple(config.layouts),
+        depths_D=tuple(float(d) for d in config.depths_D), n_accommodation=int(min(n_acc, 2**62)),
+        n_wavelengths=int(min(n_wl, 2**62)), store_bytes=float(store),
+        host_setup_bytes=float(setup), host_chunk_bytes=float(chunk), tasks=sizes,
+        n_devices=int(n_devices), complex_bytes=complex_bytes)
+
+
+def _display_wavelengths(config: SweepConfig):
+    from .compute import sweep_spectrum
+
+    return sweep_spectrum(config).wavelengths_nm
+
+
+def host_memory_bytes() -> float:
+    """Memory this process may still use, bytes (MemAvailable on Linux; else physical)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return math.inf
+
+
+def device_memory_bytes(devices=None) -> float:
+    """Memory of the smallest local device, bytes (the host's for a CPU device)."""
+    import jax
+
+    devices = jax.local_devices() if devices is None else devices
+    limits = []
+    for d in devices:
+        stats = None
+        try:
+            stats = d.memory_stats()
+        except Exception:  # noqa: BLE001 - backends without memory statistics
+            stats = None
+        if stats and stats.get("bytes_limit"):
+            limits.append(float(stats["bytes_limit"]))
+    return min(limits) if limits else host_memory_bytes()
+
+
+def free_disk_bytes(path) -> float:
+    """Free space where ``path`` would be created, bytes."""
+    p = Path(path).resolve()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    try:
+        return float(shutil.disk_usage(p).free)
+    except OSError:
+        return math.inf
+
+
+def check_fits(est: SweepEstimate, store=None, host_bytes: float | None = None,
+               device_bytes: float | None = None, disk_bytes: float | None = None) -> None:
+    """Raise :class:`SweepTooLargeError` (every problem, with the numbers) unless the
+    sweep's store fits the free disk and its memory fits this machine."""
+    host = host_memory_bytes() if host_bytes is None else host_bytes
+    problems = []
+    need = est.host_setup_bytes + est.host_chunk_bytes
+    if not need <= host:
+        problems.append(
+            f"host memory: ~{_bytes(need)} needed ({est.n_eyes} eyes, chunks of "
+            f"{est.chunk_size} x {est.n_accommodation} states x {len(est.layouts)} layouts x "
+            f"{len(est.depths_D)} depths x {len(est.pupils_mm)} pupils), {_bytes(host)} "
+            f"available; use fewer eyes, a smaller run.chunk_size, a coarser "
+            f"accommodation.step_D, or fewer depths/layouts")
+    if est.tasks:
+        device = device_memory_bytes() if device_bytes is None else device_bytes
+        worst = max(est.tasks, key=lambda t: t.device_bytes_per_eye)
+        if not worst.device_bytes_per_eye <= device:
+            problems.append(
+                f"device memory: ~{_bytes(worst.device_bytes_per_eye)} needed per chunk for "
+                f"{worst.pupil_mm:g} mm {worst.layout} (FFT {worst.n_fft} at "
+                f"{worst.freq_step_cpd:.3g} cpd, {worst.n_states} states x "
+                f"{worst.n_subapertures} views), {_bytes(device)} available; use a coarser "
+                f"sampling.freq_step_cpd (or \"planned\") or a coarser accommodation.step_D")
+    if store is not None:
+        disk = free_disk_bytes(store) if disk_bytes is None else disk_bytes
+        if not est.store_bytes <= disk:
+            problems.append(f"disk: the store may need up to {_bytes(est.store_bytes)}, "
+                            f"{_bytes(disk)} free at {Path(store).resolve().parent}")
+    if problems:
+        raise SweepTooLargeError(problems)
+
+
+__all__ = [
+    "SweepEstimate",
+    "SweepTooLargeError",
+    "TaskSize",
+    "check_fits",
+    "device_memory_bytes",
+    "estimate",
+    "free_disk_bytes",
+    "host_memory_bytes",
+]
