@@ -494,15 +494,17 @@ def test_readme_two_process_distributed_command_writes_the_one_process_store(ref
     assert_stores_equal(open_store(store), open_store(ref_path))
 
 
-def test_readme_config_lists_every_key_with_its_default():
-    """The README's sweep config is valid and states the defaults (it stays true)."""
+def test_guide_config_lists_every_key_with_its_default():
+    """The population-sweeps guide's config is valid and states the defaults (it stays
+    true)."""
     import re
 
     from lfjax.sweep import SweepConfig
     from lfjax.sweep.config import _SCHEMA
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    block = re.search(r"```toml\n(.*?)```", readme, re.S).group(1)
+    guide = Path(__file__).resolve().parents[1] / "docs" / "guides" / "population-sweeps.md"
+    guide = guide.read_text()
+    block = re.search(r"```toml\n(.*?)```", guide, re.S).group(1)
     data = tomllib.loads(block)
     assert config_from_dict(data).as_dict() == SweepConfig().as_dict()
     commented = set(re.findall(r"^# (\w+) =", block, re.M))
