@@ -872,6 +872,11 @@ class LayoutProblem(eqx.Module):
     spectrum_given : static, whether the spectrum was the caller's (a display's) rather
         than V(λ)-weighted wavelengths (the full setting then keeps it)
     display : the display's optics (lenslet diffraction, pixels) or None (ideal display)
+    values_grid : the peak grid's states and the correct-focus states in one grid, for
+        reports: pairs (n_depth + 1, n_k + 1), the first n_k columns the peak grid's
+        (``peak_allowed``), the last each rendered depth's correct focus (unused in the
+        CDP's row). A report then computes each shared state's elemental OTFs once
+        (:func:`evaluate_layout`); None for a problem built without it
     """
 
     eyes: Eyes
@@ -894,6 +899,7 @@ class LayoutProblem(eqx.Module):
     window_D: float = eqx.field(static=True)
     spectrum_given: bool = eqx.field(static=True)
     display: DisplayOptics | None = None
+    values_grid: Accommodation | None = None
 
     @property
     def pupil_diameter_mm(self) -> float:
@@ -975,6 +981,22 @@ def peak_window(depths_D, cdp_D: float, step_D: float, margin_D: float):
     states, allowed = states[used], allowed[:, used]
     index = np.broadcast_to(np.arange(states.size), allowed.shape)
     return states, index, allowed
+
+
+def _values_grid_pairs(states_D, depths_D, cdp_D: float):
+    """(states (n,), pair_index (n_depth + 1, n_k + 1)) of :attr:`LayoutProblem.values_grid`:
+    the peak grid's states, then every rendered depth not already among them; the first
+    n_k columns index the peak grid's states, the last each depth's own state (index 0 in
+    the CDP's row, which has no correct-focus pair)."""
+    states = np.asarray(states_D, float)
+    depths = np.asarray(depths_D, float)
+    missing = [d for d in depths if not np.any(np.abs(states - d) <= 1e-9)]
+    union = np.concatenate([states, np.asarray(missing, float)])
+    own = np.array([int(np.argmin(np.abs(union - d))) for d in depths] + [0])
+    index = np.empty((depths.size + 1, states.size + 1), np.int32)
+    index[:, :-1] = np.arange(states.size)
+    index[:, -1] = own
+    return union, index
 
 
 def envelope_layout(constraints: Constraints) -> Layout:
@@ -1127,6 +1149,8 @@ def make_problem(
                                   sampling, options, eye_chunk, display=display)
     accommodation = Accommodation.per_depth(depths[:, None], options, constraints.pupil_diameter_mm)
     peak_grid = Accommodation.shared(states, index, options, constraints.pupil_diameter_mm)
+    values_grid = Accommodation.shared(*_values_grid_pairs(states, depths, cdp), options,
+                                       constraints.pupil_diameter_mm)
     dtype = jnp.result_type(float)
     cdp_arr, depths_arr = jnp.asarray(cdp, dtype), jnp.asarray(depths, dtype)
     # Open-pupil reference: independent of the layout, so computed once (any layout will do).
@@ -1137,7 +1161,8 @@ def make_problem(
                          jnp.asarray(peak_depths, dtype), jnp.asarray(allowed), tuple(jax.lax.stop_gradient(r) for r in reference),
                          config, objective, constraints, options, accuracy,
                          setting["peak_method"], float(setting["peak_step_D"]),
-                         float(setting["peak_margin_D"]), window_D, spectrum_given, display)
+                         float(setting["peak_margin_D"]), window_D, spectrum_given, display,
+                         values_grid)
 
 
 _reference_jit = eqx.filter_jit(reference_normalisers)
@@ -1293,14 +1318,30 @@ def _eye_chunks(eyes: Eyes, chunk: int):
 
 @eqx.filter_jit
 def _values_jit(layout, problem: LayoutProblem):
-    """Per (eye, depth) values of every reported quantity, each (n_eyes, n_depth)."""
-    m = correct_focus_metrics(layout, problem)
+    """Per (eye, depth) values of every reported quantity, each (n_eyes, n_depth).
+
+    One pipeline call covers the peak grid and the correct focus
+    (:attr:`LayoutProblem.values_grid`): a rendered depth on the peak grid shares its
+    elemental OTFs instead of computing them a second time."""
+    if problem.values_grid is None:
+        m = correct_focus_metrics(layout, problem)
+        peaks = predicted_peaks(layout, problem)
+        vsotf, radial_mtf = m.vsotf[..., 0], m.radial_mtf[..., 0, :]
+    else:
+        scene = Scene(layout.centres_mm, layout.diameters_mm, problem.cdp_D, problem.peak_depths_D,
+                      problem.pupil_diameter_mm, problem.display)
+        both = retinal_metrics(problem.eyes, scene, problem.spectrum, problem.values_grid,
+                               problem.config, problem.reference)
+        peaks = peaks_from_grid(both.vsotf[..., :-1], problem.eyes, scene, problem.spectrum,
+                                problem.peak_grid, problem.config, problem.reference, "vsotf",
+                                problem.peak_method, problem.peak_allowed,
+                                refine_second=problem.peak_method in ("vertex", "grid"))
+        vsotf, radial_mtf = both.vsotf[:, :-1, -1], both.radial_mtf[:, :-1, -1, :]
     o = problem.objective
-    peaks = predicted_peaks(layout, problem)
     depth = lambda x: x[:, :-1]  # noqa: E731 - the last column is the CDP's
     return {
-        "vsotf": m.vsotf[..., 0],
-        "cutoff_cpd": soft_cutoff_cpd(m.radial_mtf[..., 0, :], problem.config.freq_step_cpd,
+        "vsotf": vsotf,
+        "cutoff_cpd": soft_cutoff_cpd(radial_mtf, problem.config.freq_step_cpd,
                                       o.mtf_threshold, o.mtf_softness),
         "peak_D": depth(peaks.accommodation_D),
         "peak_vsotf": depth(peaks.value),

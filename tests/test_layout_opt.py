@@ -12,6 +12,7 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+import equinox as eqx
 import numpy as np
 import pytest
 
@@ -324,6 +325,26 @@ def test_evaluation_on_held_out_eyes_pads_chunks(dl_problem):
     assert whole["image_at_peak"] == pytest.approx(np.mean([s["image_at_peak"] for s in single]))
     assert whole["values"]["vsotf"].shape == (3, 2)
     assert whole["values"]["peak_D"].shape == (3, 2)
+
+
+def test_one_pipeline_call_reports_what_two_did():
+    """evaluate_layout's merged grid (peak grid + correct focus in one pipeline call) gives
+    the numbers of the two separate calls, for depths on the peak grid (shared states) and
+    off it (appended states)."""
+    eyes = lfjax.sample_eyes(3, 2)
+    layout = perturbed_tangent_2x2()
+    for depths in ([0.0, 2.0, 4.0], [0.3, 2.6]):
+        problem = lo.make_problem(eyes, depths, CONSTRAINTS, wavelengths_nm=WAVELENGTHS,
+                                  sampling=SAMPLING)
+        states = np.asarray(problem.values_grid.states_D)
+        own = np.asarray(problem.values_grid.pair_index)[:-1, -1]
+        np.testing.assert_allclose(states[own], depths, atol=1e-9)
+        assert states.size == problem.peak_grid.states_D.size + sum(d % 0.25 != 0 for d in depths)
+        separate = eqx.tree_at(lambda p: p.values_grid, problem, None, is_leaf=lambda x: x is None)
+        merged = lo.evaluate_layout(layout, problem)["values"]
+        apart = lo.evaluate_layout(layout, separate)["values"]
+        for key in merged:
+            np.testing.assert_allclose(merged[key], apart[key], rtol=1e-5, atol=1e-5, err_msg=key)
 
 
 # ------------------------------------------------------------------ honest evaluation
