@@ -8,7 +8,7 @@ differentiable JAX functions. Stage modules: :mod:`lfjax.zernike`, :mod:`lfjax.e
 :mod:`lfjax.pipeline` (the pure core), :mod:`lfjax.peaks`, :mod:`lfjax.layout_opt`;
 beyond the paper's ideal display: :mod:`lfjax.display` (lenslet diffraction, pixels),
 :mod:`lfjax.display_spectra` (display spectra), :mod:`lfjax.display_effects` (the study),
-:mod:`lfjax.panel` (a display as built);
+:mod:`lfjax.panel` (a display as built) and :mod:`lfjax.design` (fitting one to eyes);
 :mod:`lfjax.reproduce` and :mod:`lfjax.cli` run the paper's study.
 """
 
