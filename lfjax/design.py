@@ -9,8 +9,9 @@ the CDP where it was asked) and, when a range is given, the viewing distance —
 layout optimiser's objective (:func:`lfjax.layout_opt.layout_loss`, by default the
 accommodation-aware one: image quality at each eye's own predicted accommodation, the
 display's accommodation error bounded), the panel's lenslet diffraction and pixel blur in
-the pipeline (:meth:`lfjax.panel.Panel.optics`). Each fit is then scored on held-out eyes
-beside its starting array, with the perceivable resolution
+the pipeline (:meth:`lfjax.panel.Panel.optics`), from the tangent array of
+:func:`lfjax.display.lenslets_for_layout` (:func:`start_box`). Each fit is then scored on
+held-out eyes beside that starting array, with the perceivable resolution
 (:func:`lfjax.panel.perceivable_cutoff_cpd`) at every eye's predicted accommodation, and
 :func:`save_design` writes a buildable specification (JSON, every number with its unit)
 and a drawing of the array and of the views in the pupil.
@@ -21,11 +22,12 @@ cannot leave the constraints):
 * view pitch s = M·Δu in [D/(n + 1), D/n] (D the design pupil): n views fit across the
   pupil, none more (the top is the paper's tangent n×n grid); and Δu ≥ the pixel pitch;
 * fill (aperture/pitch) in [``min_fill``, 1];
-* gap z_0 between the fastest lenslet allowed (f-number ``min_f_number``) and the smaller of
-  the slowest (``max_f_number``) and the gap at which the eye box Δu·(1 + z_m/z_0)
-  (:meth:`lfjax.panel.Panel.eye_box_mm`) shrinks to ``min_eye_box_mm``; the focal length
-  follows from the gap and the CDP, 1/f = 1/z_0 − V. Without the eye-box bound a longer gap
-  only shrinks the pixels' angle, so the fit would trade the viewing zone away unseen;
+* gap z_0 up to the smaller of the slowest lenslet allowed (``max_f_number``) and the gap
+  at which the eye box Δu·(1 + z_m/z_0) (:meth:`lfjax.panel.Panel.eye_box_mm`) shrinks to
+  ``min_eye_box_mm``, and down to the larger of the fastest lenslet (``min_f_number``) and
+  ``min_gap_fraction`` of that upper bound; the focal length follows from the gap and the
+  CDP, 1/f = 1/z_0 − V. Without the eye-box bound a longer gap only shrinks the pixels'
+  angle, so the fit would trade the viewing zone away unseen;
 * the viewing distance in ``distance_range_mm`` (optional; below 1000/CDP mm).
 
 The CDP is a design input (default the panel's own), not a fitted variable: it fixes where
@@ -52,7 +54,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lfjax.display import DisplayOptics
+from lfjax.display import DisplayOptics, lenslets_for_layout
 from lfjax.eyes import Eyes
 from lfjax.layout_opt import (
     Constraints,
@@ -94,6 +96,11 @@ class DesignConstraints:
     min_f_number, max_f_number : the lenslets' focal length over aperture (default 1 … 8)
     distance_range_mm : (low, high) to fit the viewing distance too, mm; None (default)
         keeps the panel's
+    min_gap_fraction : the gap's lower bound as a fraction of its upper bound, in (0, 1]
+        (default 0.75; the fastest f-number still applies). At a fixed CDP and distance the
+        gap changes nothing but the pixels' angle p/(z_0·M), which a shorter gap only
+        widens; the bound keeps the widest pixel blur of the box — what the sampling is
+        planned for — within 4/3 of the narrowest at the same lenslets
     """
 
     min_eye_box_mm: float = 10.0
@@ -101,8 +108,10 @@ class DesignConstraints:
     min_f_number: float = 1.0
     max_f_number: float = 8.0
     distance_range_mm: tuple | None = None
+    min_gap_fraction: float = 0.75
 
     def __post_init__(self):
+        _check("min_gap_fraction", self.min_gap_fraction, 0.0, 1.0, lo_open=True)
         _check("min_eye_box_mm", self.min_eye_box_mm, 0.0, lo_open=True)
         _check("min_fill", self.min_fill, 0.0, 1.0, lo_open=True)
         lo = _check("min_f_number", self.min_f_number, 0.0, lo_open=True)
@@ -149,7 +158,8 @@ def panel_from_box(x, template: Panel, n_per_side: int, cdp_D: float,
     gap_slow = 1.0 / (vergence + 1.0 / (constraints.max_f_number * aperture))
     gap_eye = zm * pitch / jnp.maximum(constraints.min_eye_box_mm - pitch, 1e-9)
     gap_hi = jnp.maximum(jnp.minimum(gap_slow, gap_eye), gap_fast)
-    gap = gap_fast + x[2] * (gap_hi - gap_fast)
+    gap_lo = jnp.maximum(gap_fast, constraints.min_gap_fraction * gap_hi)
+    gap = gap_lo + x[2] * (gap_hi - gap_lo)
     focal = 1.0 / (1.0 / gap - vergence)
     return Panel(template.pixel_pitch_mm, pitch, fill, focal, gap, zm, template.pixel_fill,
                  template.pixel_count, template.pupil_diameter_mm, template.aperture,
@@ -178,13 +188,23 @@ def feasibility(template: Panel, n_per_side: int, cdp_D: float,
     return "; ".join(reasons)
 
 
-def _start_box(constraints: DesignConstraints) -> np.ndarray:
-    """The starting design: the tangent view pitch (the paper's n×n grid), full fill, the
-    longest gap the eye box and the f-number allow, the middle of the distance range."""
-    x = [1.0, 1.0, 1.0]
-    if constraints.distance_range_mm is not None:
-        x.append(0.5)
-    return np.asarray(x)
+def start_box(template: Panel, n_per_side: int, cdp_D: float, constraints: DesignConstraints,
+              f_number: float = 3.0) -> np.ndarray:
+    """Box coordinates of the starting design: the tangent array of
+    :func:`lfjax.display.lenslets_for_layout` (view pitch D/n, full fill, f-number
+    ``f_number``) at the middle of the distance range (or the panel's distance), its gap
+    moved into the box when the eye box or the f-number range excludes it."""
+    x = [1.0, 1.0, 0.0] + ([0.5] if constraints.distance_range_mm is not None else [])
+    x = np.asarray(x)
+    lo = panel_from_box(x, template, n_per_side, cdp_D, constraints)
+    hi = panel_from_box(np.where(np.arange(x.size) == 2, 1.0, x), template, n_per_side, cdp_D,
+                        constraints)
+    zm = float(lo.distance_mm)
+    tangent = lenslets_for_layout(n_per_side, template.pupil_diameter_mm, cdp_D, zm, fill=1.0,
+                                  f_number=f_number)
+    g_lo, g_hi = float(lo.gap_mm), float(hi.gap_mm)
+    x[2] = 1.0 if g_hi <= g_lo else float(np.clip((float(tangent.gap_mm) - g_lo) / (g_hi - g_lo), 0.0, 1.0))
+    return x
 
 
 # ----------------------------------------------------------------------------- problem
@@ -291,7 +311,8 @@ class DesignFit:
     history : loss per solver step (training eyes)
     train, test : held-out/training scores of ``panel`` (``image_at_peak`` VSOTF,
         ``relative_accommodation_rmse_D`` D, ``perceivable_cpd_median`` cpd, …)
-    start_test : the same scores of the starting panel on the held-out eyes
+    start_test : the same scores of the starting panel (held-out eyes, or the training
+        eyes without them)
     time_s : seconds the fit took
     """
 
@@ -328,18 +349,24 @@ class DesignResult:
         return min(ok, key=lambda f: f.score["loss"]) if ok else None
 
     def summary(self) -> str:
-        lines = [f"design: CDP {self.cdp_D:g} D, depths {self.depths_D} D; {self.objective.name}",
-                 "  views  VSOTF@peak  acc RMSE (display) D  perceivable cpd (median, 5-95 %)  status"]
+        where = "held-out" if any(f.test is not None for f in self.fits) else "training"
+        lines = [f"design: CDP {self.cdp_D:g} D, depths {self.depths_D} D; {self.objective.name}; "
+                 f"scores on the {where} eyes (start: lenslets_for_layout's tangent array, f/3)",
+                 "  views  VSOTF@peak (start)  display's acc. RMSE D (start)  "
+                 "perceivable cpd median [5-95 %]  status"]
         for f in self.fits:
             s = f.score
             if s is None:
-                lines.append(f"  {f.n_per_side}x{f.n_per_side}    -- refused: {f.refused}")
+                lines.append(f"  {f.n_per_side}x{f.n_per_side}    refused: {f.refused}")
                 continue
+            st = f.start_test or {}
             status = "ok" if f.refused is None else f"refused: {f.refused}"
-            lines.append(f"  {f.n_per_side}x{f.n_per_side}    {s['image_at_peak']:.4f}      "
-                         f"{s['relative_accommodation_rmse_D']:.3f}                 "
-                         f"{s['perceivable_cpd_median']:.2f} ({s['perceivable_cpd_p05']:.2f}-"
-                         f"{s['perceivable_cpd_p95']:.2f})                  {status}")
+            start_img = f" ({st['image_at_peak']:.4f})" if st else ""
+            start_acc = f" ({st['relative_accommodation_rmse_D']:.3f})" if st else ""
+            lines.append(f"  {f.n_per_side}x{f.n_per_side}    {s['image_at_peak']:.4f}{start_img}   "
+                         f"{s['relative_accommodation_rmse_D']:.3f}{start_acc}                  "
+                         f"{s['perceivable_cpd_median']:.2f} [{s['perceivable_cpd_p05']:.2f}, "
+                         f"{s['perceivable_cpd_p95']:.2f}]    {status}")
         best = self.best
         lines.append(f"  chosen: {best.n_per_side}x{best.n_per_side}" if best else "  chosen: none")
         return "\n".join(lines)
@@ -442,7 +469,7 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
             continue
         problem = design_problem(panel, n, train_eyes, depths, cdp, constraints, objective,
                                  wavelengths_nm, "fit", planning, sampling)
-        x0 = jnp.asarray(_start_box(constraints), jnp.result_type(float))
+        x0 = jnp.asarray(start_box(panel, n, cdp, constraints), jnp.result_type(float))
         x, history = _solve(x0, problem, panel, n, constraints, steps, tol)
         fitted = panel_from_box(np.asarray(x), panel, n, cdp, constraints)
         start = panel_from_box(np.asarray(x0), panel, n, cdp, constraints)
@@ -456,9 +483,10 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
             res = perceivable_resolution(candidate, n, report, evaluation["values"]["peak_D"])
             scores[key] = (_summary_numbers(evaluation, res), evaluation)
         if test_eyes is not None:
-            fit.test, fit.start_test = scores["fit"][0], scores["start"][0]
+            fit.test = scores["fit"][0]
         else:
             fit.train = scores["fit"][0]
+        fit.start_test = scores["start"][0]
         fit.refused = parallax_warning(fit.panel.layout(n), scores["fit"][1])
         if fit.refused is None and float(fit.panel.eye_box_mm()) < constraints.min_eye_box_mm * (1 - 1e-3):
             fit.refused = (f"the eye box {float(fit.panel.eye_box_mm()):.3g} mm is below min_eye_box_mm = "
@@ -512,7 +540,7 @@ def panel_specification(panel: Panel, wavelength_nm: float = 550.0) -> dict:
         "views_per_side": "views", "fresnel_number": f"unitless at {wavelength_nm:g} nm",
         "pixel_arcmin": "arcmin", "emitter_arcmin": "arcmin", "lenslet_arcmin": "arcmin",
         "nyquist_cpd": "cpd", "pixel_nyquist_cpd": "cpd", "pixels_per_lenslet": "pixels",
-        "eye_box_mm": "mm", "f_number": "unitless", "active_width_mm": "mm",
+        "eye_box_mm": "mm", "emitter_sweep_mm": "mm (at the eye)", "f_number": "unitless", "active_width_mm": "mm",
         "active_height_mm": "mm", "lenslets_horizontal": "lenslets",
         "lenslets_vertical": "lenslets", "field_of_view_h_deg": "degrees",
         "field_of_view_v_deg": "degrees",
@@ -563,7 +591,7 @@ def save_design(result: DesignResult, out_dir, command: str | None = None) -> li
             "specification": None if f.panel is None else panel_specification(f.panel),
             "start_specification": None if f.start is None else panel_specification(f.start),
             "held_out" if f.test is not None else "training": _score_units(f.score),
-            "start_held_out": _score_units(f.start_test),
+            "start_held_out" if f.test is not None else "start_training": _score_units(f.start_test),
             "loss_history": f.history, "fit_time_s": round(f.time_s, 2),
         })
     record = {
@@ -644,6 +672,7 @@ __all__ = [
     "DesignResult",
     "view_pitch_range_mm",
     "panel_from_box",
+    "start_box",
     "feasibility",
     "design_problem",
     "design_loss",

@@ -286,6 +286,13 @@ class Panel(eqx.Module):
         """Pixels across one lenslet, Δu/p (unitless; the directions each lenslet emits)."""
         return self.lenslet_pitch_mm / self.pixel_pitch_mm
 
+    def emitter_sweep_mm(self):
+        """How far a lenslet's beam footprint moves at the eye across one emitter,
+        z_m·p·√pixel_fill/z_0, mm. The pipeline's pixel blur (one footprint for the whole
+        emitter) holds while this is small beside the view width M·a; beyond it, different
+        parts of a pixel reach different parts of the pupil (:mod:`lfjax.array_views`)."""
+        return self.distance_mm * self.pixel_pitch_mm * jnp.sqrt(self.pixel_fill) / self.gap_mm
+
     def eye_box_mm(self):
         """Width of the zone at the eye's distance from which every lenslet shows its own
         elemental image, Δu·(1 + z_m/z_0), mm."""
@@ -330,6 +337,7 @@ class Panel(eqx.Module):
             "pixel_nyquist_cpd": float(self.pixel_nyquist_cpd()),
             "pixels_per_lenslet": float(self.pixels_per_lenslet()),
             "eye_box_mm": float(self.eye_box_mm()),
+            "emitter_sweep_mm": float(self.emitter_sweep_mm()),
             "f_number": f / float(self.aperture_mm) if math.isfinite(f) else math.inf,
             "active_width_mm": w, "active_height_mm": h,
             "lenslets_horizontal": cnt[0], "lenslets_vertical": cnt[1],

@@ -19,7 +19,9 @@ from lfjax.design import (
     fit_design,
     panel_from_box,
     panel_specification,
+    start_box,
 )
+from lfjax.display import lenslets_for_layout
 from lfjax.eyes import sample_eyes
 from lfjax.panel import Panel, near_eye_microdisplay, phone_panel, sampling_limit_cpd
 from lfjax.sampling import Sampling
@@ -56,6 +58,17 @@ def test_every_box_point_is_a_buildable_panel(make, free_distance):
                 assert (float(host.eye_box_mm()) == pytest.approx(10.0, rel=1e-6)
                         or f_number == pytest.approx(8.0, rel=1e-6))
             assert float(host.eye_box_mm()) >= 10.0 * (1 - 1e-6) or x[2] < 1.0
+
+
+def test_the_start_is_lenslets_for_layouts_tangent_array():
+    template = near_eye_microdisplay()
+    c = DesignConstraints()
+    for n in (2, 3):
+        start = panel_from_box(start_box(template, n, 1.5, c), template, n, 1.5, c)
+        tangent = lenslets_for_layout(n, 3.0, 1.5, 30.0, fill=1.0, f_number=3.0)
+        for mine, theirs in ((start.lenslet_pitch_mm, tangent.pitch_mm), (start.gap_mm, tangent.gap_mm),
+                             (start.focal_length_mm, tangent.focal_length_mm)):
+            assert float(mine) == pytest.approx(float(theirs), rel=1e-6)
 
 
 def test_infeasible_count_and_cdp_outside_range_are_refused():
@@ -109,7 +122,7 @@ def test_specification_has_a_unit_for_every_number():
 
 
 TINY = ["design", "--panel", "near-eye", "--depths", "1", "2", "--n-depths", "2", "--views", "1", "2",
-        "--train-eyes", "1", "--test-eyes", "1", "--steps", "2", "--report-accuracy", "fit",
+        "--train-eyes", "1", "--test-eyes", "1", "--steps", "1", "--report-accuracy", "fit",
         "--diffraction", "off", "--freq-step", "2", "--no-progress"]
 
 
