@@ -170,6 +170,44 @@ def array_views(panel: Panel, depth_D: float, *, wavelength_nm: float = 550.0,
                       float(panel.fresnel_number(wavelength_nm)))
 
 
+def idealisation_gap(panel: Panel, depths_D, *, pixel_offset_mm=(0.0, 0.0),
+                     wavelength_nm: float = 550.0) -> list[dict]:
+    """How far the whole array's rendering of an on-axis point departs from the n×n
+    idealisation (:meth:`~lfjax.panel.Panel.layout`), geometrically, per rendered depth.
+
+    Each row (host numbers): ``depth_D``; ``n_idealised`` (n², the layout's views) and
+    ``n_array`` (lenslets whose lit pixel's footprint overlaps the pupil);
+    ``footprint_shift_mm``, the largest distance between an idealised view's centre and
+    where its lenslet's lit beam meets the pupil (the depth's Eq. 1 scaling and the pixel
+    grid together; inf when a lit beam misses the pupil); ``tilt_arcmin``, the largest beam tilt ε; ``emitter_sweep_ratio``, the
+    emitter sweep over the view width (≪ 1: the pipeline's pixel blur holds); and the
+    lenslets' ``fresnel_number`` (≲ 1: beams spread over the pupil). The idealisation holds
+    where the shift and the tilt are small beside the view width and the pixel angle,
+    ``n_array`` equals ``n_idealised`` and the sweep ratio is small."""
+    n = panel.n_views_per_side()
+    layout = np.asarray(panel.layout(n).centres_mm, float)
+    rows = []
+    for depth in np.atleast_1d(np.asarray(depths_D, float)):
+        views = array_views(panel, float(depth), pixel_offset_mm=pixel_offset_mm,
+                            wavelength_nm=wavelength_nm, diffraction_widths=0.0)
+        shift = 0.0
+        m = float(panel.magnification)
+        tol = 1e-9 * float(panel.lenslet_pitch_mm)
+        for centre in layout:  # the idealised view of lenslet u = centre/M
+            mine = np.all(np.abs(views.lenslet_centres_mm - centre / m) <= tol, axis=1)
+            if np.any(mine):
+                shift = max(shift, float(np.max(np.hypot(*(views.centres_mm[mine] - centre).T))))
+            else:  # that lenslet's lit beam misses the pupil altogether
+                shift = math.inf
+        rows.append(dict(
+            depth_D=float(depth), n_idealised=n * n, n_array=views.n_geometric,
+            footprint_shift_mm=shift,
+            tilt_arcmin=float(np.max(np.abs(views.tilt_arcmin))) if views.n_views else 0.0,
+            emitter_sweep_ratio=float(panel.emitter_sweep_mm()) / float(panel.view_diameter_mm),
+            fresnel_number=views.fresnel_number))
+    return rows
+
+
 def array_through_focus(eyes, panel: Panel, depths_D, accommodation_D, *, diffraction=None,
                         pixel_offset_mm=(0.0, 0.0), **kwargs):
     """Through-focus curves of points rendered by the whole array: one
@@ -191,4 +229,4 @@ def array_through_focus(eyes, panel: Panel, depths_D, accommodation_D, *, diffra
     return out
 
 
-__all__ = ["ArrayViews", "array_views", "array_through_focus"]
+__all__ = ["ArrayViews", "array_views", "idealisation_gap", "array_through_focus"]

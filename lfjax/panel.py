@@ -430,6 +430,15 @@ def perceivable_cutoff_cpd(radial_mtf, frequencies_cpd, panel: Panel, depths_D,
     return jnp.minimum(optical, sampling_limit_cpd(panel, depths_D))
 
 
+def perceivable_cutoff_at_peak(tf, panel: Panel, metric: str = "vsotf", threshold: float = 0.05):
+    """:func:`perceivable_cutoff_cpd` of a :class:`~lfjax.through_focus.ThroughFocus`
+    computed for ``panel`` (its layout and :meth:`Panel.optics`): the radial MTF at each
+    eye's predicted accommodation (the grid peak of ``metric``) against the sampling limit
+    of each rendered depth. Returns (n_eyes, n_depth) cpd."""
+    return perceivable_cutoff_cpd(tf.mtf_at_peak(metric), tf.radial_freq_cpd, panel,
+                                  jnp.asarray(tf.depths_D), threshold)
+
+
 # ----------------------------------------------------------------------------- presets
 
 
@@ -477,6 +486,7 @@ __all__ = [
     "gap_for_cdp_mm",
     "sampling_limit_cpd",
     "perceivable_cutoff_cpd",
+    "perceivable_cutoff_at_peak",
     "near_eye_microdisplay",
     "phone_panel",
     "PRESETS",

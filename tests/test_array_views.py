@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from lfjax.array_views import array_through_focus, array_views
+from lfjax.array_views import array_through_focus, array_views, idealisation_gap
 from lfjax.eyes import average_eye
 from lfjax.layouts import subaperture_pitch_mm
-from lfjax.panel import Panel, near_eye_microdisplay, phone_panel
+from lfjax.panel import Panel, near_eye_microdisplay, perceivable_cutoff_at_peak, phone_panel
 from lfjax.sampling import Sampling
 from lfjax.spectral import make_spectrum
 from lfjax.through_focus import through_focus
@@ -125,6 +125,11 @@ def test_array_through_focus_is_the_idealisation_when_the_array_makes_the_n_by_n
     assert views.n_geometric == 4
     assert np.allclose(np.asarray(got.vsotf), np.asarray(want.vsotf), rtol=1e-9, atol=1e-12)
     assert np.all(np.isfinite(np.asarray(got.vsotf)))
+    # the perceivable resolution of that through-focus result: on the CDP, the lower of the
+    # MTF's cut-off at the peak and the pixels' Nyquist frequency (vanishing here)
+    cut = np.asarray(perceivable_cutoff_at_peak(want, base))
+    optical = np.asarray(want.cutoff_cpd("vsotf"))
+    assert cut.shape == (1, 1) and np.allclose(cut, optical, rtol=1e-9)
 
 
 def test_where_the_pixels_fall_decides_what_a_phone_panel_shows():
@@ -142,3 +147,38 @@ def test_where_the_pixels_fall_decides_what_a_phone_panel_shows():
     assert float(panel.emitter_sweep_mm()) > 4 * float(panel.view_diameter_mm)
     assert between.n_geometric == 0 and centred.n_geometric >= 4
     assert array_views(panel, 2.0, emitter_samples=4).n_geometric > 0
+
+
+def test_idealisation_gap():
+    """Vanishing pixels, fill 0.9, on the CDP: no gap at all; off the CDP the footprints
+    move by the Eq. 1 scaling, |q|·|ratio − 1| for the idealised centre |q| = 0.75·√2 mm;
+    the phone panel's lit beams miss the pupil (inf) and its emitters sweep 4× a view."""
+    base = Panel.with_cdp(cdp_D=1.5, pixel_pitch_mm=1e-9, lenslet_pitch_mm=3.0 / 2 / 1.0471204,
+                          focal_length_mm=3.3, distance_mm=30.0, fill=0.9, diffraction="off")
+    on, off = idealisation_gap(base, [1.5, 1.0])
+    assert on["n_array"] == on["n_idealised"] == 4
+    assert on["footprint_shift_mm"] < 1e-6 and on["tilt_arcmin"] < 1e-4
+    ratio = (1 - 0.03 * 1.5) / (1 - 0.03 * 1.0)
+    assert off["footprint_shift_mm"] == pytest.approx(0.75 * math.sqrt(2) * abs(ratio - 1), rel=1e-4)
+    phone, = idealisation_gap(phone_panel(), [2.0])
+    assert phone["footprint_shift_mm"] == math.inf and phone["emitter_sweep_ratio"] > 4
+
+
+def test_near_eye_pixels_quantise_the_rendered_depth():
+    """The near-eye preset's pixels subtend 8.1′ at the eye, while a view 0.52 mm from the
+    pupil centre turns by only 0.52 mrad = 1.8′ per dioptre of rendered depth: lighting the
+    nearest pixel, the central lenslets light the same pixels for points at 0.5, 1.5 and 2.5 D —
+    the same footprints, the depth carried only by sub-pixel tilts the renderer cannot
+    make. (The pipeline's idealisation shifts every view continuously.)"""
+    panel = near_eye_microdisplay()
+    rows = []
+    for d in (0.5, 1.5, 2.5):
+        views = array_views(panel, d, diffraction_widths=0.0)
+        central = np.all(np.abs(views.lenslet_centres_mm) < 0.6, axis=1)  # the 2×2 lenslets
+        order = np.lexsort(views.lenslet_index[central].T)
+        rows.append((views.centres_mm[central][order], views.ideal_centres_mm[central][order]))
+    assert all(r[0].shape == (4, 2) for r in rows)
+    assert all(np.allclose(r[0], rows[0][0], atol=1e-12) for r in rows)
+    assert not np.allclose(rows[0][1], rows[2][1], atol=1e-3)
+    parallax_arcmin_per_D = 0.5236 * 1e-3 * 180 * 60 / math.pi
+    assert parallax_arcmin_per_D < 0.25 * float(panel.pixel_arcmin())
