@@ -540,7 +540,7 @@ def panel_specification(panel: Panel, wavelength_nm: float = 550.0) -> dict:
         "views_per_side": "views", "fresnel_number": f"unitless at {wavelength_nm:g} nm",
         "pixel_arcmin": "arcmin", "emitter_arcmin": "arcmin", "lenslet_arcmin": "arcmin",
         "nyquist_cpd": "cpd", "pixel_nyquist_cpd": "cpd", "pixels_per_lenslet": "pixels",
-        "eye_box_mm": "mm", "emitter_sweep_mm": "mm (at the eye)", "f_number": "unitless", "active_width_mm": "mm",
+        "eye_box_mm": "mm", "emitter_sweep_mm": "mm (at the eye)", "depth_step_D": "D", "f_number": "unitless", "active_width_mm": "mm",
         "active_height_mm": "mm", "lenslets_horizontal": "lenslets",
         "lenslets_vertical": "lenslets", "field_of_view_h_deg": "degrees",
         "field_of_view_v_deg": "degrees",

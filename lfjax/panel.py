@@ -286,6 +286,14 @@ class Panel(eqx.Module):
         """Pixels across one lenslet, Δu/p (unitless; the directions each lenslet emits)."""
         return self.lenslet_pitch_mm / self.pixel_pitch_mm
 
+    def depth_step_D(self):
+        """The change of rendered depth, D, that moves the images of two neighbouring views
+        apart by one pixel: pixel angle (rad) × 1000 / view pitch (mm). Two views M·Δu apart
+        part by M·Δu·ΔD/1000 rad per ΔD dioptres, and a renderer that lights whole pixels
+        can only turn a view in pixel steps; finer depths need a point spread over
+        neighbouring pixels (:mod:`lfjax.array_views`)."""
+        return self.pixel_arcmin() / ARCMIN_PER_RADIAN * 1000.0 / self.view_pitch_mm
+
     def emitter_sweep_mm(self):
         """How far a lenslet's beam footprint moves at the eye across one emitter,
         z_m·p·√pixel_fill/z_0, mm. The pipeline's pixel blur (one footprint for the whole
@@ -338,6 +346,7 @@ class Panel(eqx.Module):
             "pixels_per_lenslet": float(self.pixels_per_lenslet()),
             "eye_box_mm": float(self.eye_box_mm()),
             "emitter_sweep_mm": float(self.emitter_sweep_mm()),
+            "depth_step_D": float(self.depth_step_D()),
             "f_number": f / float(self.aperture_mm) if math.isfinite(f) else math.inf,
             "active_width_mm": w, "active_height_mm": h,
             "lenslets_horizontal": cnt[0], "lenslets_vertical": cnt[1],

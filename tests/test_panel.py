@@ -61,6 +61,11 @@ def test_derived_geometry_by_hand():
     assert float(p.lenslet_arcmin()) == pytest.approx(5e-3 * ARCMIN, rel=1e-6)
     assert float(p.nyquist_cpd()) == pytest.approx(100.0 * math.pi / 180.0, rel=1e-6)
     assert float(p.eye_box_mm()) == pytest.approx(13.125, rel=1e-5)
+    # neighbouring views 0.625 mm apart part by 0.625e-3 rad per dioptre: one pixel
+    # (2.02e-3 rad) is 3.232 D of rendered depth
+    assert float(p.depth_step_D()) == pytest.approx(1.01 / 500.0 / 0.625e-3, rel=1e-5)
+    # one emitter (side 0.005 mm) sweeps a footprint by z_m·w/z_0 = 100·0.005·101/400 mm
+    assert float(p.emitter_sweep_mm()) == pytest.approx(0.12625, rel=1e-5)
     assert float(p.pixels_per_lenslet()) == pytest.approx(50.0, rel=1e-6)
     assert p.active_size_mm == pytest.approx((10.0, 5.0))
     assert p.lenslet_count() == pytest.approx((20.0, 10.0))
