@@ -313,6 +313,7 @@ class DesignFit:
         ``relative_accommodation_rmse_D`` D, ``perceivable_cpd_median`` cpd, …)
     start_test : the same scores of the starting panel (held-out eyes, or the training
         eyes without them)
+    notes : where the fitted panel leaves what the model assumes (:func:`design_notes`)
     time_s : seconds the fit took
     """
 
@@ -325,6 +326,7 @@ class DesignFit:
     test: dict | None = None
     start_test: dict | None = None
     time_s: float = 0.0
+    notes: list = field(default_factory=list)
 
     @property
     def score(self) -> dict | None:
@@ -367,9 +369,34 @@ class DesignResult:
                          f"{s['relative_accommodation_rmse_D']:.3f}{start_acc}                  "
                          f"{s['perceivable_cpd_median']:.2f} [{s['perceivable_cpd_p05']:.2f}, "
                          f"{s['perceivable_cpd_p95']:.2f}]    {status}")
+        for f in self.fits:
+            lines += [f"  note ({f.n_per_side}x{f.n_per_side}): {note}" for note in f.notes]
         best = self.best
         lines.append(f"  chosen: {best.n_per_side}x{best.n_per_side}" if best else "  chosen: none")
         return "\n".join(lines)
+
+
+def design_notes(panel: Panel, depth_range_D, wavelength_nm: float = 550.0) -> list[str]:
+    """Sentences on where ``panel`` leaves what the pipeline's n×n views assume: a depth
+    step (:meth:`~lfjax.panel.Panel.depth_step_D`) beyond half the depth range (whole-pixel
+    rendering cannot part neighbouring views across it), an emitter sweep beyond half a
+    view (the pixel blur's single footprint does not hold) and a Fresnel number below 1
+    (each view spreads over much of the pupil). Empty when none applies."""
+    lo, hi = (float(v) for v in depth_range_D)
+    notes = []
+    step = float(panel.depth_step_D())
+    if step > 0.5 * (hi - lo):
+        notes.append(f"depth step {step:.3g} D exceeds half the depth range ({0.5 * (hi - lo):.3g} D): "
+                     f"whole-pixel rendering parts neighbouring views by one pixel per {step:.3g} D, "
+                     f"so depths within the range rely on spreading points over pixels")
+    sweep = float(panel.emitter_sweep_mm()) / float(panel.view_diameter_mm)
+    if sweep > 0.5:
+        notes.append(f"one emitter sweeps its beam over {sweep:.3g} view widths at the eye: the "
+                     f"pixel blur (one footprint per view) does not describe it (lfjax.array_views)")
+    fresnel = float(panel.fresnel_number(wavelength_nm))
+    if fresnel < 1.0:
+        notes.append(f"Fresnel number {fresnel:.3g} < 1: each view's beam spreads over much of the pupil")
+    return notes
 
 
 def _solve(x0, problem, template, n, constraints, steps: int, tol: float):
@@ -491,6 +518,7 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
         if fit.refused is None and float(fit.panel.eye_box_mm()) < constraints.min_eye_box_mm * (1 - 1e-3):
             fit.refused = (f"the eye box {float(fit.panel.eye_box_mm()):.3g} mm is below min_eye_box_mm = "
                            f"{constraints.min_eye_box_mm:g} mm even at the fastest lenslets")
+        fit.notes = design_notes(fit.panel, (lo, hi))
         fit.time_s = time.perf_counter() - t0
         if progress:
             print(f"design {n}x{n}: {fit.time_s:.1f} s", flush=True)
@@ -592,7 +620,7 @@ def save_design(result: DesignResult, out_dir, command: str | None = None) -> li
             "start_specification": None if f.start is None else panel_specification(f.start),
             "held_out" if f.test is not None else "training": _score_units(f.score),
             "start_held_out" if f.test is not None else "start_training": _score_units(f.start_test),
-            "loss_history": f.history, "fit_time_s": round(f.time_s, 2),
+            "notes": f.notes, "loss_history": f.history, "fit_time_s": round(f.time_s, 2),
         })
     record = {
         "format": DESIGN_FORMAT,
@@ -677,6 +705,7 @@ __all__ = [
     "design_problem",
     "design_loss",
     "perceivable_resolution",
+    "design_notes",
     "fit_design",
     "panel_specification",
     "save_design",

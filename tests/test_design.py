@@ -14,6 +14,7 @@ from lfjax import cli
 from lfjax.design import (
     DesignConstraints,
     design_loss,
+    design_notes,
     design_problem,
     feasibility,
     fit_design,
@@ -110,6 +111,16 @@ def test_design_gradient_matches_finite_differences():
     assert np.allclose(grad, fd, rtol=1e-3, atol=1e-5 * np.max(np.abs(fd))), (grad, fd)
 
 
+def test_design_notes_name_where_the_model_stops():
+    near = design_notes(near_eye_microdisplay(), (1.0, 2.0))
+    assert len(near) == 1 and "depth step 2.24 D" in near[0]
+    phone = design_notes(phone_panel(), (1.0, 3.0))
+    assert any("sweeps its beam over 4.38 view widths" in n for n in phone)
+    assert any("Fresnel number 0.877 < 1" in n for n in phone)
+    fine = dataclasses.replace(near_eye_microdisplay(), pixel_pitch_mm=0.0005)
+    assert design_notes(fine, (0.0, 3.0)) == []
+
+
 def test_specification_has_a_unit_for_every_number():
     spec = panel_specification(near_eye_microdisplay())
     for section in ("build", "derived"):
@@ -140,6 +151,7 @@ def test_cli_design_tiny_case(capsys, tmp_path, monkeypatch):
     one, two = record["designs"]
     assert "collapsed" in one["refused"] and one["specification"] is None
     assert two["refused"] is None
+    assert any("depth step" in note for note in two["notes"])  # 8 µm pixels over 1 D
     build = two["specification"]["build"]
     assert build["lenslet_pitch_mm"]["unit"] == "mm" and build["focal_length_mm"]["value"] > 0
     derived = two["specification"]["derived"]
