@@ -1,7 +1,8 @@
 """Command line: ``lfjax reproduce`` (the paper's study: results, tables, figures, report)
 ``lfjax optimise`` (fit a subaperture layout to virtual eyes, report it on held-out eyes),
-``lfjax sweep`` (a population sweep into a resumable Zarr store) and ``lfjax sweep-report``
-(its distributions, percentiles and what ten eyes cannot tell).
+``lfjax sweep`` (a population sweep into a resumable Zarr store), ``lfjax sweep-report``
+(its distributions, percentiles and what ten eyes cannot tell) and ``lfjax design`` (a
+buildable lenslet display fitted to a panel and eyes, :mod:`lfjax.design`).
 
 Usage errors print one line and exit with status 2; failures during the run print one line
 and exit with status 1, leaving no partial output.

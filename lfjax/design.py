@@ -45,7 +45,6 @@ import datetime
 import json
 import math
 import time
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -400,29 +399,34 @@ def design_notes(panel: Panel, depth_range_D, wavelength_nm: float = 550.0) -> l
 
 
 def _solve(x0, problem, template, n, constraints, steps: int, tol: float):
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="JAXopt is no longer maintained")
-        import jaxopt
+    """L-BFGS-B (SciPy's, on the host) in the box [0, 1]^k around the compiled loss and
+    gradient: at most ``steps`` iterations, stopping when the projected gradient is below
+    ``tol``. Returns (x, loss history: the start, then each iteration's)."""
+    from scipy.optimize import minimize
+
+    x = np.asarray(x0, float)
+    if steps == 0:
+        return jnp.asarray(x0), []
+    dtype = jnp.asarray(x0).dtype
+
+    seen = {}  # the callback asks again for the point the solver just evaluated
 
     def fun(x):
-        value, grad = _value_and_grad(x, problem, template, n, constraints)
-        return value, grad
+        key = np.asarray(x, float).tobytes()
+        if key not in seen:
+            value, grad = _value_and_grad(jnp.asarray(x, dtype), problem, template, n, constraints)
+            value = float(value)
+            if not math.isfinite(value):
+                raise FloatingPointError("the design loss is not finite")
+            seen.clear()
+            seen[key] = (value, np.asarray(grad, float))
+        return seen[key]
 
-    solver = jaxopt.LBFGSB(fun=fun, value_and_grad=True, tol=tol, maxls=8, jit=False,
-                           linesearch="backtracking")
-    lo, hi = jnp.zeros_like(x0), jnp.ones_like(x0)
-    x = jnp.asarray(x0)
-    history = []
-    if steps == 0:
-        return x, history
-    state = solver.init_state(x, (lo, hi))
-    history.append(float(state.value))
-    for _ in range(steps):
-        if float(state.error) <= tol:
-            break
-        x, state = solver.update(x, state, (lo, hi))
-        history.append(float(state.value))
-    return x, history
+    history = [fun(x)[0]]
+    result = minimize(fun, x, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * x.size,
+                      callback=lambda xk: history.append(fun(xk)[0]),
+                      options=dict(maxiter=steps, gtol=tol))
+    return jnp.asarray(result.x, dtype), history
 
 
 def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes | None = None,
