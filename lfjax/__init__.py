@@ -7,7 +7,8 @@ differentiable JAX functions. Stage modules: :mod:`lfjax.zernike`, :mod:`lfjax.e
 :mod:`lfjax.through_focus`, :mod:`lfjax.images`, :mod:`lfjax.planner`,
 :mod:`lfjax.pipeline` (the pure core), :mod:`lfjax.peaks`, :mod:`lfjax.layout_opt`;
 beyond the paper's ideal display: :mod:`lfjax.display` (lenslet diffraction, pixels),
-:mod:`lfjax.display_spectra` (display spectra), :mod:`lfjax.display_effects` (the study);
+:mod:`lfjax.display_spectra` (display spectra), :mod:`lfjax.display_effects` (the study),
+:mod:`lfjax.panel` (a display as built) and :mod:`lfjax.design` (fitting one to eyes);
 :mod:`lfjax.reproduce` and :mod:`lfjax.cli` run the paper's study.
 """
 
@@ -20,6 +21,7 @@ from . import layout_opt as layout_opt
 from . import layouts as layouts
 from . import metrics as metrics
 from . import optics as optics
+from . import panel as panel
 from . import peaks as peaks
 from . import pipeline as pipeline
 from . import planner as planner
@@ -38,6 +40,7 @@ from .layouts import hex_layout as hex_layout
 from .layouts import make_layout as make_layout
 from .layouts import open_pupil as open_pupil
 from .options import ModelOptions as ModelOptions
+from .panel import Panel as Panel
 from .psf import monochromatic_psf as monochromatic_psf
 from .optics import polychromatic_otf as polychromatic_otf
 from .sampling import AliasingError as AliasingError

@@ -1,7 +1,8 @@
 """Command line: ``lfjax reproduce`` (the paper's study: results, tables, figures, report)
 ``lfjax optimise`` (fit a subaperture layout to virtual eyes, report it on held-out eyes),
-``lfjax sweep`` (a population sweep into a resumable Zarr store) and ``lfjax sweep-report``
-(its distributions, percentiles and what ten eyes cannot tell).
+``lfjax sweep`` (a population sweep into a resumable Zarr store), ``lfjax sweep-report``
+(its distributions, percentiles and what ten eyes cannot tell) and ``lfjax design`` (a
+buildable lenslet display fitted to a panel and eyes, :mod:`lfjax.design`).
 
 Usage errors print one line and exit with status 2; failures during the run print one line
 and exit with status 1, leaving no partial output.
@@ -199,6 +200,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_optimise_parser(sub)
     _add_sweep_parser(sub)
     _add_sweep_report_parser(sub)
+    _add_design_parser(sub)
     return parser
 
 
@@ -791,6 +793,182 @@ def _sweep_report(args) -> int:
     return 0
 
 
+# ----------------------------------------------------------------------------- lfjax design
+
+
+def _add_design_parser(sub) -> None:
+    des = sub.add_parser(
+        "design",
+        help="fit a buildable lenslet display to a panel and virtual eyes; design.json, design.png",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Design a light-field display a maker can build (lfjax.design). Start from a panel\n"
+            "(--panel near-eye: a 0.7-inch 1920x1080 OLED microdisplay, 8.1 um pixels, lenslets\n"
+            "30 mm from the eye; --panel phone: a 460 ppi phone panel at 350 mm; the pixel pitch\n"
+            "and count can be overridden). For each views-per-pupil count (--views, n x n views\n"
+            "across the design pupil) fit the lenslet pitch, fill and gap (the focal length\n"
+            "follows from the gap and the CDP) and, with --distance-range, the viewing distance,\n"
+            "by L-BFGS-B with the layout optimiser's accommodation-aware objective on training\n"
+            "eyes (seed S), the panel's lenslet diffraction and pixel blur in the model. Each\n"
+            "design keeps an eye box of at least --min-eye-box mm. Report every count on\n"
+            "held-out eyes (seed S+1) beside its starting array (lenslets_for_layout's tangent\n"
+            "array, f/3): image at each eye's predicted accommodation (VSOTF), the display's\n"
+            "accommodation error, and the perceivable resolution (MTF 0.05 cut-off capped at the\n"
+            "display's sampling limit, cpd; median and 5-95 %). A design whose views collapse\n"
+            "(1x1) or that drives no accommodation is refused with the reason; a CDP outside the\n"
+            "depth range is refused before anything runs.\n\n"
+            "Outputs in DIR: design.json (every count's build specification: pixel pitch,\n"
+            "lenslet pitch, aperture, focal length, gap, distance, with units; derived CDP,\n"
+            "Fresnel number, pixel and lenslet angles, eye box; held-out scores; the chosen\n"
+            "count) and design.png (the chosen lenslet array and its views in the pupil).\n"
+            "Units: mm, dioptres (D), arcmin, cycles per degree (cpd), nm."
+        ),
+    )
+    des.add_argument("--panel", choices=("near-eye", "phone"), default="near-eye",
+                     help="starting panel preset (default near-eye)")
+    des.add_argument("--pixel-pitch", metavar="MM", type=_finite_float, default=None,
+                     help="override the preset's pixel pitch, mm")
+    des.add_argument("--pixel-count", metavar=("W", "H"), nargs=2, type=_positive_int, default=None,
+                     help="override the preset's pixel count (horizontal, vertical)")
+    des.add_argument("--distance", metavar="MM", type=_finite_float, default=None,
+                     help="viewing distance, eye pupil to lenslets, mm (default the preset's)")
+    des.add_argument("--distance-range", metavar=("LO", "HI"), nargs=2, type=_finite_float,
+                     default=None, help="fit the viewing distance too, within LO ... HI mm")
+    des.add_argument("--depths", metavar=("LOW", "HIGH"), nargs=2, type=_finite_float,
+                     required=True, help="rendered depth range in D, 0 <= LOW < HIGH")
+    des.add_argument("--n-depths", metavar="K", type=_positive_int, default=3,
+                     help="rendered depths evenly spanning the range, >= 2 (default 3)")
+    des.add_argument("--cdp", metavar="D", type=_finite_float, default=None,
+                     help="central depth plane, D, within the depth range (default: the "
+                          "range's dioptric middle)")
+    des.add_argument("--views", metavar="N", nargs="+", type=_positive_int, default=[1, 2, 3, 4],
+                     help="views-per-side counts to design, 1 ... 8 (default 1 2 3 4)")
+    des.add_argument("--min-eye-box", metavar="MM", type=_finite_float, default=10.0,
+                     help="smallest eye box (viewing zone) allowed, mm (default 10)")
+    des.add_argument("--min-fill", metavar="F", type=_finite_float, default=0.5,
+                     help="smallest lenslet fill, aperture/pitch in (0, 1] (default 0.5)")
+    des.add_argument("--f-number", metavar=("LO", "HI"), nargs=2, type=_finite_float,
+                     default=(1.0, 8.0), help="lenslet f-number range (default 1 8)")
+    des.add_argument("--diffraction", choices=("fresnel", "modulus", "off"), default="fresnel",
+                     help="lenslet diffraction in the model (default fresnel)")
+    des.add_argument("--train-eyes", metavar="N", type=_positive_int, default=10,
+                     help="training eyes, >= 1 (default 10)")
+    des.add_argument("--test-eyes", metavar="N", type=_count, default=20,
+                     help="held-out eyes, >= 0 (default 20; 0: report on the training eyes)")
+    des.add_argument("--seed", metavar="S", type=_seed, default=0,
+                     help="training eyes from seed S, held-out eyes from S+1 (default 0)")
+    des.add_argument("--wavelengths", metavar="NM", nargs="+", type=_finite_float, default=[550.0],
+                     help="the fit's wavelengths, nm, increasing, 400-700 (default 550)")
+    des.add_argument("--steps", metavar="N", type=_count, default=10,
+                     help="L-BFGS-B steps per count, >= 0 (default 10)")
+    des.add_argument("--report-accuracy", choices=("full", "fit"), default="full",
+                     help="setting of the held-out report (default full: 31 wavelengths)")
+    des.add_argument("--freq-step", metavar="CPD", type=_finite_float, default=None,
+                     help="frequency step, cpd (default: the planner's aliasing guard)")
+    des.add_argument("--out", metavar="DIR", default="lfjax-design",
+                     help="output folder; must be new or empty unless --force (default ./lfjax-design)")
+    des.add_argument("--force", action="store_true", help="write into a non-empty DIR")
+    des.add_argument("--no-progress", action="store_true", help="print no per-count progress")
+
+
+def _design_setup(args):
+    """Validated (panel, eyes, fit_design keywords, out) of ``lfjax design``; ValueError
+    naming the option otherwise."""
+    import dataclasses
+
+    from .design import DesignConstraints
+    from .panel import PRESETS
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()) and not args.force:
+        raise ValueError(f"--out {out} is not empty (use --force to write into it)")
+    low, high = args.depths
+    if low < 0 or not high > low:
+        raise ValueError(f"--depths must satisfy 0 <= LOW < HIGH (D), got {low:g} {high:g}")
+    if args.n_depths < 2:
+        raise ValueError(f"--n-depths must be >= 2 for a depth range, got {args.n_depths}")
+    if any(n > 8 for n in args.views):
+        raise ValueError(f"--views must be in 1 ... 8, got {args.views}")
+    wl = args.wavelengths
+    if any(w < 400 or w > 700 for w in wl) or any(b <= a for a, b in zip(wl, wl[1:])):
+        raise ValueError(f"--wavelengths must increase within 400-700 nm, got {wl}")
+    if args.freq_step is not None and not args.freq_step > 0:
+        raise ValueError(f"--freq-step must be > 0 cpd, got {args.freq_step:g}")
+    cdp = 0.5 * (low + high) if args.cdp is None else args.cdp
+    if not low <= cdp <= high:
+        raise ValueError(f"--cdp {cdp:g} D lies outside the depth range [{low:g}, {high:g}] D; choose "
+                         f"a CDP within it (default: its middle, {0.5 * (low + high):g} D)")
+    preset = {"cdp_D": cdp}
+    if args.distance is not None:
+        if not args.distance > 0:
+            raise ValueError(f"--distance must be > 0 mm, got {args.distance:g}")
+        preset["distance_mm"] = args.distance
+    try:
+        panel = PRESETS[args.panel](**preset)
+        changes = {}
+        if args.pixel_pitch is not None:
+            changes["pixel_pitch_mm"] = args.pixel_pitch
+        if args.pixel_count is not None:
+            changes["pixel_count"] = tuple(args.pixel_count)
+        panel = dataclasses.replace(panel, diffraction=args.diffraction, **changes)
+    except ValueError as err:
+        raise ValueError(f"--panel {args.panel}: {err}") from None
+    try:
+        constraints = DesignConstraints(
+            min_eye_box_mm=args.min_eye_box, min_fill=args.min_fill, min_f_number=args.f_number[0],
+            max_f_number=args.f_number[1],
+            distance_range_mm=None if args.distance_range is None else tuple(args.distance_range))
+    except ValueError as err:
+        raise ValueError(str(err).replace("min_eye_box_mm", "--min-eye-box").replace(
+            "min_fill", "--min-fill").replace("distance_range_mm", "--distance-range")) from None
+    return panel, constraints, cdp, out
+
+
+def _design(args, t_start: float) -> int:
+    prog = f"{PROG} design"
+    try:
+        panel, constraints, cdp, out = _design_setup(args)
+    except ValueError as err:
+        print(f"{prog}: error: {err}", file=sys.stderr)
+        return 2
+    enable_compilation_cache()
+    try:
+        from .design import fit_design, save_design
+        from .eyes import sample_eyes
+        from .sampling import Sampling
+
+        result = fit_design(
+            panel, depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
+            train_eyes=sample_eyes(args.seed, args.train_eyes),
+            test_eyes=sample_eyes(args.seed + 1, args.test_eyes) if args.test_eyes > 0 else None,
+            views_per_side=tuple(args.views), constraints=constraints,
+            wavelengths_nm=tuple(args.wavelengths), steps=args.steps,
+            report_accuracy=args.report_accuracy,
+            sampling=None if args.freq_step is None else Sampling(args.freq_step),
+            progress=not args.no_progress)
+        result.provenance["seed_train"] = args.seed
+        result.provenance["panel_preset"] = args.panel
+        files = save_design(result, out, command="lfjax " + " ".join(args.argv))
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except ValueError as err:
+        print(f"{prog}: error: {' '.join(str(err).split())}", file=sys.stderr)
+        return 2
+    except Exception as err:  # one line, no traceback
+        message = " ".join(str(err).split()) or type(err).__name__
+        print(f"{prog}: error: {type(err).__name__}: {message}", file=sys.stderr)
+        if os.environ.get("LFJAX_DEBUG"):
+            raise
+        return 1
+    print(result.summary())
+    print(f"{prog}: wrote {len(files)} files to {out} in {time.perf_counter() - t_start:.1f} s")
+    return 0
+
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``lfjax`` console script; returns the exit status."""
     t_start = time.perf_counter()
@@ -811,6 +989,9 @@ def main(argv: list[str] | None = None) -> int:
         return _sweep_report(args)
     if args.command == "sweep":
         return _sweep(args, t_start)
+    if args.command == "design":
+        args.argv = list(sys.argv[1:] if argv is None else argv)
+        return _design(args, t_start)
     return 2  # pragma: no cover - argparse rejects unknown commands
 
 

@@ -1,0 +1,232 @@
+"""The whole lenslet array rendering a point, not n×n idealised views.
+
+The paper's ideal display, and :meth:`lfjax.panel.Panel.layout`, give a rendered point n×n
+views whose footprints sit on a fixed grid in the pupil (M·Δu apart, the CDP's spacing) and
+whose images are displaced exactly as a real point's. A real integral-imaging display
+renders a point at depth D differently: every lenslet k lights the pixel behind it that
+lies nearest the line from the point through the lenslet's centre, and that pixel's beam —
+the lenslet aperture magnified M times, seen from the pixel's image P_k on the CDP — enters
+the eye wherever the line from P_k through the lenslet's centre meets the pupil plane.
+:func:`array_views` computes, for a point on the eye's axis, which lenslets do reach the
+pupil, where, and how far the pixel grid moves each beam from where the point needs it.
+
+Geometry (mm; lenslets at z_m, CDP at L, the point at z_r = 1000/D; lenslet centres u_k on
+a grid of pitch Δu; thin lenses, paraxial):
+
+* the ideal chief ray, from the point through u_k, meets the pupil plane at
+  q_k = u_k·z_r/(z_r − z_m) (the paper's Eq. 1: views Δu·z_r/(z_r − z_m) apart) and the
+  panel at x_k = u_k − (q_k − u_k)·z_0/z_m;
+* the renderer lights the nearest pixel centre x̂_k (pitch p); its beam's chief ray, from
+  its image P_k through u_k, meets the pupil plane at q̂_k = u_k − (x̂_k − u_k)·z_m/z_0: the
+  quantisation moves the footprint by up to p·z_m/(2z_0) (one pixel of one lenslet is
+  z_m·p/z_0 wide at the eye: 24 µm for the near-eye preset, 6.5 mm for the phone panel);
+* and it tilts the beam: the chief ray through q̂_k misses the point by the angle
+  ε_k = (u_k − q̂_k)/z_m + q̂_k/z_r = (δ_k/z_0)·(1 − z_m/z_r) (rad), δ_k = x̂_k − x_k — on the
+  CDP at most half a pixel's angle p/(2·z_0·M) — which the pipeline's display shift (that
+  of a ray through the point) does not contain.
+
+A lenslet reaches the pupil geometrically when its footprint (diameter M·a) overlaps it,
+and by diffraction when it lies within ``diffraction_widths`` × λ·z_eff/(M·a) of it (the
+spread of the magnified aperture's Fresnel pattern over z_eff = z_m·M). The pipeline
+propagates each view's aperture from inside the pupil window only, so a lenslet that
+reaches the pupil by diffraction alone contributes nothing there; :class:`ArrayViews`
+counts them so that a study can say where that matters.
+
+What is not modelled yet: the tilt ε_k in the image (reported per view, in arcmin) — the
+pipeline shifts every view as a ray through the rendered point — and lenslets whose
+footprint lies outside the pupil.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from lfjax.layouts import Layout, make_layout
+from lfjax.panel import Panel
+from lfjax.units import ARCMIN_PER_RADIAN
+
+
+@dataclass(frozen=True)
+class ArrayViews:
+    """Every lenslet beam of a rendered on-axis point that reaches the pupil (host arrays).
+
+    Attributes
+    ----------
+    depth_D : the rendered depth, D
+    lenslet_index : (n, 2) int, the lenslets' grid indices (x, y)
+    lenslet_centres_mm : (n, 2) u_k on the lenslet plane, mm
+    ideal_centres_mm : (n, 2) q_k, where the ideal beam (through the point) meets the pupil plane, mm
+    centres_mm : (n, 2) q̂_k, where the lit pixel's beam meets it, mm
+    diameters_mm : (n,) footprint diameter M·a, mm
+    tilt_arcmin : (n, 2) ε_k, the lit pixel's beam's angle from a ray through the point, arcmin
+    geometric : (n,) bool, the footprint overlaps the pupil (else it reaches by diffraction only)
+    pupil_diameter_mm, fresnel_number : the design pupil (mm) and the lenslets' Fresnel number
+    """
+
+    depth_D: float
+    lenslet_index: np.ndarray
+    lenslet_centres_mm: np.ndarray
+    ideal_centres_mm: np.ndarray
+    centres_mm: np.ndarray
+    diameters_mm: np.ndarray
+    tilt_arcmin: np.ndarray
+    geometric: np.ndarray
+    pupil_diameter_mm: float
+    fresnel_number: float
+
+    @property
+    def n_views(self) -> int:
+        return int(self.diameters_mm.shape[0])
+
+    @property
+    def n_geometric(self) -> int:
+        return int(np.sum(self.geometric))
+
+    def layout(self, name: str | None = None) -> Layout:
+        """The views whose footprints overlap the pupil, as a :class:`~lfjax.layouts.Layout`
+        at the lit pixels' positions (window = the pupil)."""
+        keep = self.geometric
+        if not np.any(keep):
+            raise ValueError(f"no lenslet's footprint overlaps the pupil at {self.depth_D:g} D")
+        return make_layout(self.centres_mm[keep], self.diameters_mm[keep], self.pupil_diameter_mm,
+                           name=name or f"array at {self.depth_D:g} D",
+                           window_diameter_mm=self.pupil_diameter_mm)
+
+
+def array_views(panel: Panel, depth_D: float, *, wavelength_nm: float = 550.0,
+                lattice_offset=None, pixel_offset_mm=(0.0, 0.0),
+                diffraction_widths: float = 2.0, emitter_samples: int = 1) -> ArrayViews:
+    """The lenslet beams that a point rendered on the eye's axis at ``depth_D`` (D) sends
+    towards the pupil of ``panel`` (its design pupil), as its renderer lights them.
+
+    ``lattice_offset`` (in pitches, (x, y)) places the lenslet grid: lenslet centres at
+    (k + offset)·Δu; default 0.5 when :meth:`~lfjax.panel.Panel.n_views_per_side` is even
+    and 0 when odd, the alignment of :meth:`~lfjax.panel.Panel.layout`.
+    ``pixel_offset_mm`` places the pixel grid: pixel centres at (j + ½)·p + offset on each
+    axis. ``diffraction_widths``: how many λ·z_eff/(M·a) beyond its footprint a lenslet's
+    beam counts as reaching the pupil. ``emitter_samples`` m splits each lit emitter
+    (side p·√pixel_fill) into m×m equal incoherent point sources, each its own beam with
+    its own footprint and tilt (m = 1: the emitter's centre), for panels whose emitters
+    sweep the footprint across the pupil (:meth:`~lfjax.panel.Panel.emitter_sweep_mm`);
+    ``lenslet_index`` then repeats per sample. Refuses a depth at or in front of the
+    lenslet plane.
+    """
+    p = float(panel.pixel_pitch_mm)
+    du = float(panel.lenslet_pitch_mm)
+    zm = float(panel.distance_mm)
+    z0 = float(panel.gap_mm)
+    m = float(panel.magnification)
+    d = float(panel.view_diameter_mm)
+    pupil = float(panel.pupil_diameter_mm)
+    depth = float(depth_D)
+    if not (math.isfinite(depth) and 0.0 <= depth < 1000.0 / zm):
+        raise ValueError(f"depth_D must be in [0, {1000.0 / zm:.4g}) D (behind the lenslet plane at "
+                         f"{zm:g} mm), got {depth_D}")
+    if not (math.isfinite(diffraction_widths) and diffraction_widths >= 0):
+        raise ValueError(f"diffraction_widths must be finite and >= 0, got {diffraction_widths}")
+    if lattice_offset is None:
+        half = 0.5 if panel.n_views_per_side() % 2 == 0 else 0.0
+        lattice_offset = (half, half)
+    offset = np.asarray(lattice_offset, float).reshape(2)
+    pix_off = np.asarray(pixel_offset_mm, float).reshape(2)
+    # q = u/(1 − z_m·D/1000): the ideal chief ray through the point (D = 0: parallel rays)
+    scale = 1.0 / (1.0 - zm * depth / 1000.0)
+    spread = diffraction_widths * wavelength_nm * 1e-6 * float(panel.fresnel_distance_mm) / d
+    reach = 0.5 * pupil + 0.5 * d + spread
+    k_max = int(math.ceil(reach / (du * scale))) + 2
+    if (2 * k_max + 1) ** 2 * max(int(emitter_samples), 1) ** 2 > 4_000_000:
+        raise ValueError(f"the beams' reach ({reach:.4g} mm around the pupil) spans {2 * k_max + 1} "
+                         f"lenslets a side: lower diffraction_widths (got {diffraction_widths:g}) "
+                         f"or emitter_samples (got {emitter_samples})")
+    k = np.arange(-k_max, k_max + 1)
+    kx, ky = np.meshgrid(k, k)
+    index = np.stack([kx.ravel(), ky.ravel()], axis=1)
+    u = (index + offset) * du
+    q_ideal = u * scale
+    x_exact = u - (q_ideal - u) * z0 / zm
+    x_pix = (np.round((x_exact - pix_off) / p - 0.5) + 0.5) * p + pix_off
+    m_em = int(emitter_samples)
+    if m_em != emitter_samples or m_em < 1:
+        raise ValueError(f"emitter_samples must be an integer >= 1, got {emitter_samples}")
+    if m_em > 1:
+        width = p * math.sqrt(float(panel.pixel_fill))
+        s1 = ((np.arange(m_em) + 0.5) / m_em - 0.5) * width
+        sx, sy = np.meshgrid(s1, s1)
+        sub = np.stack([sx.ravel(), sy.ravel()], axis=1)  # (m², 2)
+        rep = lambda a: np.repeat(a, m_em * m_em, axis=0)  # noqa: E731
+        index, u, q_ideal = rep(index), rep(u), rep(q_ideal)
+        x_pix = rep(x_pix) + np.tile(sub, (len(x_pix), 1))
+    q = u - (x_pix - u) * zm / z0
+    z_r = math.inf if depth == 0 else 1000.0 / depth
+    tilt = (u - q) / zm + (0.0 if math.isinf(z_r) else q / z_r)
+    dist = np.hypot(q[:, 0], q[:, 1])
+    geometric = dist - 0.5 * d < 0.5 * pupil
+    keep = dist - 0.5 * d - spread < 0.5 * pupil
+    return ArrayViews(depth, index[keep], u[keep], q_ideal[keep], q[keep], np.full(int(keep.sum()), d),
+                      tilt[keep] * ARCMIN_PER_RADIAN, geometric[keep], pupil,
+                      float(panel.fresnel_number(wavelength_nm)))
+
+
+def idealisation_gap(panel: Panel, depths_D, *, pixel_offset_mm=(0.0, 0.0),
+                     wavelength_nm: float = 550.0) -> list[dict]:
+    """How far the whole array's rendering of an on-axis point departs from the n×n
+    idealisation (:meth:`~lfjax.panel.Panel.layout`), geometrically, per rendered depth.
+
+    Each row (host numbers): ``depth_D``; ``n_idealised`` (n², the layout's views) and
+    ``n_array`` (lenslets whose lit pixel's footprint overlaps the pupil);
+    ``footprint_shift_mm``, the largest distance between an idealised view's centre and
+    where its lenslet's lit beam meets the pupil (the depth's Eq. 1 scaling and the pixel
+    grid together; inf when a lit beam misses the pupil); ``tilt_arcmin``, the largest beam tilt ε; ``emitter_sweep_ratio``, the
+    emitter sweep over the view width (≪ 1: the pipeline's pixel blur holds); and the
+    lenslets' ``fresnel_number`` (≲ 1: beams spread over the pupil). The idealisation holds
+    where the shift and the tilt are small beside the view width and the pixel angle,
+    ``n_array`` equals ``n_idealised`` and the sweep ratio is small."""
+    n = panel.n_views_per_side()
+    layout = np.asarray(panel.layout(n).centres_mm, float)
+    rows = []
+    for depth in np.atleast_1d(np.asarray(depths_D, float)):
+        views = array_views(panel, float(depth), pixel_offset_mm=pixel_offset_mm,
+                            wavelength_nm=wavelength_nm, diffraction_widths=0.0)
+        shift = 0.0
+        m = float(panel.magnification)
+        tol = 1e-9 * float(panel.lenslet_pitch_mm)
+        for centre in layout:  # the idealised view of lenslet u = centre/M
+            mine = np.all(np.abs(views.lenslet_centres_mm - centre / m) <= tol, axis=1)
+            if np.any(mine):
+                shift = max(shift, float(np.max(np.hypot(*(views.centres_mm[mine] - centre).T))))
+            else:  # that lenslet's lit beam misses the pupil altogether
+                shift = math.inf
+        rows.append(dict(
+            depth_D=float(depth), n_idealised=n * n, n_array=views.n_geometric,
+            footprint_shift_mm=shift,
+            tilt_arcmin=float(np.max(np.abs(views.tilt_arcmin))) if views.n_views else 0.0,
+            emitter_sweep_ratio=float(panel.emitter_sweep_mm()) / float(panel.view_diameter_mm),
+            fresnel_number=views.fresnel_number))
+    return rows
+
+
+def array_through_focus(eyes, panel: Panel, depths_D, accommodation_D, *, diffraction=None,
+                        pixel_offset_mm=(0.0, 0.0), **kwargs):
+    """Through-focus curves of points rendered by the whole array: one
+    :func:`lfjax.through_focus.through_focus` per rendered depth, each with the layout of
+    :func:`array_views` (the lenslets whose footprints overlap the pupil, at the lit
+    pixels' positions) and the panel's optics (``diffraction`` overrides its mode).
+    ``kwargs`` go to ``through_focus`` (``spectrum``, ``sampling``, ``options``, …). The
+    beams' tilts ε_k are not in these images (module docstring). Returns a list of
+    (ArrayViews, ThroughFocus), one per depth."""
+    from lfjax.through_focus import through_focus
+
+    optics = panel.optics(diffraction)
+    out = []
+    for depth in np.atleast_1d(np.asarray(depths_D, float)):
+        views = array_views(panel, float(depth), pixel_offset_mm=pixel_offset_mm)
+        tf = through_focus(eyes, views.layout(), np.array([depth]), accommodation_D,
+                           panel.pupil_diameter_mm, float(panel.cdp_D), display=optics, **kwargs)
+        out.append((views, tf))
+    return out
+
+
+__all__ = ["ArrayViews", "array_views", "idealisation_gap", "array_through_focus"]

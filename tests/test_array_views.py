@@ -1,0 +1,184 @@
+"""lfjax.array_views: the whole lenslet array rendering a point."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from lfjax.array_views import array_through_focus, array_views, idealisation_gap
+from lfjax.eyes import average_eye
+from lfjax.layouts import subaperture_pitch_mm
+from lfjax.panel import Panel, near_eye_microdisplay, perceivable_cutoff_at_peak, phone_panel
+from lfjax.sampling import Sampling
+from lfjax.spectral import make_spectrum
+from lfjax.through_focus import through_focus
+
+
+def _fine_pixels(panel: Panel, pitch_mm: float = 1e-9) -> Panel:
+    return dataclasses.replace(panel, pixel_pitch_mm=pitch_mm)
+
+
+@pytest.mark.parametrize("depth", [0.0, 0.5, 1.5, 3.0])
+def test_ideal_beams_follow_the_papers_equation_1(depth):
+    """With vanishing pixels the lit beams are the ideal chief rays: neighbouring lenslets'
+    beams are Δu·z_r/(z_r − z_m) apart in the pupil (the paper's Eq. 1, implemented
+    independently in lfjax.layouts), parallel (Δu apart) for a point at infinity, and they
+    carry no tilt."""
+    panel = _fine_pixels(near_eye_microdisplay())
+    views = array_views(panel, depth)
+    du, zm = float(panel.lenslet_pitch_mm), float(panel.distance_mm)
+    step = du if depth == 0 else float(subaperture_pitch_mm(du, 1.0 / depth, zm / 1000.0))
+    order = np.lexsort(views.lenslet_index.T)
+    idx, q = views.lenslet_index[order], views.centres_mm[order]
+    same_row = (idx[1:, 1] == idx[:-1, 1]) & (idx[1:, 0] == idx[:-1, 0] + 1)
+    assert np.any(same_row)
+    assert np.allclose(np.diff(q[:, 0])[same_row], step, rtol=1e-6)
+    assert np.allclose(views.centres_mm, views.ideal_centres_mm, atol=1e-6)
+    assert np.max(np.abs(views.tilt_arcmin)) < 1e-3
+
+
+def test_on_the_cdp_the_central_beams_are_the_panels_layout():
+    panel = _fine_pixels(near_eye_microdisplay())
+    views = array_views(panel, float(panel.cdp_D))
+    layout = panel.layout()
+    for c in np.asarray(layout.centres_mm):
+        assert np.min(np.hypot(*(views.centres_mm - c).T)) < 1e-6
+    # 2.87 views across: beyond the 2×2, eight more footprints overlap the 3 mm pupil
+    assert views.n_geometric == 12 and layout.n_subapertures == 4
+
+
+@pytest.mark.parametrize("make", [near_eye_microdisplay, phone_panel])
+def test_pixel_quantisation_bounds(make):
+    """Lighting the pixel δ = x̂ − x from the ideal one (|δ| ≤ p/2 per axis) moves the
+    footprint by δ·z_m/z_0 and tilts the beam by ε = (u − q̂)/z_m + q̂/z_r =
+    (δ/z_0)·(1 − z_m/z_r): at most half a pixel's angle p/(2·z_0·M) on the CDP, scaled by
+    (1 − z_m·D)/(1 − z_m·D_c) (z_m in m) at depth D."""
+    panel = make()
+    p, zm, z0 = float(panel.pixel_pitch_mm), float(panel.distance_mm), float(panel.gap_mm)
+    dc = float(panel.cdp_D)
+    for depth in (0.5, dc, 2.5):
+        views = array_views(panel, depth, pixel_offset_mm=(0.013, -0.007))
+        move = np.abs(views.centres_mm - views.ideal_centres_mm)
+        assert np.all(move <= zm * p / (2 * z0) * (1 + 1e-9))
+        bound = 0.5 * float(panel.pixel_arcmin()) * (1 - zm * depth / 1000) / (1 - zm * dc / 1000)
+        assert np.all(np.abs(views.tilt_arcmin) <= bound * (1 + 1e-6))
+        # and the tilt is exactly (δ/z_0)(1 − z_m/z_r) with δ read back from the footprint
+        delta = -(views.centres_mm - views.ideal_centres_mm) * z0 / zm
+        want = delta / z0 * (1 - zm * depth / 1000) * 180 * 60 / math.pi
+        assert np.allclose(views.tilt_arcmin, want, rtol=1e-6, atol=1e-9)
+
+
+def test_emitter_samples_cover_the_emitter_sweep():
+    """m×m samples of one emitter (side w = p·√fill) sit at ±w/3 and 0 for m = 3: their
+    footprints span 2/3 of the emitter sweep z_m·w/z_0 at the eye, centred on the
+    pixel-centre beam."""
+    panel = dataclasses.replace(near_eye_microdisplay(), pixel_fill=0.64)
+    sweep = float(panel.emitter_sweep_mm())
+    assert sweep == pytest.approx(float(panel.distance_mm) * float(panel.pixel_pitch_mm) * 0.8
+                                  / float(panel.gap_mm), rel=1e-6)
+    one = array_views(panel, 1.0)
+    many = array_views(panel, 1.0, emitter_samples=3)
+    centre = np.argmin(np.hypot(*one.centres_mm.T))  # a central lenslet: all its samples kept
+    mine = np.all(many.lenslet_index == one.lenslet_index[centre], axis=1)
+    assert mine.sum() == 9
+    block = many.centres_mm[mine]
+    assert np.ptp(block[:, 0]) == pytest.approx(sweep * 2 / 3, rel=1e-6)
+    assert np.allclose(block.mean(axis=0), one.centres_mm[centre], atol=1e-9)
+    with pytest.raises(ValueError, match="emitter_samples"):
+        array_views(panel, 1.0, emitter_samples=0)
+    with pytest.raises(ValueError, match="lower diffraction_widths"):
+        array_views(panel, 1.0, diffraction_widths=1e6)
+
+
+def test_low_fresnel_numbers_reach_the_pupil_by_diffraction():
+    near = array_views(near_eye_microdisplay(), 1.0)
+    half = 0.5 * float(phone_panel().pixel_pitch_mm)
+    phone = array_views(phone_panel(), 2.0, diffraction_widths=4.0, pixel_offset_mm=(half, half))
+    assert near.fresnel_number > 10 and near.n_views == near.n_geometric
+    assert phone.fresnel_number < 1 and phone.n_views > phone.n_geometric > 0
+    with pytest.raises(ValueError, match=r"depth_D must be in \[0, 33.33\) D"):
+        array_views(near_eye_microdisplay(), 40.0)
+
+
+def test_array_through_focus_is_the_idealisation_when_the_array_makes_the_n_by_n_views():
+    """With fill 0.9 the 2×2 tangent views' neighbours' footprints miss the pupil, and with
+    vanishing pixels every beam is ideal: for a point on the CDP the whole array then
+    renders exactly the n×n idealisation. Off the CDP its footprints sit where the chief
+    rays through the point cross the pupil, scaled by (1 − z_m·D_c)/(1 − z_m·D) from the
+    idealisation's fixed grid (z_m in m)."""
+    base = Panel.with_cdp(cdp_D=1.5, pixel_pitch_mm=1e-9, lenslet_pitch_mm=3.0 / 2 / 1.0471204,
+                          focal_length_mm=3.3, distance_mm=30.0, fill=0.9, diffraction="off")
+    cdp = float(base.cdp_D)
+    assert array_views(base, cdp).n_geometric == 4
+    off = array_views(base, 1.0)
+    ratio = (1 - 0.03 * cdp) / (1 - 0.03 * 1.0)
+    assert np.allclose(np.sort(off.centres_mm[:, 0]), np.sort(np.asarray(base.layout().centres_mm)[:, 0]) * ratio)
+    eye = average_eye()
+    spectrum = make_spectrum(np.array([550.0]))
+    acc = np.array([1.0, 1.5, 2.0])
+    kwargs = dict(spectrum=spectrum, sampling=Sampling(2.0), window_D=None)
+    (views, got), = array_through_focus(eye, base, [cdp], acc, **kwargs)
+    want = through_focus(eye, base.layout(), np.array([cdp]), acc, 3.0, cdp, display=base.optics(), **kwargs)
+    assert views.n_geometric == 4
+    assert np.allclose(np.asarray(got.vsotf), np.asarray(want.vsotf), rtol=1e-9, atol=1e-12)
+    assert np.all(np.isfinite(np.asarray(got.vsotf)))
+    # the perceivable resolution of that through-focus result: on the CDP, the lower of the
+    # MTF's cut-off at the peak and the pixels' Nyquist frequency (vanishing here)
+    cut = np.asarray(perceivable_cutoff_at_peak(want, base))
+    optical = np.asarray(want.cutoff_cpd("vsotf"))
+    assert cut.shape == (1, 1) and np.allclose(cut, optical, rtol=1e-9)
+
+
+def test_where_the_pixels_fall_decides_what_a_phone_panel_shows():
+    """The phone preset has 8.1 pixels per lenslet and 2.3 lenslet pitches per pixel beam
+    spacing at the eye (z_m·p/z_0 = 6.6 mm against a 3 mm pupil): with the pixel grid's
+    phase at zero, the on-axis CDP point falls between two pixels of every lenslet and no
+    pixel centre's beam enters the pupil; shifted half a pixel, every central lenslet's
+    does. Sampling the emitters shows light entering in both cases (their sweep is 6.6 mm,
+    beyond the 1.5 mm views), which the n×n idealisation with a pixel blur cannot tell
+    apart."""
+    panel = phone_panel()
+    half = 0.5 * float(panel.pixel_pitch_mm)
+    between = array_views(panel, 2.0)
+    centred = array_views(panel, 2.0, pixel_offset_mm=(half, half))
+    assert float(panel.emitter_sweep_mm()) > 4 * float(panel.view_diameter_mm)
+    assert between.n_geometric == 0 and centred.n_geometric >= 4
+    assert array_views(panel, 2.0, emitter_samples=4).n_geometric > 0
+
+
+def test_idealisation_gap():
+    """Vanishing pixels, fill 0.9, on the CDP: no gap at all; off the CDP the footprints
+    move by the Eq. 1 scaling, |q|·|ratio − 1| for the idealised centre |q| = 0.75·√2 mm;
+    the phone panel's lit beams miss the pupil (inf) and its emitters sweep 4× a view."""
+    base = Panel.with_cdp(cdp_D=1.5, pixel_pitch_mm=1e-9, lenslet_pitch_mm=3.0 / 2 / 1.0471204,
+                          focal_length_mm=3.3, distance_mm=30.0, fill=0.9, diffraction="off")
+    on, off = idealisation_gap(base, [1.5, 1.0])
+    assert on["n_array"] == on["n_idealised"] == 4
+    assert on["footprint_shift_mm"] < 1e-6 and on["tilt_arcmin"] < 1e-4
+    ratio = (1 - 0.03 * 1.5) / (1 - 0.03 * 1.0)
+    assert off["footprint_shift_mm"] == pytest.approx(0.75 * math.sqrt(2) * abs(ratio - 1), rel=1e-4)
+    phone, = idealisation_gap(phone_panel(), [2.0])
+    assert phone["footprint_shift_mm"] == math.inf and phone["emitter_sweep_ratio"] > 4
+
+
+def test_near_eye_pixels_quantise_the_rendered_depth():
+    """The near-eye preset's pixels subtend 8.1′ at the eye, while a view 0.52 mm from the
+    pupil centre turns by only 0.52 mrad = 1.8′ per dioptre of rendered depth: lighting the
+    nearest pixel, the central lenslets light the same pixels for points at 0.5, 1.5 and 2.5 D —
+    the same footprints, the depth carried only by sub-pixel tilts the renderer cannot
+    make. (The pipeline's idealisation shifts every view continuously.)"""
+    panel = near_eye_microdisplay()
+    rows = []
+    for d in (0.5, 1.5, 2.5):
+        views = array_views(panel, d, diffraction_widths=0.0)
+        central = np.all(np.abs(views.lenslet_centres_mm) < 0.6, axis=1)  # the 2×2 lenslets
+        order = np.lexsort(views.lenslet_index[central].T)
+        rows.append((views.centres_mm[central][order], views.ideal_centres_mm[central][order]))
+    assert all(r[0].shape == (4, 2) for r in rows)
+    assert all(np.allclose(r[0], rows[0][0], atol=1e-12) for r in rows)
+    assert not np.allclose(rows[0][1], rows[2][1], atol=1e-3)
+    parallax_arcmin_per_D = 0.5236 * 1e-3 * 180 * 60 / math.pi
+    assert parallax_arcmin_per_D < 0.25 * float(panel.pixel_arcmin())

@@ -1,0 +1,188 @@
+"""lfjax.design and ``lfjax design``: fitting a buildable panel to eyes."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import jax
+import numpy as np
+import pytest
+
+from lfjax import cli
+from lfjax.design import (
+    DesignConstraints,
+    design_loss,
+    design_notes,
+    design_problem,
+    feasibility,
+    fit_design,
+    panel_from_box,
+    panel_specification,
+    start_box,
+)
+from lfjax.display import lenslets_for_layout
+from lfjax.eyes import sample_eyes
+from lfjax.panel import Panel, near_eye_microdisplay, phone_panel, sampling_limit_cpd
+from lfjax.sampling import Sampling
+
+
+@pytest.mark.parametrize("make", [near_eye_microdisplay, phone_panel])
+@pytest.mark.parametrize("free_distance", [False, True])
+def test_every_box_point_is_a_buildable_panel(make, free_distance):
+    """Each point of the box maps to a panel that passes Panel's host validation, keeps
+    the asked CDP, has n views across the pupil, a lenslet no smaller than a pixel, an
+    f-number within its range and (where the f-number range allows it) the eye box."""
+    template = make()
+    cdp = float(template.cdp_D)
+    zm = float(template.distance_mm)
+    c = DesignConstraints(min_eye_box_mm=10.0, min_fill=0.5, min_f_number=1.0, max_f_number=8.0,
+                          distance_range_mm=(0.8 * zm, 0.95 * zm) if free_distance else None)
+    rng = np.random.default_rng(0)
+    dim = 4 if free_distance else 3
+    points = np.concatenate([rng.uniform(size=(20, dim)), np.zeros((1, dim)), np.ones((1, dim))])
+    for n in (2, 3, 4):
+        assert feasibility(template, n, cdp, c) is None
+        for x in points:
+            traced = panel_from_box(x, template, n, cdp, c)
+            host = Panel(*(float(np.asarray(v)) for v in (
+                traced.pixel_pitch_mm, traced.lenslet_pitch_mm, traced.fill, traced.focal_length_mm,
+                traced.gap_mm, traced.distance_mm, traced.pixel_fill)),
+                pixel_count=traced.pixel_count, pupil_diameter_mm=traced.pupil_diameter_mm)
+            assert float(host.cdp_D) == pytest.approx(cdp, abs=1e-6)
+            assert host.n_views_per_side() == n
+            f_number = float(host.focal_length_mm) / float(host.aperture_mm)
+            assert 1.0 - 1e-6 <= f_number <= 8.0 + 1e-6
+            assert float(host.lenslet_pitch_mm) >= float(host.pixel_pitch_mm)
+            if x[2] == 1.0:  # the longest gap: the eye box bound is active or the f-number's
+                assert (float(host.eye_box_mm()) == pytest.approx(10.0, rel=1e-6)
+                        or f_number == pytest.approx(8.0, rel=1e-6))
+            assert float(host.eye_box_mm()) >= 10.0 * (1 - 1e-6) or x[2] < 1.0
+
+
+def test_the_start_is_lenslets_for_layouts_tangent_array():
+    template = near_eye_microdisplay()
+    c = DesignConstraints()
+    for n in (2, 3):
+        start = panel_from_box(start_box(template, n, 1.5, c), template, n, 1.5, c)
+        tangent = lenslets_for_layout(n, 3.0, 1.5, 30.0, fill=1.0, f_number=3.0)
+        for mine, theirs in ((start.lenslet_pitch_mm, tangent.pitch_mm), (start.gap_mm, tangent.gap_mm),
+                             (start.focal_length_mm, tangent.focal_length_mm)):
+            assert float(mine) == pytest.approx(float(theirs), rel=1e-6)
+
+
+def test_infeasible_count_and_cdp_outside_range_are_refused():
+    panel = phone_panel()
+    # 8x8 views at 350 mm need lenslets of 0.375/3.33 = 0.11 mm: two pixels, still feasible;
+    # a 0.2 mm pixel cannot
+    coarse = dataclasses.replace(panel, pixel_pitch_mm=0.2, lenslet_pitch_mm=0.45)
+    why = feasibility(coarse, 8, 2.0, DesignConstraints())
+    assert why is not None and "smaller than a pixel" in why
+    eyes = sample_eyes(0, 1)
+    with pytest.raises(ValueError, match=r"cdp_D = 2 D lies outside the depth range \[0.5, 1.5\] D"):
+        fit_design(panel, depth_range_D=(0.5, 1.5), train_eyes=eyes)
+    with pytest.raises(ValueError, match="views_per_side"):
+        fit_design(panel, depth_range_D=(1.0, 3.0), train_eyes=eyes, views_per_side=(9,))
+    with pytest.raises(ValueError, match="min_fill"):
+        DesignConstraints(min_fill=0.0)
+    # one view is refused before anything is fitted, and so is an infeasible count
+    result = fit_design(coarse, depth_range_D=(1.0, 3.0), train_eyes=eyes, views_per_side=(1, 8))
+    assert [f.refused is not None for f in result.fits] == [True, True]
+    assert "collapsed into one aperture" in result.fits[0].refused
+    assert "infeasible" in result.fits[1].refused and result.best is None
+
+
+def test_design_gradient_matches_finite_differences():
+    """d(loss)/d(box coordinates) of the accommodation-aware objective against central
+    differences (float64), at an interior point, distance free, lenslet diffraction on."""
+    template = dataclasses.replace(near_eye_microdisplay(), diffraction="fresnel")
+    c = DesignConstraints(distance_range_mm=(25.0, 35.0))
+    problem = design_problem(template, 2, sample_eyes(0, 1), np.array([1.0, 2.0]), 1.5, c,
+                             sampling=Sampling(1.0))
+    f = jax.jit(lambda x, p: design_loss(x, p, template, 2, c))
+    g = jax.jit(jax.grad(lambda x, p: design_loss(x, p, template, 2, c)))
+    x = np.array([0.4, 0.6, 0.5, 0.3])
+    grad = np.asarray(g(x, problem))
+    h = 1e-5
+    fd = np.array([(float(f(x + h * e, problem)) - float(f(x - h * e, problem))) / (2 * h)
+                   for e in np.eye(4)])
+    assert np.all(np.isfinite(grad)) and np.max(np.abs(grad)) > 1e-3
+    assert np.allclose(grad, fd, rtol=1e-3, atol=1e-5 * np.max(np.abs(fd))), (grad, fd)
+
+
+def test_design_notes_name_where_the_model_stops():
+    near = design_notes(near_eye_microdisplay(), (1.0, 2.0))
+    assert len(near) == 1 and "depth step 2.24 D" in near[0]
+    phone = design_notes(phone_panel(), (1.0, 3.0))
+    assert any("sweeps its beam over 4.38 view widths" in n for n in phone)
+    assert any("Fresnel number 0.877 < 1" in n for n in phone)
+    fine = dataclasses.replace(near_eye_microdisplay(), pixel_pitch_mm=0.0005)
+    assert design_notes(fine, (0.0, 3.0)) == []
+
+
+def test_specification_has_a_unit_for_every_number():
+    spec = panel_specification(near_eye_microdisplay())
+    for section in ("build", "derived"):
+        for key, entry in spec[section].items():
+            assert set(entry) == {"value", "unit"}, key
+            if isinstance(entry["value"], float):
+                assert entry["unit"], key
+    assert spec["build"]["gap_mm"]["unit"] == "mm"
+    assert spec["derived"]["cdp_D"]["value"] == pytest.approx(1.5, rel=1e-5)
+
+
+TINY = ["design", "--panel", "near-eye", "--depths", "1", "2", "--n-depths", "2", "--views", "1", "2",
+        "--train-eyes", "1", "--test-eyes", "1", "--steps", "1", "--report-accuracy", "fit",
+        "--diffraction", "off", "--freq-step", "2", "--no-progress"]
+
+
+def test_cli_design_tiny_case(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(cli, "enable_compilation_cache", lambda folder=None: None)
+    out = tmp_path / "design"
+    code = cli.main([*TINY, "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err[-2000:]
+    assert "chosen: 2x2" in captured.out and str(out) in captured.out.strip().splitlines()[-1]
+    assert {p.name for p in out.iterdir()} == {"design.json", "design.png"}
+    assert (out / "design.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    record = json.loads((out / "design.json").read_text())
+    assert record["format"] == "lfjax-design/1" and record["chosen_views_per_side"] == 2
+    one, two = record["designs"]
+    assert "collapsed" in one["refused"] and one["specification"] is None
+    assert two["refused"] is None
+    assert any("depth step" in note for note in two["notes"])  # 8 µm pixels over 1 D
+    build = two["specification"]["build"]
+    assert build["lenslet_pitch_mm"]["unit"] == "mm" and build["focal_length_mm"]["value"] > 0
+    derived = two["specification"]["derived"]
+    assert derived["views_per_side"]["value"] == 2
+    assert derived["cdp_D"]["value"] == pytest.approx(1.5, rel=1e-5)
+    assert derived["eye_box_mm"]["value"] >= 10.0 * (1 - 1e-6)
+    held = two["held_out"]
+    assert held["n_eyes"]["value"] == 1 and held["perceivable_cpd_median"]["unit"] == "cpd"
+    assert math.isfinite(held["image_at_peak"]["value"])
+    # the perceivable resolution is at most the built panel's sampling limit at each depth
+    built = Panel(*(build[k]["value"] for k in ("pixel_pitch_mm", "lenslet_pitch_mm", "fill",
+                                                 "focal_length_mm", "gap_mm", "viewing_distance_mm",
+                                                 "pixel_fill")))
+    limit = np.asarray(sampling_limit_cpd(built, [1.0, 2.0]))
+    assert np.all(np.asarray(held["perceivable_cpd_by_depth"]["value"]) <= limit * (1 + 1e-6))
+    history = two["loss_history"]
+    assert len(history) >= 1 and min(history) <= history[0] + 1e-9
+    assert record["provenance"]["command"].startswith("lfjax design")
+    # a second run into the same folder needs --force
+    assert cli.main([*TINY, "--out", str(out)]) == 2
+    assert "--force" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--depths", "1", "2", "--cdp", "3"], "outside the depth range"),
+    (["--depths", "2", "1"], "0 <= LOW < HIGH"),
+    (["--depths", "1", "2", "--views", "9"], "--views"),
+    (["--depths", "1", "2", "--min-fill", "0"], "--min-fill"),
+    (["--depths", "1", "2", "--distance", "800"], "--panel near-eye"),
+])
+def test_cli_design_bad_input_one_line_exit_2(capsys, tmp_path, args, message):
+    code = cli.main(["design", *args, "--out", str(tmp_path / "x")])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
