@@ -11,8 +11,6 @@ beyond the paper's ideal display: :mod:`lfjax.display` (lenslet diffraction, pix
 :mod:`lfjax.reproduce` and :mod:`lfjax.cli` run the paper's study.
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
 from . import display as display
 from . import display_spectra as display_spectra
 from . import eyes as eyes
@@ -28,6 +26,7 @@ from . import spectral as spectral
 from . import through_focus as through_focus
 from . import units as units
 from . import zernike as zernike
+from ._version import __version__ as __version__
 from .display import DisplayOptics as DisplayOptics
 from .display import LensletArray as LensletArray
 from .eyes import Eyes as Eyes
@@ -39,12 +38,7 @@ from .layouts import make_layout as make_layout
 from .layouts import open_pupil as open_pupil
 from .options import ModelOptions as ModelOptions
 from .psf import monochromatic_psf as monochromatic_psf
-from .optics import polychromatic_otf as polychromatic_otf
+from .psf import polychromatic_otf as polychromatic_otf
 from .sampling import AliasingError as AliasingError
 from .sampling import Sampling as Sampling
 from .spectral import make_spectrum as make_spectrum
-
-try:
-    __version__ = version("lfjax")
-except PackageNotFoundError:  # pragma: no cover
-    __version__ = "0.0.0"
