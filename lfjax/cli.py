@@ -27,6 +27,7 @@ from ._version import __version__
 from .display import DisplayOptics, display_optics_at
 from .display_spectra import DISPLAY_NAMES, display_spectrum
 from .eyes import sample_eyes
+from .layout_files import jsonable
 from .layout_opt import (
     DEFAULT_OBJECTIVE,
     OBJECTIVES,

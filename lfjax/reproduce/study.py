@@ -24,6 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._version import __version__
 from ..eyes import Eyes, aberration_free_eye
 from ..images import psf_on_grid, retinal_image, snellen_e
 from ..layouts import Layout, grid_layout, open_pupil, paper_layouts

@@ -34,6 +34,7 @@ import jax
 import numpy as np
 
 from .._files import owned_temp_dir, pid_alive, remove_orphans
+from .._version import __version__
 from ..peaks import METRICS
 from ..sampling import Sampling
 from .compute import FREQUENCIES_CPD, Task, layout_name, sweep_spectrum
