@@ -3,12 +3,14 @@
 Wave-optics model (Miyanishi, Sahin & Gotchev) of an ideal integral-imaging light-field
 display viewed by a population of aberrated eyes, as pure, jitted, vmapped and
 differentiable JAX functions. Stage modules: :mod:`lfjax.zernike`, :mod:`lfjax.eyes`,
-:mod:`lfjax.spectral`, :mod:`lfjax.layouts`, :mod:`lfjax.optics`, :mod:`lfjax.metrics`,
-:mod:`lfjax.through_focus`, :mod:`lfjax.images`, :mod:`lfjax.planner`,
-:mod:`lfjax.pipeline` (the pure core), :mod:`lfjax.peaks`, :mod:`lfjax.layout_opt`;
+:mod:`lfjax.spectral`, :mod:`lfjax.layouts`, :mod:`lfjax.apertures`, :mod:`lfjax.scene`,
+:mod:`lfjax.optics` (the elemental optics kernel), :mod:`lfjax.metrics`,
+:mod:`lfjax.pipeline` (the pure core), :mod:`lfjax.psf`, :mod:`lfjax.through_focus`,
+:mod:`lfjax.images`, :mod:`lfjax.planner`, :mod:`lfjax.peaks`, :mod:`lfjax.layout_opt`;
 beyond the paper's ideal display: :mod:`lfjax.display` (lenslet diffraction, pixels),
 :mod:`lfjax.display_spectra` (display spectra), :mod:`lfjax.display_effects` (the study);
-:mod:`lfjax.reproduce` and :mod:`lfjax.cli` run the paper's study.
+:mod:`lfjax.reproduce` and :mod:`lfjax.cli` run the paper's study. The layers they form,
+bottom-up, are in docs/design.md#layers.
 """
 
 from . import display as display
