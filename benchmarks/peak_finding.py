@@ -223,8 +223,7 @@ def run_reference(args):
     import lfjax
     from _common import block
     from lfjax.eyes import Eyes
-    from lfjax.pipeline import (Accommodation, reference_normalisers, retinal_metrics,
-                                retinal_metrics_jit)
+    from lfjax.pipeline import Accommodation, reference_normalisers, retinal_metrics
 
     @eqx.filter_jit
     def per_eye_states(zernike_um, pupil_mm, scene, spectrum, states_D, pair_index, sa, config,
@@ -271,7 +270,7 @@ def run_reference(args):
             sl = slice(start, start + eyes.n_eyes)
             for g in setup["groups"]:
                 slots = g["slots"]
-                m = block(retinal_metrics_jit(eyes, g["scene"], setup["spectrum"],
+                m = block(retinal_metrics(eyes, g["scene"], setup["spectrum"],
                                               g["ref_coarse"], setup["config"]))
                 coarse = {"vsotf": np.asarray(m.vsotf), "strehl": np.asarray(m.strehl)}
                 # stage 2 windows from both metrics' coarse curves: the fine states are shared
@@ -351,7 +350,7 @@ FIELDS = ("accommodation_D", "value", "success", "result", "n_steps", "second_ac
 
 def call_method(method, metric, setup, g, eyes, direct):
     """One compiled call of ``method`` on one group; returns a zero-argument callable."""
-    from lfjax.peaks import accommodation_peaks_jit
+    from lfjax.peaks import accommodation_peaks
 
     spec, cfg = setup["spectrum"], setup["config"]
     if method in ("grid0.2", "parabola", "golden", "newton", "bfgs", "grid0.01"):
@@ -359,7 +358,7 @@ def call_method(method, metric, setup, g, eyes, direct):
         acc = g["dense"] if dense else g["coarse"]
         allowed = g["dense_allowed"] if dense else g["coarse_allowed"]
         m = {"grid0.2": "grid", "grid0.01": "grid"}.get(method, method)
-        return lambda: accommodation_peaks_jit(eyes, g["scene"], spec, acc, cfg, metric=metric,
+        return lambda: accommodation_peaks(eyes, g["scene"], spec, acc, cfg, metric=metric,
                                                method=m, allowed=allowed)
     depths = np.asarray(g["scene"].depths_D)
     lower = np.maximum(depths - WINDOW_D, 0.0)

@@ -19,7 +19,8 @@ from _common import header
 import lfjax
 from lfjax.planner import plan_sampling
 from lfjax.through_focus import through_focus
-from lfjax.optics import polychromatic_otf, psf_from_otf
+from lfjax.optics import psf_from_otf
+from lfjax.psf import polychromatic_otf
 WL=[450.,550.,650.]
 sp=lfjax.make_spectrum(WL)
 

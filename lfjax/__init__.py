@@ -3,16 +3,16 @@
 Wave-optics model (Miyanishi, Sahin & Gotchev) of an ideal integral-imaging light-field
 display viewed by a population of aberrated eyes, as pure, jitted, vmapped and
 differentiable JAX functions. Stage modules: :mod:`lfjax.zernike`, :mod:`lfjax.eyes`,
-:mod:`lfjax.spectral`, :mod:`lfjax.layouts`, :mod:`lfjax.optics`, :mod:`lfjax.metrics`,
-:mod:`lfjax.through_focus`, :mod:`lfjax.images`, :mod:`lfjax.planner`,
-:mod:`lfjax.pipeline` (the pure core), :mod:`lfjax.peaks`, :mod:`lfjax.layout_opt`;
+:mod:`lfjax.spectral`, :mod:`lfjax.layouts`, :mod:`lfjax.apertures`, :mod:`lfjax.scene`,
+:mod:`lfjax.optics` (the elemental optics kernel), :mod:`lfjax.metrics`,
+:mod:`lfjax.pipeline` (the pure core), :mod:`lfjax.psf`, :mod:`lfjax.through_focus`,
+:mod:`lfjax.images`, :mod:`lfjax.planner`, :mod:`lfjax.peaks`, :mod:`lfjax.layout_opt`;
 beyond the paper's ideal display: :mod:`lfjax.display` (lenslet diffraction, pixels),
 :mod:`lfjax.display_spectra` (display spectra), :mod:`lfjax.display_effects` (the study),
 :mod:`lfjax.panel` (a display as built) and :mod:`lfjax.design` (fitting one to eyes);
-:mod:`lfjax.reproduce` and :mod:`lfjax.cli` run the paper's study.
+:mod:`lfjax.reproduce` and :mod:`lfjax.cli` run the paper's study. The layers they form,
+bottom-up, are in docs/design.md#layers.
 """
-
-from importlib.metadata import PackageNotFoundError, version
 
 from . import display as display
 from . import display_spectra as display_spectra
@@ -30,6 +30,7 @@ from . import spectral as spectral
 from . import through_focus as through_focus
 from . import units as units
 from . import zernike as zernike
+from ._version import __version__ as __version__
 from .display import DisplayOptics as DisplayOptics
 from .display import LensletArray as LensletArray
 from .eyes import Eyes as Eyes
@@ -42,12 +43,7 @@ from .layouts import open_pupil as open_pupil
 from .options import ModelOptions as ModelOptions
 from .panel import Panel as Panel
 from .psf import monochromatic_psf as monochromatic_psf
-from .optics import polychromatic_otf as polychromatic_otf
+from .psf import polychromatic_otf as polychromatic_otf
 from .sampling import AliasingError as AliasingError
 from .sampling import Sampling as Sampling
 from .spectral import make_spectrum as make_spectrum
-
-try:
-    __version__ = version("lfjax")
-except PackageNotFoundError:  # pragma: no cover
-    __version__ = "0.0.0"

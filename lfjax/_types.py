@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 import os
 import types
 import typing
@@ -100,3 +101,20 @@ def shape_checked(fn):
 
     wrapper.__shape_checked__ = True
     return wrapper
+
+
+def finite_scalar(name: str, value, lo: float | None = None, hi: float | None = None,
+                  lo_open: bool = False) -> float:
+    """Host check of one scalar parameter: finite and inside [lo, hi] (or (lo, hi]); the
+    error names ``name`` and the allowed range."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    bad_lo = lo is not None and (x <= lo if lo_open else x < lo)
+    bad_hi = hi is not None and x > hi
+    if not math.isfinite(x) or bad_lo or bad_hi:
+        left = "(" if lo_open else "["
+        rng = f"{left}{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
+        raise ValueError(f"{name} must be finite and in {rng}, got {value!r}")
+    return x

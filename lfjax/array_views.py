@@ -46,6 +46,7 @@ import numpy as np
 
 from lfjax.layouts import Layout, make_layout
 from lfjax.panel import Panel
+from lfjax.through_focus import through_focus
 from lfjax.units import ARCMIN_PER_RADIAN
 
 
@@ -217,7 +218,6 @@ def array_through_focus(eyes, panel: Panel, depths_D, accommodation_D, *, diffra
     ``kwargs`` go to ``through_focus`` (``spectrum``, ``sampling``, ``options``, …). The
     beams' tilts ε_k are not in these images (module docstring). Returns a list of
     (ArrayViews, ThroughFocus), one per depth."""
-    from lfjax.through_focus import through_focus
 
     optics = panel.optics(diffraction)
     out = []

@@ -11,6 +11,7 @@ and exit with status 1, leaving no partial output.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -18,6 +19,45 @@ import signal
 import sys
 import time
 from pathlib import Path
+
+import jax
+import numpy as np
+
+from . import layout_opt as lo
+from . import layout_plots
+from ._version import __version__
+from .design import DesignConstraints, fit_design, save_design
+from .display import DisplayOptics, display_optics_at
+from .display_spectra import DISPLAY_NAMES, display_spectrum
+from .eyes import sample_eyes
+from .layout_files import jsonable
+from .layout_opt import (
+    DEFAULT_OBJECTIVE,
+    OBJECTIVES,
+    Constraints,
+    Objective,
+    default_max_diameter_mm,
+    depth_grid,
+    feasible_start,
+    free_params,
+    initial_lattice,
+    lattice_sites,
+    to_box,
+)
+from .panel import PRESETS
+from .reproduce import OutputError, StudyConfig, check_output_dir, check_population, reproduce
+from .sampling import Sampling
+from .sweep import (
+    StoreMismatchError,
+    SweepConfigError,
+    SweepTooLargeError,
+    load_config,
+    plan_sweep,
+    run_sweep,
+)
+from .sweep.config import config_template
+from .sweep.report import default_out_dir, sweep_report
+from .sweep.store import StoreLockedError, is_disk_full, is_store, verify_store
 
 PROG = "lfjax"
 DEFAULT_OUT = "lfjax-results"
@@ -46,8 +86,6 @@ def compilation_cache_dir() -> Path:
 def enable_compilation_cache(folder: Path | None = None) -> Path | None:
     """Turn on JAX's persistent compilation cache in ``folder`` (returns it, or None when
     the folder cannot be created). A second run then skips most compilation."""
-    import jax
-
     folder = compilation_cache_dir() if folder is None else Path(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -104,8 +142,6 @@ def _count(text: str) -> int:
 
 def _objective(text: str):
     """A name, or comma-separated name=weight pairs."""
-    from .layout_opt import DEFAULT_OBJECTIVE, OBJECTIVES, Objective
-
     if "=" not in text:
         if text != DEFAULT_OBJECTIVE and text not in OBJECTIVES:
             raise argparse.ArgumentTypeError(
@@ -131,7 +167,6 @@ def build_parser() -> argparse.ArgumentParser:
         description="lfjax: wave-optics model of aberrated human eyes viewing a light-field "
                     "display (Miyanishi, Sahin & Gotchev).",
     )
-    from . import __version__
 
     parser.add_argument("--version", action="version", version=f"lfjax {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_OneLineParser)
@@ -402,8 +437,6 @@ def _add_optimise_parser(sub) -> None:
 
 
 def _reproduce(args, t_start: float) -> int:
-    from .reproduce import OutputError, StudyConfig, check_output_dir, reproduce
-
     prog = f"{PROG} reproduce"
     try:
         check_output_dir(args.out, args.force)
@@ -414,8 +447,6 @@ def _reproduce(args, t_start: float) -> int:
         if args.no_alternatives:
             config = config.replace(alternatives=False)
         if args.population is not None:
-            from .reproduce import check_population
-
             check_population(args.population, config)
         if args.display_effects and args.display_eyes > config.n_eyes:
             raise ValueError(f"--display-eyes must be in 0 ... {config.n_eyes} (the study's eyes), "
@@ -450,8 +481,6 @@ def _reproduce(args, t_start: float) -> int:
 
 def _optimise_setup(args):
     """Everything validated before any computation: (objective, constraints, depths, out)."""
-    from .layout_opt import Constraints, Objective, default_max_diameter_mm, depth_grid, lattice_sites
-
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} exists and is not a folder")
@@ -502,15 +531,11 @@ def _optimise_setup(args):
     if not args.pixel_arcmin >= 0:
         raise ValueError(f"--pixel-arcmin must be >= 0 arcmin, got {args.pixel_arcmin:g}")
     if args.display_distance is not None:
-        from .display import display_optics_at
-
         try:
             display_optics_at(args.display_distance, args.cdp)
         except ValueError as err:
             raise ValueError(f"--display-distance: {err}") from None
     if args.spectrum is not None:
-        from .display_spectra import DISPLAY_NAMES
-
         if args.spectrum not in DISPLAY_NAMES:
             raise ValueError(f"--spectrum must be one of {', '.join(DISPLAY_NAMES)}, got {args.spectrum!r}")
     return objective, constraints, depths, out
@@ -520,7 +545,6 @@ def _optimise(args, t_start: float) -> int:
     prog = f"{PROG} optimise"
     try:
         objective, constraints, depths, out = _optimise_setup(args)
-        from .layout_opt import feasible_start, free_params, initial_lattice, to_box
 
         # BFGS moves in sigmoid coordinates, which cannot leave a bound: start 2 % inside
         margin = 0.02 if args.solver == "bfgs" else 0.0
@@ -552,12 +576,6 @@ def _optimise(args, t_start: float) -> int:
 
 def run_optimise(args, objective, constraints, depths, out: Path, start) -> dict:
     """The optimise command's computation and files (inputs validated by the caller)."""
-    import numpy as np
-
-    from . import layout_opt as lo
-    from . import layout_plots
-    from .eyes import sample_eyes
-    from .sampling import Sampling
 
     train = sample_eyes(args.seed, args.train_eyes)
     test = sample_eyes(args.seed + 1, args.test_eyes) if args.test_eyes > 0 else None
@@ -567,14 +585,10 @@ def run_optimise(args, objective, constraints, depths, out: Path, start) -> dict
     sampling = None if args.freq_step is None else Sampling(args.freq_step)
     display = spectrum = None
     if args.display_distance is not None or args.pixel_arcmin > 0:
-        from .display import DisplayOptics, display_optics_at
-
         display = (display_optics_at(args.display_distance, args.cdp, args.pixel_arcmin)
                    if args.display_distance is not None
                    else DisplayOptics(pixel_width_arcmin=args.pixel_arcmin))
     if args.spectrum is not None:
-        from .display_spectra import display_spectrum
-
         spectrum = display_spectrum(args.spectrum, "white", lo.ModelOptions(vsotf_reference="open_pupil"))
     problem = lo.make_problem(train, depths, constraints, objective, cdp_D=args.cdp,
                               wavelengths_nm=args.wavelengths, sampling=sampling,
@@ -624,7 +638,7 @@ def run_optimise(args, objective, constraints, depths, out: Path, start) -> dict
         fig = layout_plots.fig_front(front, constraints.pupil_diameter_mm)
         fig.savefig(out / "front.png", dpi=110)
         rows = front.table()
-        (out / "front.json").write_text(json.dumps(lo._jsonable(
+        (out / "front.json").write_text(json.dumps(jsonable(
             {"tolerances_D": tolerances, "rows": rows, "time_s": time.perf_counter() - t_front}),
             indent=2) + "\n")
         files += [out / "front.png", out / "front.json"]
@@ -644,8 +658,6 @@ def _sweep(args, t_start: float) -> int:
               f"--distributed", file=sys.stderr)
         return 2
     if args.distributed:
-        import jax
-
         # before anything touches a JAX device (loading a layout file does)
         kwargs = {k: v for k, v in (("coordinator_address", args.coordinator),
                                     ("num_processes", args.num_processes),
@@ -655,19 +667,8 @@ def _sweep(args, t_start: float) -> int:
         except Exception as err:  # noqa: BLE001 - report any start-up failure in one line
             print(f"{prog}: error: jax.distributed.initialize failed: {err}", file=sys.stderr)
             return 2
-    from .sweep import (
-        StoreMismatchError,
-        SweepConfigError,
-        SweepTooLargeError,
-        load_config,
-        plan_sweep,
-        run_sweep,
-    )
-    from .sweep.store import StoreLockedError, is_disk_full
 
     if args.verify:
-        from .sweep.store import is_store, verify_store
-
         if not is_store(args.config):
             print(f"{prog}: error: --verify needs a sweep STORE (a folder written by 'lfjax "
                   f"sweep'), got {args.config}", file=sys.stderr)
@@ -676,8 +677,6 @@ def _sweep(args, t_start: float) -> int:
         print(f"{prog}: {args.config}: {check.summary()}")
         return 0 if check.healthy else 1
     if args.template:
-        from .sweep.config import config_template
-
         target = Path(args.config)
         if target.exists():
             print(f"{prog}: error: {target} already exists; --template writes a new file",
@@ -761,9 +760,6 @@ def _sweep(args, t_start: float) -> int:
 
 
 def _sweep_report(args) -> int:
-    from .sweep.report import default_out_dir, sweep_report
-    from .sweep.store import is_store
-
     prog = f"{PROG} sweep-report"
     if not is_store(args.store):
         print(f"{prog}: error: STORE {args.store} is not an lfjax sweep store (a folder written "
@@ -874,11 +870,6 @@ def _add_design_parser(sub) -> None:
 def _design_setup(args):
     """Validated (panel, eyes, fit_design keywords, out) of ``lfjax design``; ValueError
     naming the option otherwise."""
-    import dataclasses
-
-    from .design import DesignConstraints
-    from .panel import PRESETS
-
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} exists and is not a folder")
@@ -935,10 +926,6 @@ def _design(args, t_start: float) -> int:
         return 2
     enable_compilation_cache()
     try:
-        from .design import fit_design, save_design
-        from .eyes import sample_eyes
-        from .sampling import Sampling
-
         result = fit_design(
             panel, depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
             train_eyes=sample_eyes(args.seed, args.train_eyes),

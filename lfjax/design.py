@@ -53,6 +53,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from lfjax._version import __version__
 from lfjax.display import DisplayOptics, lenslets_for_layout
 from lfjax.eyes import Eyes
 from lfjax.layout_opt import (
@@ -65,8 +66,10 @@ from lfjax.layout_opt import (
     parallax_warning,
 )
 from lfjax.options import ModelOptions
+from lfjax.layout_plots import draw_layout
 from lfjax.panel import Panel, perceivable_cutoff_cpd
-from lfjax.pipeline import Accommodation, retinal_metrics
+from lfjax.pipeline import retinal_metrics
+from lfjax.scene import Accommodation
 
 DESIGN_FORMAT = "lfjax-design/1"
 
@@ -610,7 +613,6 @@ def save_design(result: DesignResult, out_dir, command: str | None = None) -> li
     """Write ``design.json`` (every count's specification and scores, every number with its
     unit; the chosen count marked) and ``design.png`` (the chosen array's lenslets over a few
     pixels, and its views in the pupil) into ``out_dir``. Returns the paths."""
-    from lfjax import __version__
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -660,8 +662,6 @@ def fig_design(panel: Panel, n_per_side: int):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, Rectangle
-
-    from lfjax.layout_plots import draw_layout
 
     du, a = float(panel.lenslet_pitch_mm), float(panel.aperture_mm)
     p = float(panel.pixel_pitch_mm)

@@ -53,9 +53,12 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._types import as_real_array, is_concrete as _concrete
+from ._types import as_real_array
+from ._types import is_concrete as _concrete
+from .apertures import aperture_edge_distance as aperture_edge_distance
+from .apertures import fresnel_propagate as fresnel_propagate
+from .apertures import fresnel_transfer_1d as fresnel_transfer_1d
 from .layouts import Layout
-from .sampling import next_fast_size
 from .units import ARCMIN_PER_RADIAN
 
 DIFFRACTION_MODES = ("off", "fresnel", "modulus")
@@ -326,79 +329,6 @@ def display_optics_at(distance_mm: float, cdp_D: float, pixel_width_arcmin: floa
     return DisplayOptics(diffraction, aperture, distance_mm * magnification, pixel_width_arcmin)
 
 
-# ----------------------------------------------------------------------------- in the pipeline
-
-
-def aperture_edge_distance(dx_mm, dy_mm, size_mm, edge_scale_mm, shape: str):
-    """Signed distance (mm) inside a subaperture's edge at offsets (dx, dy) from its centre.
-
-    Circle: the area-exact shifted radius of :func:`lfjax.optics.disk_edge_distance`.
-    Square (side ``size_mm``): the distance to the nearer side (a logistic straight edge
-    keeps the area exactly; the four corners are off by O(edge²)).
-    """
-    if shape == "square":
-        half = 0.5 * size_mm
-        return jnp.minimum(half - jnp.abs(dx_mm), half - jnp.abs(dy_mm))
-    from .optics import disk_edge_distance
-
-    return disk_edge_distance(dx_mm * dx_mm + dy_mm * dy_mm, 0.5 * size_mm, edge_scale_mm)
-
-
-def fresnel_transfer_1d(n: int, dx_mm, wavelength_mm, distance_mm, extent_mm=None):
-    """One axis of the Fresnel propagator's transfer function on a grid padded to
-    ``next_fast_size(2n)`` samples (FFT order), for a field of n samples of ``dx_mm`` (mm).
-
-    The field lives in a region of width E = ``extent_mm`` (default n·dx; the pipeline
-    passes the pupil) and is wanted only there, so only the impulse response
-    h(x) = exp(iπx²/(λz))/√(iλz) for |x| < E matters: a linear convolution, exact on a grid
-    padded to ≥ 2n. Two samplings of that kernel:
-
-    * far (λz ≥ 2E·dx): h itself is resolved (its local frequency x/(λz) < 1/(2dx) on the
-      whole |x| < E), so the transfer function is dx·DFT(h) of its samples — no truncation
-      ripple, which a hard band limit of the analytic chirp leaves (≈ 0.07 of the on-axis
-      field at Fresnel number 0.5);
-    * near (λz < 2E·dx): the analytic exp(−iπλz f²) is resolved on the padded grid
-      (λz ≤ n_pad·dx²), and h reaches no farther than λz/(2dx) < E, so nothing wraps.
-
-    Neither depends on n beyond n·dx ≥ E, so windows of different sizes give one answer.
-
-    Both branches are evaluated and one is selected (``jnp.where``) so ``distance_mm``
-    stays differentiable and traceable. Returns complex (n_pad,).
-    """
-    n_pad = next_fast_size(2 * n)
-    real = jnp.result_type(float)
-    lam_z = wavelength_mm * distance_mm
-    f = jnp.asarray(np.fft.fftfreq(n_pad), real) / dx_mm  # cycles/mm
-    near = jnp.exp(-1j * jnp.pi * lam_z * f * f)
-    k = np.fft.fftfreq(n_pad, 1.0 / n_pad)  # sample offsets, FFT order
-    x = jnp.asarray(k, real) * dx_mm
-    extent = n * dx_mm if extent_mm is None else extent_mm
-    inside = jnp.abs(x) < extent
-    # √(iλz) on the principal branch: exp(iπ/4)·√(λz)
-    h = jnp.where(inside, jnp.exp(1j * jnp.pi * x * x / lam_z), 0.0) * (
-        jnp.exp(-0.25j * jnp.pi) / jnp.sqrt(lam_z))
-    far = jnp.fft.fft(h) * dx_mm
-    return jnp.where(lam_z >= 2.0 * extent * dx_mm, far, near)
-
-
-def fresnel_propagate(field, dx_mm, wavelength_mm, distance_mm, extent_mm=None):
-    """Fresnel propagation of a sampled field (…, n, n) over ``distance_mm`` (mm).
-
-    A linear convolution with the Fresnel impulse response, computed by FFT on a grid padded
-    to ≥ 2n with the separable transfer function of :func:`fresnel_transfer_1d` (exact in
-    the window for a field that is zero outside it). Normalised so that z → 0 returns the
-    field (the constant phase exp(ikz) dropped). ``extent_mm``: the width of the region
-    (mm, ≤ n·dx) holding the field and where it is wanted. Returns complex (…, n, n).
-    """
-    n = field.shape[-1]
-    transfer = fresnel_transfer_1d(n, dx_mm, wavelength_mm, distance_mm, extent_mm)
-    n_pad = transfer.shape[0]
-    pad = [(0, 0)] * (field.ndim - 2) + [(0, n_pad - n), (0, n_pad - n)]
-    spectrum = jnp.fft.fft2(jnp.pad(field, pad))
-    out = jnp.fft.ifft2(spectrum * transfer[:, None] * transfer[None, :])
-    return out[..., :n, :n]
-
-
 def pixel_transfer(fx_cpr, fy_cpr, display: DisplayOptics | None):
     """OTF of one emitter (square, width ``display.pixel_width_arcmin``) at frequencies in
     cycles/radian, broadcast (…, L) × (…, Lx); 1 without a display."""
@@ -415,9 +345,6 @@ __all__ = [
     "LensletArray",
     "lenslets_for_layout",
     "display_optics_at",
-    "fresnel_propagate",
-    "fresnel_transfer_1d",
-    "aperture_edge_distance",
     "pixel_transfer",
     "DIFFRACTION_MODES",
     "APERTURE_SHAPES",

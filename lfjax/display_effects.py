@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -36,8 +37,10 @@ from .display_spectra import display_spectrum
 from .eyes import Eyes
 from .layouts import grid_layout
 from .options import ModelOptions
+from .peaks import PEAK_METHODS
+from .planner import plan_sampling
 from .spectral import make_spectrum
-from .through_focus import through_focus
+from .through_focus import _windowed_grid, through_focus
 
 STEPS = ("ideal", "+diffraction", "+pixels", "+spectrum")
 LAYOUT_SIZES = {"2x2": 2, "3x3": 3, "4x4": 4}
@@ -105,7 +108,6 @@ class DisplayStudyConfig:
             raise ValueError("accommodation_step_D, window_D and wavelength_step_nm must be > 0")
         if not (self.f_number > 0 and self.pixel_pitch_mm >= 0 and 0 < self.fill_factor <= 1):
             raise ValueError("f_number must be > 0, pixel_pitch_mm >= 0 mm and fill_factor in (0, 1]")
-        from .peaks import PEAK_METHODS
 
         if self.peak_method not in PEAK_METHODS:
             raise ValueError(f"peak_method must be one of {PEAK_METHODS}, got {self.peak_method!r}")
@@ -156,9 +158,6 @@ def shared_sampling(eyes: Eyes, config: DisplayStudyConfig, layout, display, *sp
     """One sampling for every step of a layout: the planner's field guard for the most
     demanding scene (``display``: diffraction and pixels on) and the finest over the spectra,
     so the steps differ by the display effects only, not by their sampling."""
-    from .planner import plan_sampling
-    from .through_focus import _windowed_grid
-
     depths = config.depths_D
     window = config.window_D if window_D is None else window_D
     _, _, allowed, absolute = _windowed_grid(config.accommodation_D, depths, window)
@@ -471,8 +470,6 @@ def display_effects_markdown(ds, sweep) -> str:
 def save_display_figures(ds, sweep, out) -> list[str]:
     """Figures: mean accommodation error and cut-off per step (one panel per layout), and the
     2×2 lenslet sweep. Returns the file names written into ``out``."""
-    from pathlib import Path
-
     import matplotlib
 
     matplotlib.use("Agg")

@@ -162,6 +162,10 @@ def modulation_pitch_mm(subaperture_pitch_mm, rendered_distance_m, modulation_di
 
 
 PAPER_LAYOUTS = ("natural", "2x2", "3x3", "4x4")
+"""The layouts of the paper's study: the natural view and three n×n light-field layouts."""
+
+LF_LAYOUTS = PAPER_LAYOUTS[1:]
+"""The paper's light-field layouts (every one but the natural view)."""
 
 
 def paper_layouts(pupil_diameter_mm: float = 3.0) -> dict[str, Layout]:
@@ -183,5 +187,6 @@ __all__ = [
     "subaperture_pitch_mm",
     "modulation_pitch_mm",
     "PAPER_LAYOUTS",
+    "LF_LAYOUTS",
     "paper_layouts",
 ]

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._types import FULL
-from .optics import frequencies_cpd, half_frequencies_cpd
+from .sampling import frequencies_cpd, half_frequencies_cpd
 
 # ----------------------------------------------------------------------------- NCSF
 

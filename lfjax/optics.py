@@ -13,80 +13,31 @@ rendered depth is then a phase ramp and a sum (docs/design.md#why-it-is-fast).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jax.ad_checkpoint import checkpoint_name
 import numpy as np
-from jaxtyping import Array, ArrayLike, Complex, Float, Real
+from jax.ad_checkpoint import checkpoint_name
 
-from ._types import FULL, is_concrete, shape_checked
-from .display import aperture_edge_distance, fresnel_propagate
-from .eyes import Eyes, check_eyes
+from ._types import FULL, is_concrete
+from .apertures import _safe_sqrt, aperture_edge_distance, disk_edge_distance, fresnel_propagate
+from .apertures import soft_disk as soft_disk
 from .layouts import Layout
-from .options import ModelOptions
-from .sampling import Sampling, blur_radius_arcmin, check_field, eye_slope_rad
-from .spectral import Spectrum, make_spectrum
+from .sampling import (
+    EDGE_EXTENT_SCALES,
+    Sampling,
+    blur_radius_arcmin,
+    check_field,
+    eye_slope_rad,
+)
+from .sampling import frequencies_cpd as frequencies_cpd
+from .sampling import half_frequencies_cpd as half_frequencies_cpd
+from .scene import Accommodation, Scene
+from .scene import sa_c40_um as sa_c40_um
+from .scene import sa_parameters as sa_parameters
+from .spectral import Spectrum
 from .units import DEGREES_PER_RADIAN, dioptres_to_c20_um
 from .zernike import monomial_coefficients, nm_from_ansi, powers_of, wavefront_on_grid, wavefront_um
-
-# ----------------------------------------------------------------------------- apertures
-
-
-def _safe_sqrt(x):
-    """sqrt with a finite (zero) gradient at 0 (double-where)."""
-    positive = x > 0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
-
-
-def disk_edge_distance(r2_mm2, radius_mm, edge_scale_mm):
-    """Signed distance (mm) inside the edge of a disc whose logistic edge keeps its area.
-
-    ``sigmoid(distance / s)`` integrates to π(R'² + π²s²/3); the shifted radius R' makes the
-    covered area exactly π·radius², so results are continuous and differentiable in centre
-    and diameter with no area bias.
-    """
-    r = _safe_sqrt(r2_mm2)
-    return _safe_sqrt(radius_mm**2 - (math.pi**2 / 3.0) * edge_scale_mm**2) - r
-
-
-def soft_disk(r2_mm2, radius_mm, edge_scale_mm):
-    """Anti-aliased disc amplitude transmission: logistic edge of scale ``edge_scale_mm``."""
-    return jax.nn.sigmoid(disk_edge_distance(r2_mm2, radius_mm, edge_scale_mm) / edge_scale_mm)
-
-
-def _sa_geometry(options: ModelOptions, pupil_diameter_mm):
-    """(scale, radius_mm) so that c(4,0)_applied = slope · a · scale on Z(4,0)(r/radius)."""
-    ref = options.sa_reference_pupil_mm
-    form = options.accommodation_sa
-    if form == "scaled":
-        return (pupil_diameter_mm / ref) ** 4, 0.5 * pupil_diameter_mm
-    if form == "wavefront_5mm":
-        return 1.0, 0.5 * ref
-    if form == "unscaled":
-        return 1.0, 0.5 * pupil_diameter_mm
-    return 0.0, 0.5 * pupil_diameter_mm
-
-
-def sa_c40_um(accommodation_D, pupil_diameter_mm, options: ModelOptions = ModelOptions()):
-    """Accommodation spherical aberration added to c(4,0), µm, on the radius of ``_sa_geometry``."""
-    scale, _ = _sa_geometry(options, pupil_diameter_mm)
-    return options.sa_slope_um_per_D * accommodation_D * scale
-
-
-def sa_parameters(options: ModelOptions, pupil_diameter_mm):
-    """(µm of c(4,0) per dioptre of accommodation, radius in mm of that Z(4,0)) as an array.
-
-    Passed to the jitted pipeline as data, so switching the accommodation-SA reading does
-    not recompile.
-    """
-    scale, radius = _sa_geometry(options, pupil_diameter_mm)
-    return jnp.stack(
-        [jnp.asarray(options.sa_slope_um_per_D * scale, float), jnp.asarray(radius, float)]
-    )
-
 
 # ----------------------------------------------------------------------------- core
 
@@ -233,8 +184,6 @@ def pupil_window_size(n_fft: int, sampling: Sampling) -> int:
     ``n_fft`` holds twice the aperture (autocorrelation support), so the aperture plus its
     logistic edge fits in about half of it; the rest is zero padding inside the FFT.
     """
-    from .sampling import EDGE_EXTENT_SCALES
-
     margin = int(math.ceil(2 * EDGE_EXTENT_SCALES * sampling.edge_width_samples)) + 2
     size = (n_fft - 1) // 2 + margin
     return min(n_fft, size + size % 2)
@@ -253,49 +202,44 @@ def _embed_half_plane(otf_half, n_fft: int):
     return jnp.pad(rows, pad)
 
 
-def _elemental_otfs(
-    coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
-    centres_mm, diameters_mm, spectrum: Spectrum, bands, sampling: Sampling, sa_params,
-    display=None,
-):
-    """Spectrally weighted elemental OTFs of one eye.
+def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
+                   accommodation: Accommodation, bands, sampling: Sampling):
+    """Spectrally weighted elemental OTFs of one eye (stages 1–5 of
+    docs/design.md#the-model-stage-by-stage).
 
-    ``bands`` = ((start, stop, n_fft), …) from :func:`lfjax.sampling.wavelength_bands`: each
-    band of wavelengths is transformed on its own window and embedded in the largest.
-    Returns complex (n_acc, n_sub, L, L//2+1), the half plane f_x ≥ 0 of
-    Σ_λ w_λ OTF_{λ,n,a}, each OTF carrying the energy its pupil transmits
-    (OTF(0) = ∫|P|² dA in mm²) or, with ``spectrum.unit_sum`` = 1, that energy
+    ``zernike_um`` (n_modes,) µm on ``measured_pupil_mm``; the subapertures, the calculation
+    pupil, the CDP and the display's optics come from ``scene``, the states and their
+    spherical aberration from ``accommodation``. ``bands`` = ((start, stop, n_fft), …) from
+    :func:`lfjax.sampling.wavelength_bands`: each band of wavelengths is transformed on its
+    own window and embedded in the largest. Returns complex (n_states, n_sub, L, L//2+1),
+    the half plane f_x ≥ 0 of Σ_λ w_λ OTF_{λ,n,a}, each OTF carrying the energy its pupil
+    transmits (OTF(0) = ∫|P|² dA in mm²) or, with ``spectrum.unit_sum`` = 1, that energy
     divided by the energy all subapertures transmit at λ (each wavelength's PSF summed over
     the views then has unit volume, as ISETBio normalises; the views keep their ratios).
     """
     n_fft = max(b[2] for b in bands)
     total = None
     for start, stop, band_fft in bands:
-        part = _elemental_otfs_band(
-            coefficients_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D,
-            centres_mm, diameters_mm,
-            spectrum.band(start, stop), band_fft, sampling, sa_params, display,
-        )
+        part = _elemental_otfs_band(zernike_um, measured_pupil_mm, scene, spectrum.band(start, stop),
+                                    accommodation, band_fft, sampling)
         part = _embed_half_plane(part, n_fft)
         total = part if total is None else total + part
     return total
 
 
-def _elemental_otfs_band(
-    coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, cdp_D, accommodation_D,
-    centres_mm, diameters_mm, spectrum: Spectrum, n_fft: int, sampling: Sampling, sa_params,
-    display=None,
-):
-    """One band of :func:`_elemental_otfs`: every wavelength's PSFs lie on the same angular
+def _elemental_otfs_band(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
+                         accommodation: Accommodation, n_fft: int, sampling: Sampling):
+    """One band of :func:`elemental_otfs`: every wavelength's PSFs lie on the same angular
     grid (the pupil step is λ·Δf), so the band's weighted PSFs are summed first and
     transformed once (the transform is linear); the zero-frequency term is set from the
     summed analytic energies (a finite pupil sum under-counts the soft edge)."""
+    pupil_diameter_mm, cdp_D = scene.pupil_diameter_mm, scene.cdp_D
+    centres_mm, diameters_mm, display = scene.centres_mm, scene.diameters_mm, scene.display
+    accommodation_D = accommodation.states_D
     df_rad = sampling.freq_step_cpd * DEGREES_PER_RADIAN
     real = jnp.result_type(float)
     use_mft = sampling.transform == "mft"
     if use_mft:
-        from .sampling import EDGE_EXTENT_SCALES
-
         n_pupil = int(sampling.mft_pupil_samples)
         # one λ-independent pupil grid holding the largest subaperture and its edge (the
         # pupil when diffracted beams fill it)
@@ -308,7 +252,7 @@ def _elemental_otfs_band(
         local = (jnp.arange(n_pupil, dtype=real) - n_pupil // 2) * dx_mft
     else:
         n_pupil = pupil_window_size(n_fft, sampling)
-    c40 = (sa_params[0] * accommodation_D).astype(real)
+    c40 = (accommodation.sa_c40_um_per_D * accommodation_D).astype(real)
 
     def one_wavelength(carry, xs):
         psf_total, energy_total = carry
@@ -327,8 +271,8 @@ def _elemental_otfs_band(
         weight = weight * jnp.power(jnp.sum(energy), -spectrum.unit_sum)
         c20 = dioptres_to_c20_um(accommodation_D - cdp_D + lca_D, pupil_diameter_mm)
         offsets = (jnp.arange(n_pupil, dtype=real) - n_pupil // 2) * dx
-        w = _state_wavefronts_um(coefficients_um, c20, c40, _window_centres_mm(centres_mm, display),
-                                 offsets, pupil_diameter_mm, sa_params[1], measured_pupil_mm)
+        w = _state_wavefronts_um(zernike_um, c20, c40, _window_centres_mm(centres_mm, display),
+                                 offsets, pupil_diameter_mm, accommodation.sa_radius_mm, measured_pupil_mm)
         phase = (-2.0 * jnp.pi / (wl_nm * 1e-3)) * w
         if jnp.iscomplexobj(amp):  # lenslet diffraction: a complex beam in the pupil
             field = amp[None] * jax.lax.complex(jnp.cos(phase), jnp.sin(phase))
@@ -368,16 +312,6 @@ def _elemental_otfs_band(
     # The PSF is real: its OTF is Hermitian and the half plane (rfft2) holds it all.
     otf = jnp.fft.rfft2(psf_band)
     return otf.at[..., 0, 0].set(jnp.broadcast_to(energy_band, otf.shape[:-2]).astype(otf.dtype))
-
-
-def frequencies_cpd(n_fft: int, freq_step_cpd: float):
-    """Frequencies (cpd) of an FFT-order axis of ``n_fft`` samples."""
-    return jnp.asarray(np.fft.fftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd)
-
-
-def half_frequencies_cpd(n_fft: int, freq_step_cpd: float):
-    """Frequencies (cpd) of the non-negative half axis (rfft layout, n_fft//2 + 1 samples)."""
-    return jnp.asarray(np.fft.rfftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd)
 
 
 # ----------------------------------------------------------------------------- validation
@@ -488,119 +422,6 @@ def _field_check(
 # ----------------------------------------------------------------------------- public
 
 
-class OTFStack(eqx.Module):
-    """Polychromatic OTFs on a common frequency grid, with their axes.
-
-    Attributes
-    ----------
-    otf : complex array (n_eyes, n_depth, n_acc, L, L//2+1), OTF(0) = 1.
-        Half plane f_x ≥ 0 (``rfft2`` layout: axis −2 in FFT order over f_y, axis −1 over
-        f_x = 0 … L/2 · df); the OTF is Hermitian, ``full_plane`` restores the rest.
-    accommodation_D : (n_acc,) absolute accommodation states, D.
-    depths_D : (n_depth,) rendered depths, D.
-    freq_step_cpd : float (static) frequency step, cpd.
-    """
-
-    otf: Complex[Array, "n_eyes n_depth n_acc L L_half"]
-    accommodation_D: Float[Array, " n_acc"]
-    depths_D: Float[Array, " n_depth"]
-    freq_step_cpd: float = eqx.field(static=True)
-
-    @property
-    def n_fft(self) -> int:
-        return int(self.otf.shape[-2])
-
-    def full_plane(self):
-        """OTFs on the full L × L FFT-order plane."""
-        return full_plane(self.otf, self.n_fft)
-
-    @property
-    def pixel_arcmin(self) -> float:
-        return 60.0 / self.freq_step_cpd / self.n_fft
-
-
-@shape_checked
-def polychromatic_otf(
-    eyes: Eyes,
-    accommodation_D: Real[ArrayLike, " n_acc"] | float | Sequence[float],
-    pupil_diameter_mm: float = 3.0,
-    cdp_D: float = 2.0,
-    spectrum: Spectrum | None = None,
-    sampling: Sampling = Sampling(),
-    options: ModelOptions = ModelOptions(),
-    layout: Layout | None = None,
-    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None = None,
-    eye_chunk: int | None = None,
-    check_aliasing: bool = True,
-    display=None,
-) -> OTFStack:
-    """Polychromatic OTFs for eyes × rendered depths × accommodation states.
-
-    One jitted call, vmapped over accommodation and subapertures, scanned over wavelength
-    (reduced inside) and mapped over eyes in chunks of ``eye_chunk`` (memory bound).
-
-    Parameters
-    ----------
-    eyes : Eyes
-        Batch of eyes (coefficients in µm on ``eyes.measured_pupil_mm``).
-    accommodation_D : array (n_acc,), D
-        Absolute accommodation states 1/z_acc.
-    pupil_diameter_mm : float, mm
-        Calculation pupil, 0 < d ≤ eyes.measured_pupil_mm.
-    cdp_D : float, D
-        Depth of the display's central depth plane (where it forms its image points).
-    spectrum : Spectrum
-        Wavelengths, weights, LCA and SCE (default: 400–700 nm / 10 nm, V(λ)).
-    sampling : Sampling
-        Frequency step and window sizes.
-    options : ModelOptions
-    layout : Layout
-        Subapertures; default the open pupil (natural viewing).
-    depths_D : array (n_depth,), D
-        Rendered depths; default ``[cdp_D]`` (a point on the display plane).
-    check_aliasing : bool
-        Raise if the field 60/df arcmin cannot hold the blur (default True).
-    display : :class:`lfjax.display.DisplayOptics`, optional
-        Lenslet diffraction and finite pixels (default: the paper's ideal display).
-
-    Returns
-    -------
-    OTFStack with ``otf`` of shape (n_eyes, n_depth, n_acc, L, L), OTF(0) = 1.
-    """
-    from .pipeline import Accommodation, PipelineConfig, Scene, otf_stack_jit
-
-    check_eyes(eyes)
-    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
-    validate_states(accommodation_D, depths_D, cdp_D)
-    _validate_coefficients(eyes.zernike_um)
-    spectrum = make_spectrum(options=options) if spectrum is None else spectrum
-    # A traced pupil (under jax.grad) cannot size windows: use the measured pupil as bound.
-    pupil_static = (
-        float(pupil_diameter_mm) if _is_concrete(pupil_diameter_mm) else eyes.measured_pupil_mm
-    )
-    if layout is None:
-        layout = Layout(
-            jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
-            pupil_static, "natural",
-        )
-    depths_D = jnp.atleast_1d(jnp.asarray(cdp_D if depths_D is None else depths_D, float))
-    accommodation_D = jnp.atleast_1d(jnp.asarray(accommodation_D, float))
-    if check_aliasing:
-        _field_check(
-            eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
-            accommodation_D, depths_D, layout, spectrum, sampling, display=display,
-        )
-    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
-                                  pupil_static, sampling, options, eye_chunk, display=display)
-    every_pair = jnp.broadcast_to(jnp.arange(accommodation_D.shape[0], dtype=jnp.int32),
-                                  depths_D.shape + accommodation_D.shape)
-    otf = otf_stack_jit(
-        eyes, Scene.from_layout(layout, depths_D, cdp_D, pupil_diameter_mm, display), spectrum,
-        Accommodation.shared(accommodation_D, every_pair, options, pupil_diameter_mm), config,
-    )
-    return OTFStack(otf, accommodation_D, depths_D, sampling.freq_step_cpd)
-
-
 def full_plane(otf_half, n_fft: int):
     """Full FFT-order (…, L, L) OTF from its half plane (…, L, L//2+1) by Hermitian symmetry.
 
@@ -622,15 +443,11 @@ def psf_from_otf(otf_half, n_fft: int, freq_step_cpd: float):
 
 
 __all__ = [
-    "soft_disk",
-    "disk_edge_distance",
-    "sa_c40_um",
-    "frequencies_cpd",
-    "half_frequencies_cpd",
+    "elemental_otfs",
+    "pupil_window_size",
     "full_plane",
-    "OTFStack",
-    "polychromatic_otf",
     "psf_from_otf",
     "validate_pupil",
+    "validate_states",
     "field_radius_arcmin",
 ]

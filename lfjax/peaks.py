@@ -58,8 +58,8 @@ import optimistix as optx
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
 from ._types import FULL, shape_checked
+from ._types import is_concrete as _is_concrete
 from .eyes import Eyes
-from .optics import _is_concrete
 from .pipeline import (
     Accommodation,
     PipelineConfig,
@@ -334,6 +334,7 @@ def _bracket(states_D, index):
     return lo, hi
 
 
+@eqx.filter_jit
 @shape_checked
 def accommodation_peaks(
     eyes: Eyes, scene: Scene, spectrum: Spectrum, grid: Accommodation, config: PipelineConfig,
@@ -341,7 +342,11 @@ def accommodation_peaks(
     allowed: Bool[ArrayLike, "n_depth n_k"] | None = None, prominence: float = 0.05,
     atol_D: float = 1e-5, max_steps: int = 32, refine_second: bool = True,
 ) -> Peaks:
-    """Continuous predicted accommodation of every eye and rendered depth (pure, jittable).
+    """Continuous predicted accommodation of every eye and rendered depth.
+
+    Compiled here (``eqx.filter_jit``: strings, numbers and ``config`` static, arrays
+    traced); pure, so ``jax.vmap`` and ``jax.grad`` apply from outside, and inside an outer
+    ``jax.jit`` it is inlined.
 
     Parameters
     ----------
@@ -494,10 +499,6 @@ def peaks_from_grid(
     )
 
 
-accommodation_peaks_jit = eqx.filter_jit(accommodation_peaks)
-""":func:`accommodation_peaks` compiled (``eqx.filter_jit``)."""
-
-
 __all__ = [
     "PEAK_METHODS",
     "single_state_metric",
@@ -506,7 +507,6 @@ __all__ = [
     "refine_peak",
     "parabola_vertex",
     "accommodation_peaks",
-    "accommodation_peaks_jit",
     "peaks_from_grid",
     "result_name",
 ]

@@ -17,7 +17,7 @@ One hashable, static :class:`PipelineConfig` holds everything that sets array sh
 selects code: the frequency sampling and its wavelength bands, the NCSF model, the VSOTF
 reference and the eye chunk. :func:`retinal_metrics` is the paper's chain on one screen;
 :func:`lfjax.through_focus.through_focus`, :func:`lfjax.through_focus.metrics_at`,
-:func:`lfjax.optics.polychromatic_otf`, the peak finder and the layout optimiser all call it
+:func:`lfjax.psf.polychromatic_otf`, the peak finder and the layout optimiser all call it
 (or :func:`otf_stack`, its first half).
 
 Bad values are refused twice: on the host with a message naming the parameter (the public
@@ -34,102 +34,17 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, Float
 
-from ._types import as_index_array, as_real_array as _real
 from .display import DisplayOptics, pixel_transfer
 from .eyes import Eyes
-from .layouts import Layout
 from .metrics import ncsf_half_plane, psf_peak, radial_mtf, vsotf_numerator
-from .optics import _elemental_otfs, half_frequencies_cpd, frequencies_cpd, sa_parameters
+from .optics import elemental_otfs
 from .options import ModelOptions
-from .sampling import Sampling, wavelength_bands
+from .sampling import Sampling, frequencies_cpd, half_frequencies_cpd, wavelength_bands
+from .scene import Accommodation, Scene
 from .spectral import Spectrum
 from .units import DEGREES_PER_RADIAN
-
-
-class Scene(eqx.Module):
-    """The display scene seen through the eye's pupil (all leaves are arrays).
-
-    Attributes
-    ----------
-    centres_mm : (n_sub, 2) subaperture centres (x, y) in the pupil plane, mm
-    diameters_mm : (n_sub,) subaperture diameters, mm (cropped by the pupil)
-    cdp_D : () central depth plane of the display, D
-    depths_D : (n_depth,) rendered depths, D (0 D = infinity)
-    pupil_diameter_mm : () calculation pupil, mm
-    display : :class:`lfjax.display.DisplayOptics` or None (the paper's ideal display:
-        geometric circular subapertures, point emitters)
-    """
-
-    centres_mm: Float[Array, "n_sub 2"] = eqx.field(converter=_real)
-    diameters_mm: Float[Array, " n_sub"] = eqx.field(converter=_real)
-    cdp_D: Float[Array, ""] = eqx.field(converter=_real)
-    depths_D: Float[Array, " n_depth"] = eqx.field(converter=_real)
-    pupil_diameter_mm: Float[Array, ""] = eqx.field(converter=_real)
-    display: DisplayOptics | None = None
-
-    def __check_init__(self):
-        if self.centres_mm.ndim < 2 or self.centres_mm.shape[-1] != 2:
-            raise ValueError(f"Scene.centres_mm must have shape (n_sub, 2), got {self.centres_mm.shape}")
-        if self.diameters_mm.shape[-1:] != self.centres_mm.shape[-2:-1]:
-            raise ValueError(
-                f"Scene.diameters_mm must have shape ({self.centres_mm.shape[-2]},), "
-                f"got {self.diameters_mm.shape}"
-            )
-
-    @classmethod
-    def from_layout(cls, layout: Layout, depths_D, cdp_D, pupil_diameter_mm,
-                    display: DisplayOptics | None = None) -> Scene:
-        """Scene of a :class:`~lfjax.layouts.Layout` rendering ``depths_D`` (D)."""
-        return cls(layout.centres_mm, layout.diameters_mm, cdp_D, jnp.atleast_1d(_real(depths_D)),
-                   pupil_diameter_mm, display)
-
-    @property
-    def n_depths(self) -> int:
-        return int(self.depths_D.shape[-1])
-
-
-class Accommodation(eqx.Module):
-    """Accommodation states and how the eye changes with them.
-
-    Elemental OTFs are computed once per entry of ``states_D`` and shared by every rendered
-    depth that uses it (``pair_index``).
-
-    Attributes
-    ----------
-    states_D : (n_states,) absolute accommodation 1/z_acc, D
-    pair_index : (n_depth, n_k) int, the state of each (rendered depth, k) pair
-    sa_c40_um_per_D : () change of c(4,0) per dioptre of accommodation on the Zernike
-        pupil of radius ``sa_radius_mm``, µm/D (Cheng et al. 2004, as ``ModelOptions`` reads it)
-    sa_radius_mm : () radius of that Zernike pupil, mm
-    """
-
-    states_D: Float[Array, " n_states"] = eqx.field(converter=_real)
-    pair_index: Int[Array, "n_depth n_k"] = eqx.field(converter=as_index_array)
-    sa_c40_um_per_D: Float[Array, ""] = eqx.field(converter=_real)
-    sa_radius_mm: Float[Array, ""] = eqx.field(converter=_real)
-
-    def __check_init__(self):
-        if self.pair_index.ndim < 2:
-            raise ValueError(
-                f"Accommodation.pair_index must have shape (n_depth, n_k), got {self.pair_index.shape}"
-            )
-
-    @classmethod
-    def per_depth(cls, accommodation_D, options: ModelOptions, pupil_diameter_mm) -> Accommodation:
-        """States given per rendered depth, (n_depth, n_k) in D: each pair computed on its own."""
-        acc = _real(accommodation_D)
-        if acc.ndim != 2:
-            raise ValueError(f"accommodation_D must have shape (n_depth, n_k), got {acc.shape}")
-        index = jnp.arange(acc.size, dtype=jnp.int32).reshape(acc.shape)
-        return cls.shared(acc.reshape(-1), index, options, pupil_diameter_mm)
-
-    @classmethod
-    def shared(cls, states_D, pair_index, options: ModelOptions, pupil_diameter_mm) -> Accommodation:
-        """States ``states_D`` (D) shared by depths through ``pair_index`` (n_depth, n_k)."""
-        sa = sa_parameters(options, _real(pupil_diameter_mm))
-        return cls(states_D, pair_index, sa[0], sa[1])
 
 
 @dataclass(frozen=True)
@@ -250,17 +165,6 @@ def _eye_coefficients(eyes: Eyes, config: PipelineConfig):
     return z.at[..., :3].set(0.0) if config.zero_piston_tilt else z
 
 
-def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
-                   accommodation: Accommodation, bands, sampling: Sampling):
-    """Spectrally weighted elemental OTFs of one eye, (n_states, n_sub, L, L//2+1), each
-    carrying the energy its pupil transmits (stages 1–5 of docs/design.md#the-model-stage-by-stage)."""
-    return _elemental_otfs(
-        zernike_um, measured_pupil_mm, scene.pupil_diameter_mm, scene.cdp_D, accommodation.states_D,
-        scene.centres_mm, scene.diameters_mm, spectrum, bands, sampling,
-        jnp.stack([accommodation.sa_c40_um_per_D, accommodation.sa_radius_mm]), scene.display,
-    )
-
-
 def render(elemental, scene: Scene, pair_index, n_fft: int, freq_step_cpd: float):
     """Rendered polychromatic OTFs of every (depth, k) pair, (n_depth, n_k, L, L//2+1), OTF(0) = 1.
 
@@ -293,13 +197,15 @@ def render(elemental, scene: Scene, pair_index, n_fft: int, freq_step_cpd: float
     return otf / energy[..., None, None]
 
 
+@eqx.filter_jit
 def reference_normalisers(scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
                           config: PipelineConfig):
     """VSOTF denominator Σ NCSF·Re OTF_ref and PSF peak (per arcmin²) of the reference eye:
     no monochromatic aberrations, accommodated on the CDP and the point rendered on it,
     accommodation SA and LCA kept, through the same layout or the open pupil, of an ideal
     display (no lenslet diffraction, point emitters; the subapertures keep their shape), so
-    VSOTF and Strehl values stay comparable when display effects are switched on."""
+    VSOTF and Strehl values stay comparable when display effects are switched on. Compiled
+    here (``eqx.filter_jit``), for callers that evaluate it once for many calls."""
     if config.vsotf_reference == "paper":
         centres, diameters = scene.centres_mm, scene.diameters_mm
     else:
@@ -323,9 +229,13 @@ def reference_normalisers(scene: Scene, spectrum: Spectrum, accommodation: Accom
 # ----------------------------------------------------------------------------- the pipeline
 
 
+@eqx.filter_jit
 def otf_stack(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
               config: PipelineConfig):
-    """Rendered polychromatic OTFs, (n_eyes, n_depth, n_k, L, L//2+1) half planes, OTF(0) = 1."""
+    """Rendered polychromatic OTFs, (n_eyes, n_depth, n_k, L, L//2+1) half planes, OTF(0) = 1.
+
+    Compiled here (``eqx.filter_jit``: ``config`` static, arrays traced), pure like
+    :func:`retinal_metrics`."""
     if config.traced_checks:
         eyes, scene, accommodation = checked_inputs(eyes, scene, accommodation)
 
@@ -337,6 +247,7 @@ def otf_stack(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accom
     return jax.lax.map(one_eye, _eye_coefficients(eyes, config), batch_size=config.eye_chunk)
 
 
+@eqx.filter_jit
 def retinal_metrics(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
                     config: PipelineConfig, reference=None) -> RetinalMetrics:
     """VSOTF, Strehl ratio and radial MTF of every eye and (rendered depth, k) pair.
@@ -350,7 +261,9 @@ def retinal_metrics(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation:
     8.   VSOTF = Σ NCSF·Re OTF / the reference's; Strehl = PSF peak / the reference's;
          radial MTF.
 
-    Pure: ``jax.jit``, ``jax.vmap`` and ``jax.grad`` apply from outside, in every leaf of
+    Compiled here (``eqx.filter_jit``: ``config`` static, arrays traced; inside an outer
+    transformation it is inlined). Pure: ``jax.jit``, ``jax.vmap`` and ``jax.grad`` apply
+    from outside, in every leaf of
     ``eyes``, ``scene``, ``spectrum`` and ``accommodation``. ``reference`` = the
     :func:`reference_normalisers` of this scene, when the caller evaluates it once for many
     calls (solvers). Returns arrays of shape (n_eyes, n_depth, n_k[, L//2+1]).
@@ -395,12 +308,6 @@ def pair_metric(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Sp
     return psf_peak(otf, n_fft, df) / reference[1]
 
 
-retinal_metrics_jit = eqx.filter_jit(retinal_metrics)
-""":func:`retinal_metrics` compiled (``eqx.filter_jit``: static config, arrays traced)."""
-otf_stack_jit = eqx.filter_jit(otf_stack)
-""":func:`otf_stack` compiled (``eqx.filter_jit``: static config, arrays traced)."""
-
-
 @eqx.filter_jit
 def vsotf_and_strehl(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
                      config: PipelineConfig):
@@ -417,10 +324,8 @@ __all__ = [
     "RetinalMetrics",
     "retinal_metrics",
     "pair_metric",
-    "retinal_metrics_jit",
     "vsotf_and_strehl",
     "otf_stack",
-    "otf_stack_jit",
     "reference_normalisers",
     "elemental_otfs",
     "render",

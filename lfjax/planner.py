@@ -51,11 +51,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.fft as sfft
 
+from .display import DisplayOptics
 from .layouts import Layout, open_pupil
 from .metrics import _half_plane_weights_np, ncsf
 from .optics import field_radius_arcmin, pupil_window_size, sa_parameters
 from .options import ModelOptions
-from .sampling import EDGE_EXTENT_SCALES, EYE_BLOCK, Sampling, wavelength_bands
+from .sampling import EDGE_EXTENT_SCALES, EYE_BLOCK, Sampling, next_fast_size, wavelength_bands
 from .spectral import Spectrum, make_spectrum
 from .units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
 from .zernike import n_modes_for_order, nm_from_ansi, zernike_basis
@@ -443,8 +444,6 @@ def _aperture_otfs(view, pupil_mm, defocus_D, sa_c40_um, sa_radius_mm, wavelengt
 def _fresnel_np(field, dx_mm, wavelength_mm, distance_mm, extent_mm):
     """numpy twin of :func:`lfjax.display.fresnel_propagate` (the same kernel sampling:
     impulse response in the far field, analytic transfer function in the near field)."""
-    from .sampling import next_fast_size
-
     n = field.shape[-1]
     n_pad = next_fast_size(2 * n)
     lam_z = wavelength_mm * distance_mm
@@ -513,8 +512,6 @@ class _Proxy:
         # display effects it is transformed on its own (diffraction off, the shape kept).
         reference_otfs = reference_display = None
         if scene.display is not None and scene.display.diffracts:
-            from .display import DisplayOptics
-
             reference_otfs = True
             reference_display = DisplayOptics("off", scene.display.aperture)
         num = np.zeros(acc.size)

@@ -1,7 +1,10 @@
-"""Monochromatic point-spread function of an eye by a matrix Fourier transform (MFT).
+"""Point-spread functions and OTFs of eyes: one monochromatic PSF at any angular sampling,
+and polychromatic OTFs for eyes × rendered depths × accommodation states.
+
+:func:`monochromatic_psf` evaluates one PSF by a matrix Fourier transform (MFT).
 
 Conventions (docs/design.md#conventions): pupil function ``A · exp(−i 2π W / λ)``, PSF = |forward
-transform|², arrays ``[y, x]``. The pupil is a soft-edged disc (:func:`lfjax.optics.soft_disk`)
+transform|², arrays ``[y, x]``. The pupil is a soft-edged disc (:func:`lfjax.apertures.soft_disk`)
 sampled with ``pupil_samples`` samples across its diameter; the PSF is evaluated directly
 on the requested angles, so any pixel size and field can be asked for.
 
@@ -10,6 +13,10 @@ and ``jax.grad`` applied from outside: values known on the host are validated ea
 (``ValueError``), traced values with ``eqx.error_if`` (a bad value raises at run time
 instead of returning NaN). Structural arguments (``measured_pupil_mm``, ``n_pixels``,
 ``pupil_samples``, ``edge_width_samples``, ``tolerance``) are static Python values.
+
+:func:`polychromatic_otf` is the host-side entry point to the pure pipeline's first half
+(:func:`lfjax.pipeline.otf_stack`): it checks its inputs, builds the ``Scene`` and
+``Accommodation`` pytrees and calls the compiled pipeline once.
 """
 
 from __future__ import annotations
@@ -23,13 +30,23 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, ArrayLike, Float, Real
+from jaxtyping import Array, ArrayLike, Complex, Float, Real
 
-# Module import, not ``from .optics import ...``: lfjax.optics re-exports
-# monochromatic_psf, so either module may be imported first.
-from . import optics as _optics
-from ._types import FULL, shape_checked
-from .sampling import EDGE_EXTENT_SCALES
+from ._types import FULL, is_concrete, shape_checked
+from .apertures import soft_disk
+from .eyes import Eyes, check_eyes
+from .layouts import Layout
+from .optics import (
+    _field_check,
+    _validate_coefficients,
+    full_plane,
+    validate_pupil,
+    validate_states,
+)
+from .options import ModelOptions
+from .pipeline import Accommodation, PipelineConfig, Scene, otf_stack
+from .sampling import EDGE_EXTENT_SCALES, Sampling
+from .spectral import Spectrum, make_spectrum
 from .units import ARCMIN_PER_RADIAN, dioptres_to_c20_um
 from .zernike import zernike_mode
 
@@ -313,7 +330,7 @@ def monochromatic_psf(
     sce_rho = _scalar("sce_rho_per_mm2", sce_rho_per_mm2)
 
     # ---- tier 2a: concrete values, on the host (messages name the parameter)
-    _optics.validate_pupil(pupil, measured_pupil_mm)
+    validate_pupil(pupil, measured_pupil_mm)
     if not _is_traced(pixel) and not (0.0 < float(pixel) < math.inf):
         raise ValueError(f"pixel_arcmin must be > 0, got {float(pixel)}")
     if not _is_traced(coefficients_um) and not np.all(np.isfinite(coefficients_um)):
@@ -367,7 +384,7 @@ def _monochromatic_psf(
     xx, yy = jnp.meshgrid(x, x)
     r2 = xx * xx + yy * yy
     r_pupil = 0.5 * pupil_diameter_mm
-    amp = _optics.soft_disk(r2, r_pupil, edge_width_samples * dx) * jnp.power(10.0, -sce_rho * r2)
+    amp = soft_disk(r2, r_pupil, edge_width_samples * dx) * jnp.power(10.0, -sce_rho * r2)
     # Σ c_j Z_j one mode at a time (no (n_modes, n_grid, n_grid) basis in memory)
     r_meas = 0.5 * measured_pupil_mm
     w = dioptres_to_c20_um(defocus_D, pupil_diameter_mm) * zernike_mode(
@@ -384,8 +401,124 @@ def _monochromatic_psf(
     return psf / jnp.sum(psf)
 
 
+# ----------------------------------------------------------------------------- polychromatic OTFs
+
+
+class OTFStack(eqx.Module):
+    """Polychromatic OTFs on a common frequency grid, with their axes.
+
+    Attributes
+    ----------
+    otf : complex array (n_eyes, n_depth, n_acc, L, L//2+1), OTF(0) = 1.
+        Half plane f_x ≥ 0 (``rfft2`` layout: axis −2 in FFT order over f_y, axis −1 over
+        f_x = 0 … L/2 · df); the OTF is Hermitian, ``full_plane`` restores the rest.
+    accommodation_D : (n_acc,) absolute accommodation states, D.
+    depths_D : (n_depth,) rendered depths, D.
+    freq_step_cpd : float (static) frequency step, cpd.
+    """
+
+    otf: Complex[Array, "n_eyes n_depth n_acc L L_half"]
+    accommodation_D: Float[Array, " n_acc"]
+    depths_D: Float[Array, " n_depth"]
+    freq_step_cpd: float = eqx.field(static=True)
+
+    @property
+    def n_fft(self) -> int:
+        return int(self.otf.shape[-2])
+
+    def full_plane(self):
+        """OTFs on the full L × L FFT-order plane."""
+        return full_plane(self.otf, self.n_fft)
+
+    @property
+    def pixel_arcmin(self) -> float:
+        return 60.0 / self.freq_step_cpd / self.n_fft
+
+
+@shape_checked
+def polychromatic_otf(
+    eyes: Eyes,
+    accommodation_D: Real[ArrayLike, " n_acc"] | float | Sequence[float],
+    pupil_diameter_mm: float = 3.0,
+    cdp_D: float = 2.0,
+    spectrum: Spectrum | None = None,
+    sampling: Sampling = Sampling(),
+    options: ModelOptions = ModelOptions(),
+    layout: Layout | None = None,
+    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None = None,
+    eye_chunk: int | None = None,
+    check_aliasing: bool = True,
+    display=None,
+) -> OTFStack:
+    """Polychromatic OTFs for eyes × rendered depths × accommodation states.
+
+    One compiled call, vmapped over accommodation and subapertures, scanned over wavelength
+    (reduced inside) and mapped over eyes in chunks of ``eye_chunk`` (memory bound).
+
+    Parameters
+    ----------
+    eyes : Eyes
+        Batch of eyes (coefficients in µm on ``eyes.measured_pupil_mm``).
+    accommodation_D : array (n_acc,), D
+        Absolute accommodation states 1/z_acc.
+    pupil_diameter_mm : float, mm
+        Calculation pupil, 0 < d ≤ eyes.measured_pupil_mm.
+    cdp_D : float, D
+        Depth of the display's central depth plane (where it forms its image points).
+    spectrum : Spectrum
+        Wavelengths, weights, LCA and SCE (default: 400–700 nm / 10 nm, V(λ)).
+    sampling : Sampling
+        Frequency step and window sizes.
+    options : ModelOptions
+    layout : Layout
+        Subapertures; default the open pupil (natural viewing).
+    depths_D : array (n_depth,), D
+        Rendered depths; default ``[cdp_D]`` (a point on the display plane).
+    check_aliasing : bool
+        Raise if the field 60/df arcmin cannot hold the blur (default True).
+    display : :class:`lfjax.display.DisplayOptics`, optional
+        Lenslet diffraction and finite pixels (default: the paper's ideal display).
+
+    Returns
+    -------
+    OTFStack with ``otf`` of shape (n_eyes, n_depth, n_acc, L, L), OTF(0) = 1.
+    """
+    check_eyes(eyes)
+    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
+    validate_states(accommodation_D, depths_D, cdp_D)
+    _validate_coefficients(eyes.zernike_um)
+    spectrum = make_spectrum(options=options) if spectrum is None else spectrum
+    # A traced pupil (under jax.grad) cannot size windows: use the measured pupil as bound.
+    pupil_static = (
+        float(pupil_diameter_mm) if is_concrete(pupil_diameter_mm) else eyes.measured_pupil_mm
+    )
+    if layout is None:
+        layout = Layout(
+            jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
+            pupil_static, "natural",
+        )
+    depths_D = jnp.atleast_1d(jnp.asarray(cdp_D if depths_D is None else depths_D, float))
+    accommodation_D = jnp.atleast_1d(jnp.asarray(accommodation_D, float))
+    if check_aliasing:
+        _field_check(
+            eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
+            accommodation_D, depths_D, layout, spectrum, sampling, display=display,
+        )
+    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
+                                  pupil_static, sampling, options, eye_chunk, display=display)
+    every_pair = jnp.broadcast_to(jnp.arange(accommodation_D.shape[0], dtype=jnp.int32),
+                                  depths_D.shape + accommodation_D.shape)
+    otf = otf_stack(
+        eyes, Scene.from_layout(layout, depths_D, cdp_D, pupil_diameter_mm, display), spectrum,
+        Accommodation.shared(accommodation_D, every_pair, options, pupil_diameter_mm), config,
+    )
+    return OTFStack(otf, accommodation_D, depths_D, sampling.freq_step_cpd)
+
+
 __all__ = [
     "monochromatic_psf",
+    "polychromatic_otf",
+    "OTFStack",
     "pupil_samples_for",
     "DEFAULT_TOLERANCE",
     "TRACED_RMS_WAVES",

@@ -16,9 +16,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import jax.numpy as jnp
 import numpy as np
 
 from .units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
+from .zernike import zernike_basis
 
 EDGE_EXTENT_SCALES = 6.0
 """Logistic edge profile is taken to extend this many scale lengths (e^-6 ≈ 0.25 %)."""
@@ -211,6 +213,14 @@ class AliasingError(ValueError):
         self.radius_arcmin = float(radius_arcmin)
 
 
+def finer_step(err: AliasingError, current: float) -> float:
+    """Next frequency step (cpd) to try after an aliasing error: the largest safe step it
+    carries, rounded down to 0.05 cpd (or 90 % of ``current`` if that rounding would not
+    shrink it). The study and the sweep both retry with it."""
+    step = math.floor(err.max_freq_step_cpd * 20.0 + 1e-9) / 20.0
+    return step if 0 < step < current else round(current * 0.9, 6)
+
+
 def check_field(sampling: Sampling, radius_arcmin: float, what: str) -> None:
     """Raise :class:`AliasingError` if the PSF of radius ``radius_arcmin`` would wrap in the
     periodic field."""
@@ -225,14 +235,22 @@ def check_field(sampling: Sampling, radius_arcmin: float, what: str) -> None:
         )
 
 
+def frequencies_cpd(n_fft: int, freq_step_cpd: float):
+    """Frequencies (cpd) of an FFT-order axis of ``n_fft`` samples."""
+    return jnp.asarray(np.fft.fftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd)
+
+
+def half_frequencies_cpd(n_fft: int, freq_step_cpd: float):
+    """Frequencies (cpd) of the non-negative half axis (rfft layout, n_fft//2 + 1 samples)."""
+    return jnp.asarray(np.fft.rfftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd)
+
+
 EYE_BLOCK = 1024
 """Eyes whose wavefronts the host-side guards evaluate at once (memory ∝ the block)."""
 
 
 def eye_slope_rad(zernike_um: np.ndarray, measured_pupil_mm: float, pupil_diameter_mm: float) -> float:
     """Largest wavefront slope (ray angle, rad) of eyes inside the calculation pupil (host)."""
-    from .zernike import zernike_basis
-
     z = np.asarray(zernike_um, float).reshape(-1, np.shape(zernike_um)[-1]).copy()
     z[:, :3] = 0.0  # tilt is a uniform shift, accounted by the user's choice of eye data
     n = 48
@@ -260,5 +278,8 @@ __all__ = [
     "wavelength_bands",
     "blur_radius_arcmin",
     "check_field",
+    "finer_step",
     "eye_slope_rad",
+    "frequencies_cpd",
+    "half_frequencies_cpd",
 ]

@@ -7,6 +7,7 @@ returned as arrays, so wavelengths are data known before tracing.
 from __future__ import annotations
 
 import csv
+import warnings
 from functools import lru_cache
 from importlib import resources
 
@@ -22,8 +23,6 @@ LEF_NAME = "CIE 2008 2 Degree Physiologically Relevant LEF"
 
 @lru_cache(maxsize=1)
 def _lef_table() -> tuple[np.ndarray, np.ndarray]:
-    import warnings
-
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message='.*"Matplotlib" related API')
         import colour

@@ -17,12 +17,13 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Real
 
+from ._types import is_concrete as _is_concrete
 from ._types import shape_checked
 from .display import DisplayOptics
 from .eyes import Eyes, check_eyes
 from .layouts import Layout, open_pupil
 from .metrics import cutoff_frequency
-from .optics import _field_check, _is_concrete, _validate_coefficients, validate_pupil, validate_states
+from .optics import _field_check, _validate_coefficients, validate_pupil, validate_states
 from .options import ModelOptions
 from .peaks import METRICS, PEAK_METHODS, Peaks, peaks_from_grid
 from .pipeline import (
@@ -33,6 +34,7 @@ from .pipeline import (
     retinal_metrics,
     vsotf_and_strehl,
 )
+from .planner import plan_sampling
 from .sampling import Sampling
 from .spectral import Spectrum, make_spectrum
 
@@ -229,8 +231,6 @@ def _planned_sampling(eyes: Eyes, layout: Layout, depths, pairs, pupil_diameter_
     pair would otherwise get a coarser step than the curve through it, and the two entry
     points would give different values at the same point (by 2e-3 in VSOTF, more than the
     planner's accuracy target)."""
-    from .planner import plan_sampling
-
     depths = np.atleast_1d(np.asarray(depths, float))
     around = depths[:, None] + PLANNED_NEIGHBOURHOOD_D[None, :]
     keep = around >= 0
@@ -284,7 +284,7 @@ def through_focus(
         depth (others are not ``allowed``), e.g. the paper's 0–5 D grid with a ±1 D window.
     pupil_diameter_mm : calculation pupil, mm (≤ eyes.measured_pupil_mm)
     cdp_D : central depth plane of the display, D
-    spectrum, options : see :func:`lfjax.optics.polychromatic_otf`
+    spectrum, options : see :func:`lfjax.psf.polychromatic_otf`
     sampling : Sampling, optional
         Default: the planner's field guard for this scene (the largest frequency step whose
         PSF field holds every blur and display shift; milliseconds,

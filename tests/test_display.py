@@ -16,7 +16,7 @@ import helpers as H
 import lfjax
 from lfjax import planner
 from lfjax.display import DisplayOptics, LensletArray, fresnel_propagate, lenslets_for_layout
-from lfjax.optics import polychromatic_otf
+from lfjax.psf import polychromatic_otf
 from lfjax.through_focus import metrics_at, through_focus
 
 WL = [550.0]

@@ -19,6 +19,7 @@ import pytest
 import lfjax
 from lfjax import cli
 from lfjax import layout_opt as lo
+from lfjax.layout_opt import _feasible as feasible_maps
 
 import helpers as H
 
@@ -83,11 +84,11 @@ def test_square_lattice_is_the_papers_grid_and_hex_fills_rings():
 def test_disc_maps_invert():
     q = np.random.default_rng(0).uniform(-1, 1, (200, 2))
     q = q[np.hypot(*q.T) < 0.999]
-    np.testing.assert_allclose(lo._square_to_disc(lo._disc_to_square(q)), q, atol=1e-9)
-    np.testing.assert_allclose(lo._plane_to_disc(lo._disc_to_plane(q)), q, atol=1e-9)
+    np.testing.assert_allclose(feasible_maps._square_to_disc(feasible_maps._disc_to_square(q)), q, atol=1e-9)
+    np.testing.assert_allclose(feasible_maps._plane_to_disc(feasible_maps._disc_to_plane(q)), q, atol=1e-9)
     # the square's boundary lands on the circle, its inside strictly inside
     s = np.stack([np.ones(5), np.linspace(-1, 1, 5)], axis=1)
-    np.testing.assert_allclose(np.hypot(*np.asarray(lo._square_to_disc(s)).T), 1.0, atol=1e-12)
+    np.testing.assert_allclose(np.hypot(*np.asarray(feasible_maps._square_to_disc(s)).T), 1.0, atol=1e-12)
 
 
 CONSTRAINT_CASES = [

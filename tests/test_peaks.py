@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import lfjax
-from lfjax.peaks import accommodation_peaks_jit, refine_peak
+from lfjax.peaks import accommodation_peaks, refine_peak
 from lfjax.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
 
 import helpers as H
@@ -103,7 +103,7 @@ def test_defocused_eye_peak_is_exact_and_its_gradient_analytic(method="newton"):
 
     def peak_of(c20):
         eyes = lfjax.Eyes(jnp.zeros((1, 15)).at[0, 4].set(c20), 3.0)
-        return accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf", method,
+        return accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", method,
                                        allowed).accommodation_D[0, 0]
 
     c20 = 0.37 * H.C20_PER_D_3MM
@@ -125,7 +125,7 @@ def test_implicit_gradient_matches_finite_difference_of_the_resolved_peak():
 
     def peak_of(p):
         s = Scene(p["centres"], p["diameters"], p["cdp"], scene.depths_D, 3.0)
-        return accommodation_peaks_jit(lfjax.Eyes(p["z"][None], 3.0), s, spectrum, grid, cfg,
+        return accommodation_peaks(lfjax.Eyes(p["z"][None], 3.0), s, spectrum, grid, cfg,
                                        "vsotf", "newton", allowed).accommodation_D[0, 0]
 
     v = H.random_direction(jax.random.key(3), params)
@@ -155,7 +155,7 @@ def test_two_peaked_strehl_returns_global_maximum_and_reports_the_second():
     allowed = np.abs(GRID[None] - 4.0) <= 2.6 + 1e-9
     grid = Accommodation.shared(GRID, index, options, 3.0)
     eyes = lfjax.eyes.aberration_free_eye()
-    peaks = accommodation_peaks_jit(eyes, scene, spectrum, grid, cfg, "strehl", "auto", allowed)
+    peaks = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "strehl", "auto", allowed)
     main, second = float(peaks.accommodation_D[0, 0]), float(peaks.second_accommodation_D[0, 0])
     fine = np.round(np.arange(140, 501) * 0.01, 9)
     dense = np.asarray(retinal_metrics(
@@ -166,7 +166,7 @@ def test_two_peaked_strehl_returns_global_maximum_and_reports_the_second():
     assert bool(peaks.success[0, 0])
     assert 3.5 <= second <= 4.2, f"second peak (near the rendered depth) not reported: {second}"
     assert float(peaks.second_value[0, 0]) < float(peaks.value[0, 0])
-    newton = accommodation_peaks_jit(eyes, scene, spectrum, grid, cfg, "strehl", "newton", allowed)
+    newton = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "strehl", "newton", allowed)
     assert abs(float(newton.accommodation_D[0, 0]) - fine[np.argmax(dense)]) > 0.05
 
 
@@ -179,7 +179,7 @@ def test_hyperopic_limit_and_far_grid_end_are_flagged():
     result = {}
     for depth in (0.2, 4.5):  # a point on the display plane, viewed through the whole pupil
         cfg, scene, grid, allowed = _pipeline(layout, [depth], window=1.5, cdp_D=depth)
-        result[depth] = accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf",
+        result[depth] = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf",
                                                 "newton", allowed)
     near, far = result[0.2], result[4.5]
     # eye 0 (+0.6 D myopic) at 0.2 D: wants −0.4 D → held at 0 D
@@ -215,7 +215,7 @@ def test_one_state_grid_is_refused():
     layout = lfjax.open_pupil(3.0)
     cfg, scene, grid, _ = _pipeline(layout, [2.0], grid=np.array([2.0]))
     with pytest.raises(ValueError, match=">= 2 accommodation states"):
-        accommodation_peaks_jit(H.dl_eye(), scene, SPECTRUM, grid, cfg)
+        accommodation_peaks(H.dl_eye(), scene, SPECTRUM, grid, cfg)
 
 
 # ----------------------------------------------------------------------------- upstream trap
@@ -246,15 +246,15 @@ def test_local_refinement_agrees_with_the_exact_peak():
     own = np.array([0.37, -0.61, 0.05])
     eyes = lfjax.Eyes(np.concatenate([_defocused_eye(d).zernike_um for d in own]), 3.0)
     exact = 2.5 - own
-    local = accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "local", allowed)
-    parabola = accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "parabola",
+    local = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "local", allowed)
+    parabola = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "parabola",
                                        allowed)
     assert np.all(np.asarray(local.success))
     np.testing.assert_allclose(np.asarray(local.accommodation_D)[:, 0], exact, atol=5e-4)
     assert np.max(np.abs(np.asarray(parabola.accommodation_D)[:, 0] - exact)) > 1e-3
     # "vertex": the parabola's location, valued by the parabola itself (no evaluation):
     # close to the metric there, and not below the grid maximum it interpolates
-    vertex = accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "vertex", allowed)
+    vertex = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "vertex", allowed)
     np.testing.assert_array_equal(np.asarray(vertex.accommodation_D),
                                   np.asarray(parabola.accommodation_D))
     np.testing.assert_allclose(np.asarray(vertex.value), np.asarray(parabola.value), rtol=2e-2)
@@ -269,7 +269,7 @@ def test_local_refinement_at_the_hyperopic_limit():
     cfg, scene, grid, allowed = _pipeline(layout, [0.3], cdp_D=0.3)
     own = np.array([0.25, 0.6])  # peaks at 0.05 D and (beyond the limit) -0.3 D
     eyes = lfjax.Eyes(np.concatenate([_defocused_eye(d).zernike_um for d in own]), 3.0)
-    local = accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "local", allowed)
+    local = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "local", allowed)
     found = np.asarray(local.accommodation_D)[:, 0]
     assert np.all(np.isfinite(found)) and np.all(np.asarray(local.success))
     np.testing.assert_allclose(found, [0.05, 0.0], atol=5e-4)
@@ -285,7 +285,7 @@ def test_flat_curves_of_strongly_aberrated_eyes_are_not_reported_as_successes():
     z[0, 12], z[1, 7] = 0.6, 1.5
     eyes = lfjax.Eyes(z, 3.0)
     for method in ("newton", "golden", "local"):
-        peaks = accommodation_peaks_jit(eyes, scene, SPECTRUM, grid, cfg, "vsotf", method, allowed)
+        peaks = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", method, allowed)
         assert np.all(np.asarray(peaks.at_grid_edge)), method
         assert not np.any(np.asarray(peaks.success)), method
         assert np.all(np.abs(np.abs(np.asarray(peaks.accommodation_D) - 2.0) - 1.0) < 1e-3)

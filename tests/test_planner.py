@@ -14,7 +14,8 @@ import pytest
 
 import lfjax
 from lfjax import planner
-from lfjax.optics import polychromatic_otf, psf_from_otf
+from lfjax.optics import psf_from_otf
+from lfjax.psf import polychromatic_otf
 from lfjax.planner import plan_sampling
 from lfjax.through_focus import through_focus
 

@@ -1,8 +1,9 @@
-"""`lfjax.reproduce` imports in one direction: config/study ← claims ← report/figures ← entry.
+"""`lfjax.reproduce` and `lfjax.sweep` import their parts in one direction:
+config ← study ← alternatives/report/figures ← entry, and config ← compute ← … ← report.
 
-Parsed with ``ast`` (nothing is imported or run), so a future import cycle between the parts
-of the reproduction — or between the reproduction and the library it uses — fails here
-rather than as a lazy import that happens to work.
+Parsed with ``ast`` (nothing is imported or run). The rules for the whole package (layers,
+no circle, no deferred imports) are in ``tests/test_import_layers.py``; these are the finer
+orders inside the two application packages.
 """
 
 import ast
@@ -15,7 +16,6 @@ PACKAGE = LFJAX / "reproduce"
 LAYERS = {
     "config": 0,
     "study": 1,
-    "claims": 2,
     "alternatives": 3,
     "report": 3,
     "figures": 3,
@@ -129,12 +129,29 @@ def test_sweep_parts_import_only_lower_layers():
     assert not wrong, "; ".join(wrong)
 
 
-def test_sweep_reads_the_reproduction_only_lazily():
-    """lfjax.reproduce imports lfjax.sweep inside functions (--population) and the sweep
-    reads the claims from lfjax.reproduce: neither may do so at module level (a cycle)."""
+def test_the_sweep_never_imports_the_reproduction():
+    """lfjax.reproduce reads sweep stores (--population); the sweep reads the paper's claims
+    from lfjax.claims, below both, and never imports lfjax.reproduce (a circle)."""
     for path in SWEEP.glob("*.py"):
-        names = _imported_modules(path, "lfjax.sweep", top_level_only=True)
+        names = _imported_modules(path, "lfjax.sweep")
         assert not any(n.startswith("lfjax.reproduce") for n in names), path
-    for path in PACKAGE.glob("*.py"):
-        names = _imported_modules(path, "lfjax.reproduce", top_level_only=True)
-        assert not any(n.startswith("lfjax.sweep") for n in names), path
+
+
+LAYOUT_OPT = LFJAX / "layout_opt"
+LAYOUT_OPT_ORDER = ("_params", "_feasible", "_problem", "_objectives", "_evaluation", "_solver",
+                    "_files", "__init__")
+"""lfjax.layout_opt: each private part imports only the parts before it; the face imports all."""
+
+
+def test_layout_opt_parts_import_only_earlier_parts():
+    parts = {p.stem for p in LAYOUT_OPT.glob("*.py")}
+    assert parts == set(LAYOUT_OPT_ORDER), sorted(parts ^ set(LAYOUT_OPT_ORDER))
+    rank = {name: k for k, name in enumerate(LAYOUT_OPT_ORDER)}
+    wrong = []
+    for path in sorted(LAYOUT_OPT.glob("*.py")):
+        package = "lfjax.layout_opt"
+        deps = {n.split(".")[2] for n in _imported_modules(path, package)
+                if n.startswith(package + ".") and n.split(".")[2] in rank}
+        wrong += [f"{path.stem} imports {d}" for d in sorted(deps - {path.stem})
+                  if rank[d] >= rank[path.stem]]
+    assert not wrong, "; ".join(wrong)

@@ -215,7 +215,7 @@ def test_one_compilation_per_pupil_and_layout_for_all_chunks(reference):
 
 
 def test_study_view_feeds_the_paper_claims(reference):
-    from lfjax.reproduce.claims import evaluate_claims
+    from lfjax.claims import evaluate_claims
 
     _, path, _ = reference
     view = study_view(open_store(path))

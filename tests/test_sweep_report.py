@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 from lfjax import cli
-from lfjax.reproduce.claims import evaluate_claims
+from lfjax.claims import evaluate_claims
 from lfjax.sweep import config_from_dict, open_store, run_sweep, study_view
 from lfjax.sweep import report as sr
 from lfjax.sweep import ten_eyes as te
@@ -292,7 +292,7 @@ def test_interval_brackets_the_fraction_and_shrinks(ds):
 
 
 def test_ten_eye_markdown(ds):
-    from lfjax.reproduce.claims import Claim
+    from lfjax.claims import Claim
 
     result = te.ten_eye_claims(ds, n_draws=10, seed=0)
     mine = [Claim(str(i), "f", "c", "r", i % 2 == 0) for i in range(1, 8)]
@@ -408,7 +408,7 @@ def test_claims_the_data_cannot_judge_are_na(ds):
     """Claim 2 is "for every density" and claim 3's exception is about 2x2 beyond +-1 D: a
     store without 4x4, or without such depths, cannot confirm them (n/a), though data that
     refute them still make them fail."""
-    from lfjax.reproduce.claims import evaluate_claims
+    from lfjax.claims import evaluate_claims
     from lfjax.sweep import study_view
 
     view = study_view(ds)

@@ -10,18 +10,19 @@ The parts, each importing only those listed before it:
 * :mod:`~lfjax.reproduce.config` — :class:`StudyConfig`, :func:`study_eyes`, the sampling plan;
 * :mod:`~lfjax.reproduce.study` — :func:`run_study` returns every number as one labelled
   :class:`xarray.Dataset`; :func:`compute_examples` the data of Figs. 4, 5 and 9;
-* :mod:`~lfjax.reproduce.claims` — :func:`evaluate_claims` turns the Dataset into the
-  paper's findings as checkable claims (:class:`Claim`);
 * :mod:`~lfjax.reproduce.alternatives` — the modelling choices the paper leaves open
   (``ALTERNATIVES``) and the claims under each (:func:`run_alternatives`);
 * :mod:`~lfjax.reproduce.report` — CSV tables and ``REPORT.md``;
 * :mod:`~lfjax.reproduce.figures` — Figs. 3–11;
+* :mod:`lfjax.claims` (below this package, since the sweep's ten-eye check uses it too) —
+  :func:`evaluate_claims` turns the Dataset into the paper's findings as checkable claims
+  (:class:`Claim`);
 * this module — :func:`reproduce` writes results file, CSV tables, figures and ``REPORT.md``
   into a folder (through a temporary folder moved into place at the end), and re-exports
   the public names of the parts. ``lfjax reproduce`` is its command line (:mod:`lfjax.cli`).
   Given a population sweep store (``--population``), the report adds "What ten eyes cannot
-  tell" (:mod:`lfjax.sweep.ten_eyes`, imported only then: :mod:`lfjax.sweep` reads the
-  claims from this package, so importing it at the top would close a cycle).
+  tell" (:mod:`lfjax.sweep.ten_eyes`; the sweep reads the claims from :mod:`lfjax.claims`,
+  never from this package, so the two import in one direction).
 
 Host-side orchestration (numpy, xarray, files); the numerics are :mod:`lfjax.through_focus`
 and :mod:`lfjax.optics`.
@@ -30,6 +31,7 @@ and :mod:`lfjax.optics`.
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import shutil
 import tempfile
@@ -40,8 +42,20 @@ import numpy as np
 
 from .._files import owned_temp_dir, remove_orphans
 from .._tables import printable
+from ..claims import Claim, dof_D, evaluate_claims
+from ..display_effects import (
+    DisplayStudyConfig,
+    display_effects_markdown,
+    effects_table,
+    lenslet_sweep,
+    run_display_study,
+    save_display_figures,
+    sweep_table,
+)
+from ..eyes import Eyes
+from ..sweep.store import open_store
+from ..sweep.ten_eyes import check_population_store, ten_eye_claims, ten_eye_markdown, ten_eye_table
 from .alternatives import ALTERNATIVES, run_alternatives
-from .claims import Claim, dof_D, evaluate_claims
 from .config import LF_LAYOUTS, METRICS, StudyConfig, study_eyes
 from .figures import FIGURES, all_figures, save_figures
 from .report import (
@@ -67,8 +81,6 @@ DISPLAY_SWEEP_TABLE = "display_lenslet_sweep.csv"
 
 def write_display_outputs(study, sweep, folder: Path) -> list[str]:
     """The display-effects tables (CSV) and figures (PNG) in ``folder``; returns their names."""
-    from ..display_effects import effects_table, save_display_figures, sweep_table
-
     folder = Path(folder)
     effects_table(study).to_csv(folder / DISPLAY_TABLE, index=False, float_format="%.6g")
     sweep_table(sweep).to_csv(folder / DISPLAY_SWEEP_TABLE, index=False, float_format="%.6g")
@@ -78,11 +90,6 @@ def write_display_outputs(study, sweep, folder: Path) -> list[str]:
 def _display_effects(config: StudyConfig, n_eyes: int, stage, note=None):
     """The display-effects study on the average eye and the first ``n_eyes`` study eyes:
     (study Dataset, 2×2 sweep Dataset, report markdown)."""
-    from ..display_effects import (
-        DisplayStudyConfig, display_effects_markdown, lenslet_sweep, run_display_study,
-    )
-    from ..eyes import Eyes
-
     eyes, labels = study_eyes(config)
     keep = list(range(n_eyes)) + [len(labels) - 1]  # the average eye is last
     subset = Eyes(eyes.zernike_um[np.asarray(keep)], eyes.measured_pupil_mm, eyes.orientation)
@@ -167,8 +174,6 @@ def check_population(population_store, config: StudyConfig) -> float:
     """Check a population sweep store for :func:`reproduce` before any work (metadata only):
     returns the pupil (mm) whose eyes are drawn — the study's pupil when the store has it,
     else the store's only pupil. Raises ValueError naming the problem."""
-    from ..sweep.ten_eyes import check_population_store
-
     try:
         return check_population_store(population_store, sample_size=config.n_eyes,
                                       prefer_pupil_mm=config.pupil_diameter_mm)
@@ -184,10 +189,6 @@ def population_section(population_store, config: StudyConfig, claims: list[Claim
 
     Returns (markdown text of the section's body, the per-claim table as a DataFrame,
     the result Dataset)."""
-    import json
-
-    from ..sweep.store import open_store
-    from ..sweep.ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
 
     pupil = check_population(population_store, config)
     ds = open_store(population_store, complete_only=True)

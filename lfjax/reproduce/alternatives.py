@@ -5,13 +5,13 @@
 <lfjax.reproduce.config.StudyConfig.reduced>` under each of them (and a baseline on the
 same reduced set) and evaluates the claims.
 
-Imports :mod:`~lfjax.reproduce.config`, :mod:`~lfjax.reproduce.study` and
-:mod:`~lfjax.reproduce.claims` from the package.
+Imports :mod:`~lfjax.reproduce.config` and :mod:`~lfjax.reproduce.study` from the package,
+and the claims from :mod:`lfjax.claims`.
 """
 
 from __future__ import annotations
 
-from .claims import evaluate_claims
+from ..claims import evaluate_claims
 from .config import StudyConfig
 from .study import run_study
 

@@ -20,12 +20,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..eyes import Eyes, append_average_eye, sample_eyes
+from ..layouts import LF_LAYOUTS as LF_LAYOUTS
 from ..layouts import PAPER_LAYOUTS
 from ..options import ModelOptions
+from ..planner import plan_sampling
 from ..sampling import Sampling
 
 METRICS = ("vsotf", "strehl")
-LF_LAYOUTS = ("2x2", "3x3", "4x4")
 
 
 def _grid(start: float, stop: float, step: float) -> tuple[float, ...]:
@@ -204,8 +205,6 @@ def _planned_sampling(eyes, layout, depths, config, options) -> Sampling:
     1e-3 VSOTF target it asks the 3×3/4×4 layouts for about half the guard's step (~4× the
     compute); at the guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7).
     The transform is the FFT, or the MFT for the layouts in ``config.mft_pupil_samples``."""
-    from ..planner import plan_sampling
-
     plan = plan_sampling(
         layout=layout, pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
         depths_D=np.asarray(depths, float), accommodation_D=config.accommodation_D,

@@ -14,11 +14,16 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 from matplotlib.colors import hsv_to_rgb
 from matplotlib.figure import Figure
 
-from .study import _aberrated, _average
+from ..claims import aberrated, average
+from ..eyes import sample_eyes, thibos_statistics
+from ..metrics import diffraction_limited_mtf, ncsf
+from ..zernike import nm_from_ansi
 
 FIGURES = {
     "fig03": "fig03_zernike_coefficients.png",
@@ -57,9 +62,6 @@ def _attr_json(ds, key, default):
 
 def fig_zernike(ds) -> Figure:
     """Fig. 3: Zernike coefficients j = 1…13 of the virtual eyes against mean ± 2 SD."""
-    from ..eyes import sample_eyes, thibos_statistics
-    from ..zernike import nm_from_ansi
-
     pupil = float(ds.attrs.get("measured_pupil_mm", 3.0))
     mean, cov, n_subjects = thibos_statistics(pupil)
     sd = np.sqrt(np.diag(cov))
@@ -91,11 +93,8 @@ def fig_zernike(ds) -> Figure:
 def fig_ncsf(ds, examples) -> Figure:
     """Fig. 4: (A) the NCSF in 2-D; (B) cross-section at f_y = 0 of NCSF, MTF and CSF for the
     aberration-free eye (3 mm pupil, polychromatic, focused on the CDP)."""
-    import jax
-    import jax.numpy as jnp
     from matplotlib.colors import LogNorm
 
-    from ..metrics import diffraction_limited_mtf, ncsf
 
     model = ds.attrs.get("option_ncsf", "watson_ahumada_2005")
     f = np.linspace(-60, 60, 481)
@@ -205,7 +204,7 @@ def _through_focus_panel(ax, ds, layout, depth_index, metric, show_cdp=True, leg
     depth = float(ds.depth.values[depth_index])
     rel = ds.accommodation.values - depth
     sub = ds.sel(layout=layout).isel(depth=depth_index)
-    ab, av = _aberrated(sub), _average(sub)
+    ab, av = aberrated(sub), average(sub)
     values = ab[metric].values
     preds = ab.predicted_accommodation.sel(metric=metric).values - depth
     for i in range(values.shape[0]):
@@ -289,14 +288,14 @@ def fig_vsotf_vs_strehl(ds, examples) -> Figure:
     names = [str(s) for s in examples.fig9_state_name.values]
     for k, metric in enumerate(("vsotf", "strehl")):
         ax = fig.add_subplot(grid[k, :2])
-        vals = _aberrated(sub)[metric].values
+        vals = aberrated(sub)[metric].values
         for i in range(vals.shape[0]):
             ok = np.isfinite(vals[i])
             ax.plot(acc[ok], vals[i][ok], color=GREY, lw=0.7)
         one = sub.sel(eye=eye)[metric].values
         ok = np.isfinite(one)
         ax.plot(acc[ok], one[ok], color="k", lw=1.8, label=eye)
-        av = _average(sub)[metric].values
+        av = average(sub)[metric].values
         ok = np.isfinite(av)
         ax.plot(acc[ok], av[ok], color=AVERAGE_COLOUR, lw=1.2, label="average eye")
         ax.axvline(depth, color="tab:orange", lw=1.2, label=f"image {depth:g} D")
@@ -338,11 +337,11 @@ def _mtf_panel(ax, ds, layout, depth_index, fmax=60.0):
     f = ds.frequency.values
     keep = f <= fmax + 1e-9
     sub = ds.sel(layout=layout, metric="vsotf").isel(depth=depth_index)
-    m = _aberrated(sub).mtf_at_peak.values[:, keep]
+    m = aberrated(sub).mtf_at_peak.values[:, keep]
     mean, sd = np.mean(m, axis=0), np.std(m, axis=0, ddof=1) if m.shape[0] > 1 else 0 * m[0]
     ax.fill_between(f[keep], mean - sd, mean + sd, color="0.8", lw=0)
     ax.plot(f[keep], mean, color="k", lw=1.2, label="aberrated eyes: mean ± SD")
-    ax.plot(f[keep], _average(sub).mtf_at_peak.values[keep], color=AVERAGE_COLOUR, lw=1.2,
+    ax.plot(f[keep], average(sub).mtf_at_peak.values[keep], color=AVERAGE_COLOUR, lw=1.2,
             label="average eye")
     ax.set_xlim(0, fmax)
     ax.set_ylim(0, 1)
@@ -389,17 +388,17 @@ def fig_cutoff(ds) -> Figure:
     rel = ds.depth_rel_cdp.values
     for k, name in enumerate(n for n in ("2x2", "3x3", "4x4") if n in ds.layout.values):
         sub = ds.sel(layout=name, metric="vsotf")
-        c = _aberrated(sub).cutoff_frequency.values
+        c = aberrated(sub).cutoff_frequency.values
         mean = np.mean(c, axis=0)
         sd = np.std(c, axis=0, ddof=1) if c.shape[0] > 1 else np.zeros_like(mean)
         colour = f"C{k}"
         ax2.errorbar(rel, mean, yerr=sd, fmt="o-", color=colour, capsize=3,
                      label=f"{name}: mean ± SD")
-        ax2.plot(rel, _average(sub).cutoff_frequency.values, "--", color=colour, lw=1,
+        ax2.plot(rel, average(sub).cutoff_frequency.values, "--", color=colour, lw=1,
                  label=f"{name}: average eye")
     if "natural" in ds.layout.values:
         nat = ds.sel(layout="natural", metric="vsotf").sel(depth=cdp, method="nearest")
-        ax2.axhline(float(np.mean(_aberrated(nat).cutoff_frequency.values)), color="k", lw=0.8,
+        ax2.axhline(float(np.mean(aberrated(nat).cutoff_frequency.values)), color="k", lw=0.8,
                     ls=":", label="natural view (mean)")
     ax2.set_xlabel("rendered depth relative to the CDP (D)")
     ax2.set_ylabel(f"cut-off frequency at MTF {threshold:g} (cpd)")

@@ -4,8 +4,8 @@
 :func:`cutoff_table`, :func:`claims_table` and :func:`alternatives_table` build them as
 pandas DataFrames; :func:`write_report` writes the markdown report.
 
-Imports :mod:`~lfjax.reproduce.config`, :mod:`~lfjax.reproduce.study` and
-:mod:`~lfjax.reproduce.claims` from the package.
+Imports :mod:`~lfjax.reproduce.config` and :mod:`~lfjax.reproduce.study` from the package,
+and the claims from :mod:`lfjax.claims`.
 """
 
 from __future__ import annotations
@@ -15,9 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .claims import Claim
+from ..claims import Claim, aberrated, average
 from .config import METRICS, StudyConfig
-from .study import _aberrated, _average
 
 TABLES = {
     "predictions": "accommodation_predictions.csv",
@@ -65,7 +64,7 @@ def summary_table(ds):
     average eye's error (D)."""
     import pandas as pd
 
-    ab, av = _aberrated(ds), _average(ds)
+    ab, av = aberrated(ds), average(ds)
     rows = []
     for layout in ds.layout.values:
         for di in range(ds.depth.size):
@@ -95,7 +94,7 @@ def cutoff_table(ds):
     accommodation, mean ± SD of the aberrated eyes and the average eye (cpd)."""
     import pandas as pd
 
-    ab, av = _aberrated(ds), _average(ds)
+    ab, av = aberrated(ds), average(ds)
     rows = []
     for layout in ds.layout.values:
         for di in range(ds.depth.size):

@@ -5,7 +5,7 @@
 the PSF field would alias); :func:`run_study` runs it for every layout and gathers the
 numbers into one labelled :class:`xarray.Dataset`; :func:`study_sampling` reads back the
 sampling a layout used; :func:`compute_examples` computes the PSFs, OTFs and retinal images
-behind Figs. 4, 5 and 9. ``_aberrated`` / ``_average`` select the virtual eyes / the
+behind Figs. 4, 5 and 9. ``lfjax.claims.aberrated`` / ``average`` select the virtual eyes / the
 average eye of a study Dataset (for the claims, the tables and the figures).
 
 Host-side orchestration (numpy, xarray); the numerics are :mod:`lfjax.through_focus` and
@@ -24,24 +24,19 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._version import __version__
 from ..eyes import Eyes, aberration_free_eye
-from ..layouts import Layout, paper_layouts
-from ..optics import polychromatic_otf
+from ..images import psf_on_grid, retinal_image, snellen_e
+from ..layouts import Layout, grid_layout, open_pupil, paper_layouts
+from ..optics import full_plane
 from ..options import ModelOptions
-from ..sampling import AliasingError, Sampling
+from ..psf import polychromatic_otf
+from ..sampling import AliasingError, Sampling, finer_step
 from ..spectral import make_spectrum
 from ..through_focus import ThroughFocus, through_focus
 from .config import METRICS, StudyConfig, _planned_sampling, study_eyes
 
 # ----------------------------------------------------------------------------- one layout
-
-
-def _finer_step(err: AliasingError, current: float) -> float:
-    """Next frequency step to try after an aliasing error: the largest safe step it carries,
-    rounded down to 0.05 cpd (or 90 % of the current step if that rounding would not shrink it)."""
-    step = math.floor(err.max_freq_step_cpd * 20.0 + 1e-9) / 20.0
-    return step if 0 < step < current else round(current * 0.9, 6)
-
 
 
 def layout_through_focus(
@@ -73,7 +68,7 @@ def layout_through_focus(
             return jax.block_until_ready(tf), sampling
         except AliasingError as err:
             sampling = dataclasses.replace(
-                sampling, freq_step_cpd=_finer_step(err, sampling.freq_step_cpd)
+                sampling, freq_step_cpd=finer_step(err, sampling.freq_step_cpd)
             )
     raise RuntimeError(f"no aliasing-free sampling found for layout {layout.name}")
 
@@ -271,12 +266,10 @@ def _mtf_at(mtf, acc_index):
 
 
 def _dataset_attrs(config: StudyConfig, options: ModelOptions, eyes: Eyes) -> dict:
-    import lfjax
-
     attrs = {
         "title": "lfjax reproduction of Miyanishi, Sahin & Gotchev: eyes viewing a "
                  "light-field display",
-        "lfjax_version": lfjax.__version__,
+        "lfjax_version": __version__,
         "jax_version": jax.__version__,
         "units": "depths and accommodation in dioptres (D, absolute 1/m; 0 D = infinity); "
                  "frequency in cycles per degree (cpd); Zernike coefficients in um",
@@ -299,13 +292,6 @@ def _dataset_attrs(config: StudyConfig, options: ModelOptions, eyes: Eyes) -> di
 # ----------------------------------------------------------------------------- the Dataset's eyes
 
 
-def _aberrated(ds):
-    return ds.sel(eye=~ds.is_average.values)
-
-
-def _average(ds):
-    return ds.sel(eye=ds.is_average.values).isel(eye=0)
-
 
 
 # ----------------------------------------------------------------------------- examples
@@ -323,9 +309,6 @@ def compute_examples(ds, config: StudyConfig = StudyConfig(), stage=None):  # no
     """
     import xarray as xr
 
-    from ..images import psf_on_grid, retinal_image, snellen_e
-    from ..layouts import grid_layout, open_pupil
-    from ..optics import full_plane
 
     options = config.options
     eyes, labels = study_eyes(config)

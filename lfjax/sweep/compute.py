@@ -21,15 +21,19 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.sharding import Mesh
+from jax.sharding import PartitionSpec as P
 
+from ..display_spectra import display_spectrum
 from ..eyes import Eyes, append_average_eye, sample_eyes
-from ..layout_opt import load_layout_json
+from ..layout_files import load_layout_json
 from ..layouts import Layout, paper_layouts
 from ..metrics import cutoff_frequency
 from ..optics import _field_check, _validate_coefficients
 from ..peaks import METRICS, peaks_from_grid
 from ..pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
-from ..sampling import Sampling
+from ..planner import plan_sampling
+from ..sampling import AliasingError, Sampling, finer_step
 from ..spectral import Spectrum, make_spectrum
 from ..through_focus import _used_states, _windowed_grid
 from .config import SweepConfig
@@ -91,8 +95,6 @@ def sweep_spectrum(config: SweepConfig) -> Spectrum:
     """V(λ) white on the config's wavelength grid, or the display's white
     (``display_spectrum``, cells of the grid's step) on the wavelengths that carry it."""
     if config.display_spectrum is not None:
-        from ..display_spectra import display_spectrum
-
         return display_spectrum(config.display_spectrum, "white", config.options,
                                 step_nm=max(float(config.wavelengths_nm[2]), 5.0))
     return make_spectrum(config.wavelength_grid_nm, config.options)
@@ -113,8 +115,6 @@ def layout_name(entry: str) -> str:
 
 def _plan(config: SweepConfig, eyes: Eyes, layout: Layout, pupil_mm: float, depths, pairs,
           spectrum: Spectrum) -> Sampling:
-    from ..planner import plan_sampling
-
     plan = plan_sampling(
         layout=layout, pupil_diameter_mm=pupil_mm, cdp_D=config.cdp_D,
         depths_D=np.asarray(depths, float), accommodation_window_D=None,
@@ -137,9 +137,6 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
     accuracy target, ``vsotf_tolerance``) picks the step, made finer while the aliasing
     guard still refuses it.
     """
-    from ..reproduce.study import _finer_step
-    from ..sampling import AliasingError
-
     spectrum = sweep_spectrum(config) if spectrum is None else spectrum
     _validate_coefficients(np.asarray(eyes.zernike_um))
     all_depths = config.depths_D
@@ -168,7 +165,7 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
                         if config.freq_step_cpd is not None:
                             raise
                         sampling = dataclasses.replace(
-                            sampling, freq_step_cpd=_finer_step(err, sampling.freq_step_cpd))
+                            sampling, freq_step_cpd=finer_step(err, sampling.freq_step_cpd))
             # inputs are checked here on the host (config, population, layout files), so the
             # program carries no traced checks: JAX's persistent cache can then keep it for
             # the next process (a resumed sweep, another host)
@@ -262,8 +259,6 @@ def _chunk_function(config: PipelineConfig, measured_pupil_mm: float, allowed: t
         return body(zernike_um, scene, spectrum, accommodation)
 
     if len(devices) > 1:
-        from jax.sharding import Mesh, PartitionSpec as P
-
         mesh = Mesh(np.asarray(devices), ("eye",))
         counted = jax.shard_map(counted, mesh=mesh, in_specs=(P("eye"), P(), P(), P()),
                                 out_specs=P("eye"), check_vma=False)

@@ -24,7 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..display import DisplayOptics, display_optics_at
+from ..display_spectra import DISPLAY_NAMES
 from ..eyes import THIBOS_PUPILS_MM
+from ..layout_files import load_layout_json
 from ..layouts import PAPER_LAYOUTS
 from ..options import ModelOptions
 from ..peaks import METRICS, PEAK_METHODS
@@ -174,8 +177,6 @@ class SweepConfig:
 
     def display_optics(self):
         """The display's :class:`~lfjax.display.DisplayOptics`, or None (ideal display)."""
-        from ..display import DisplayOptics, display_optics_at
-
         if self.lenslet_distance_mm is not None:
             return display_optics_at(self.lenslet_distance_mm, self.cdp_D, self.pixel_width_arcmin)
         if self.pixel_width_arcmin > 0:
@@ -442,8 +443,6 @@ def _range_problems(v: dict, base_dir: Path) -> list[str]:
             p.append(f"display.layouts: layout file {str(path)!r} does not exist")
             continue
         try:
-            from ..layout_opt import load_layout_json
-
             load_layout_json(path)
         except (ValueError, OSError, json.JSONDecodeError) as err:
             p.append(f"display.layouts: {path}: {err}")
@@ -510,8 +509,6 @@ def _range_problems(v: dict, base_dir: Path) -> list[str]:
         p.append(f"display.pixel_width_arcmin must be >= 0 arcmin, got {v['pixel_width_arcmin']}")
     name = v.get("display_spectrum")
     if name is not None:
-        from ..display_spectra import DISPLAY_NAMES
-
         if name not in DISPLAY_NAMES:
             p.append(f"spectrum.display must be one of {', '.join(DISPLAY_NAMES)}, got {name!r}")
     if v["freq_step_cpd"] is not None and v["freq_step_cpd"] <= 0:

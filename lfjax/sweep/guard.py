@@ -22,8 +22,11 @@ import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import jax
+
 from ..peaks import METRICS
 from ..sampling import EYE_BLOCK
+from .compute import sweep_spectrum
 from .config import SweepConfig
 
 N_FREQUENCIES = 61  # the stored MTF's 0 ... 60 cpd axis (compute.FREQUENCIES_CPD)
@@ -189,7 +192,6 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
     # is created from one chunk's template, so its size does not count here
     setup = n_eyes * N_MODES * 8 * 4 + EYE_BLOCK * GUARD_GRID**2 * 8 * 5
     chunk = 2 * config.chunk_size * eye_bytes  # the chunk's arrays and their Dataset
-    import jax
 
     complex_bytes = 16 if jax.config.jax_enable_x64 else 8
     sizes = []
@@ -220,8 +222,6 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
 
 
 def _display_wavelengths(config: SweepConfig):
-    from .compute import sweep_spectrum
-
     return sweep_spectrum(config).wavelengths_nm
 
 
@@ -242,8 +242,6 @@ def host_memory_bytes() -> float:
 
 def device_memory_bytes(devices=None) -> float:
     """Memory of the smallest local device, bytes (the host's for a CPU device)."""
-    import jax
-
     devices = jax.local_devices() if devices is None else devices
     limits = []
     for d in devices:

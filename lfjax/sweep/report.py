@@ -31,6 +31,12 @@ from pathlib import Path
 import numpy as np
 
 from .._tables import printable
+from ..layout_plots import draw_layout
+from ..layouts import LF_LAYOUTS
+from .compute import resolve_layout
+from .config import config_from_dict
+from .store import is_store, open_store
+from .ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
 
 PERCENTILES = (5, 25, 50, 75, 95)
 """Percentiles (%) reported over the eyes of each cell."""
@@ -135,8 +141,6 @@ def stored_config(ds, folder):
     store recorded (``config_json``'s ``layout_files``): a relative path in the TOML was
     relative to a config file the store does not know, and the recorded copy is what the
     sweep used. Returns (config, {store layout entry: entry to pass to resolve_layout})."""
-    from .config import config_from_dict
-
     data = tomllib.loads(ds.attrs["config_toml"])
     recorded = json.loads(ds.attrs["config_json"]).get("layout_files", {})
     entries = list(data.get("display", {}).get("layouts", []))
@@ -248,7 +252,6 @@ def fig_layouts(layouts: dict, pupils_mm) -> object:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from ..layout_plots import draw_layout
 
     labels = list(dict.fromkeys(label for _, label in layouts))
     pupils = list(pupils_mm)
@@ -396,8 +399,6 @@ def _summary(path: Path, store: Path, ds, config, table, samplings: dict, files:
 
 def _ten_eye_reason(ds, sample_size: int) -> str | None:
     """Why the ten-eye table cannot be made from ``ds`` (None: it can)."""
-    from ..reproduce.config import LF_LAYOUTS
-
     n_virtual = int((~ds.is_average.values).sum())
     if n_virtual < sample_size + 1:
         return (f"the store has {n_virtual} complete virtual eye(s); drawing samples of "
@@ -431,8 +432,6 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
     Returns {key: path written} with the keys of :data:`FILES` (the ten-eye files only
     when made). Existing files of those names in ``out_dir`` are replaced.
     """
-    from .store import is_store, open_store
-
     store = Path(store_path)
     if not is_store(store):
         raise ValueError(f"store_path: {store} is not an lfjax sweep store (a folder written by "
@@ -453,7 +452,6 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
 
     with tempfile.TemporaryDirectory(prefix="lfjax-sweep-report-") as tmp:
         config, entries = stored_config(ds, tmp)
-        from .compute import resolve_layout
 
         layouts = {(float(p), str(label)): resolve_layout(config, entries[str(entry)], float(p))
                    for p in ds.pupil.values
@@ -473,7 +471,6 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
     if ten["reason"] is None:
         import pandas as pd
 
-        from .ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
 
         parts, tables = [], []
         for pupil in ds.pupil.values:

@@ -18,7 +18,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import jax
 import numpy as np
+from jax.experimental import multihost_utils
 
 from .compute import ChunkEvaluator, build_tasks, population, sweep_spectrum
 from .config import SweepConfig
@@ -78,17 +80,11 @@ class SweepRun:
 
 
 def _process() -> tuple[int, int]:
-    import jax
-
     return jax.process_index(), jax.process_count()
 
 
 def _barrier(name: str) -> None:
-    import jax
-
     if jax.process_count() > 1:
-        from jax.experimental import multihost_utils
-
         multihost_utils.sync_global_devices(name)
 
 
@@ -114,8 +110,6 @@ def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | 
 
     Returns ``(eyes, is_average, spectrum, tasks, estimate)``.
     """
-    import jax
-
     n_devices = len(jax.local_devices() if devices is None else devices)
     # sizes known from the config alone first: planning an impossible grid would itself
     # take the memory or time the check is there to spare

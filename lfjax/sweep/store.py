@@ -14,7 +14,7 @@ The metadata are consolidated, and the attributes record the provenance.
 Dataset (dims ``eye, pupil, layout, depth, accommodation, metric, frequency, zernike_j,
 chunk``), see :func:`template` for every variable's units. :func:`study_view` presents one
 pupil of a store as the reproduction's study Dataset, so the paper's claims
-(:func:`lfjax.reproduce.claims.evaluate_claims`) run on any subset of its eyes.
+(:func:`lfjax.claims.evaluate_claims`) run on any subset of its eyes.
 """
 
 from __future__ import annotations
@@ -30,10 +30,13 @@ import socket
 import subprocess
 from pathlib import Path
 
+import jax
 import numpy as np
 
 from .._files import owned_temp_dir, pid_alive, remove_orphans
+from .._version import __version__
 from ..peaks import METRICS
+from ..sampling import Sampling
 from .compute import FREQUENCIES_CPD, Task, layout_name, sweep_spectrum
 from .config import SweepConfig, config_differences, config_to_toml
 
@@ -60,9 +63,7 @@ class StoreMismatchError(ValueError):
 
 
 def _stored_record(config: SweepConfig) -> dict:
-    import lfjax
-
-    return {"config": config.as_dict(), "lfjax_version": lfjax.__version__}
+    return {"config": config.as_dict(), "lfjax_version": __version__}
 
 
 def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> "xr.Dataset":  # noqa: F821
@@ -70,7 +71,6 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
     (``zernike_um`` (n, n_modes) µm, ``is_average`` (n,)): all of them, or the first chunk's
     when :func:`create_store` extends the eye axis to the population (``eyes``), so that
     creating a store takes memory of one chunk, not of the whole population."""
-    import jax
     import xarray as xr
 
     n_eye = int(np.shape(zernike_um)[0])
@@ -107,7 +107,7 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
                  "Zernike coefficients in um",
         "eyes_source": "Thibos, Bradley & Hong (2002) statistics, lfjax.sample_eyes(seed, n) "
                        "on the measured pupil; the average eye (if any) is the last eye",
-        # what the reproduction's claims read (lfjax.reproduce.claims)
+        # what the reproduction's claims read (lfjax.claims)
         "cdp_D": float(config.cdp_D),
         "measured_pupil_mm": float(config.fit_pupil_mm),
         "config_cutoff_threshold": float(config.cutoff_threshold),
@@ -211,13 +211,9 @@ def _git_commit() -> str | None:
 
 def provenance() -> dict:
     """Who made a store: lfjax version and git commit, JAX version and devices, host, time."""
-    import jax
-
-    import lfjax
-
     devices = jax.devices()
     return {
-        "lfjax_version": lfjax.__version__,
+        "lfjax_version": __version__,
         "lfjax_git_commit": _git_commit(),
         "jax_version": jax.__version__,
         "jax_backend": jax.default_backend(),
@@ -247,8 +243,6 @@ def record_run(path, started_utc: str, computed: list[int]) -> None:
 
 def stored_samplings(path) -> dict:
     """{(pupil_index, layout_index): Sampling} recorded in a store."""
-    from ..sampling import Sampling
-
     attrs = _open_group(path).attrs
     out = {}
     for key, value in json.loads(attrs["sampling_json"]).items():
@@ -612,7 +606,7 @@ def is_disk_full(err: BaseException) -> bool:
 def study_view(ds, pupil_mm: float | None = None):
     """One pupil of a sweep store as the reproduction's study Dataset: dims ``layout, eye,
     depth, accommodation, metric, frequency``, eyes labelled ``eye00001`` … and
-    ``average`` — what :func:`lfjax.reproduce.claims.evaluate_claims` reads."""
+    ``average`` — what :func:`lfjax.claims.evaluate_claims` reads."""
     if pupil_mm is None:
         if ds.sizes["pupil"] != 1:
             raise ValueError(f"the store holds pupils {ds.pupil.values.tolist()} mm: name one")

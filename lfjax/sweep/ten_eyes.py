@@ -5,7 +5,7 @@ Thibos average eye. A sweep of many eyes gives the distribution those ten were d
 :func:`ten_eye_claims` draws ``n_draws`` samples of ``sample_size`` eyes without replacement
 from a sweep's population (the average eye excluded from the draw, then appended to every
 sample, since claims 4 and 5 compare against it), evaluates
-:func:`lfjax.reproduce.claims.evaluate_claims` on each sample, and reports for every claim
+:func:`lfjax.claims.evaluate_claims` on each sample, and reports for every claim
 the fraction of samples in which it holds, a 95 % Wilson score interval for that fraction,
 the samples where it could not be evaluated, and the population's own answer (the claims
 evaluated on all of the population's eyes). :func:`ten_eye_markdown` renders the table and
@@ -15,7 +15,7 @@ The interval is a Monte Carlo interval: it bounds the probability that a random 
 this size *from this population* (the sweep's eyes) reproduces the claim, given the finite
 number of draws. It says nothing about eyes outside the sweep.
 
-Speed: :func:`~lfjax.reproduce.claims.evaluate_claims` is the single source of the criteria.
+Speed: :func:`~lfjax.claims.evaluate_claims` is the single source of the criteria.
 On an xarray Dataset it spends ~0.1 s per call in xarray's indexing (hundreds of ``sel`` /
 ``isel`` on the (layout, depth) cells), which makes 1,000 draws take minutes. The draws
 therefore run it on :class:`_Frame`, a small stand-in for the Dataset that holds the same
@@ -36,6 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..claims import evaluate_claims
+from .store import ZARR_FORMAT, is_store, open_store, study_view
+
 Z_95 = 1.959963984540054
 """Standard normal quantile of 0.975 (two-sided 95 % interval)."""
 
@@ -54,7 +57,7 @@ _CLAIM_VARIABLES = (
     "mtf_at_peak",
     "zernike_um",
 )
-"""Data variables of a study Dataset that :func:`~lfjax.reproduce.claims.evaluate_claims`
+"""Data variables of a study Dataset that :func:`~lfjax.claims.evaluate_claims`
 reads (with the coordinates ``is_average`` and ``depth_rel_cdp`` and the dimension labels).
 The through-focus curves (``vsotf``, ``strehl``: an accommodation axis each) are not read
 and are left out of every sample, which keeps the samples small."""
@@ -135,7 +138,7 @@ class _Field:
 
 class _Frame:
     """A study Dataset's arrays with the labelled-array operations of
-    :func:`~lfjax.reproduce.claims.evaluate_claims`: ``sel`` by label (a scalar, an exact
+    :func:`~lfjax.claims.evaluate_claims`: ``sel`` by label (a scalar, an exact
     ``method="nearest"`` match or a boolean mask), ``isel`` by position (an integer or an
     integer array), variables and coordinates as attributes, ``attrs``.
 
@@ -263,7 +266,6 @@ def claims_view(ds_or_view, pupil_mm: float | None = None):
     """
     import xarray as xr
 
-    from .store import is_store, open_store, study_view
 
     if isinstance(ds_or_view, (str, Path)):
         if not is_store(ds_or_view):
@@ -315,7 +317,6 @@ def check_population_store(store_path, sample_size: int = 10,
     """
     import xarray as xr
 
-    from .store import ZARR_FORMAT, is_store
 
     if not is_store(store_path):
         raise ValueError(f"{store_path} is not an lfjax sweep store (a folder written by "
@@ -379,7 +380,6 @@ def ten_eye_claims(ds_or_view, n_draws: int = 1000, sample_size: int = 10, seed:
     """
     import xarray as xr
 
-    from ..reproduce.claims import evaluate_claims
 
     if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 1:
         raise ValueError(f"n_draws must be a whole number >= 1, got {n_draws!r}")

@@ -1,11 +1,14 @@
 """The paper's findings (1)–(7) as claims, each with an explicit criterion.
 
 :class:`Claim` is one finding with its criterion, the numbers reproduced and a verdict;
-:func:`evaluate_claims` checks all seven on a study Dataset (:func:`lfjax.reproduce.run_study`);
-:func:`dof_D` is the depth-of-field definition claim 6 uses.
+:func:`evaluate_claims` checks all seven on a study Dataset (written by
+:func:`lfjax.reproduce.study.run_study`, or read from a sweep store by
+:func:`lfjax.sweep.store.study_view`); :func:`dof_D` is the depth-of-field definition claim 6
+uses; :func:`aberrated` and :func:`average` select the sampled eyes and the average eye.
 
-Reads the Dataset only: imports :mod:`~lfjax.reproduce.config` and
-:mod:`~lfjax.reproduce.study` from the package.
+Shared by two applications, the reproduction (:mod:`lfjax.reproduce`) and the population
+sweep's ten-eye check (:mod:`lfjax.sweep.ten_eyes`), so it lives below both: it reads the
+Dataset only, and imports nothing of either.
 """
 
 from __future__ import annotations
@@ -15,8 +18,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import LF_LAYOUTS
-from .study import _aberrated, _average
+from .layouts import LF_LAYOUTS
+
+
+def aberrated(ds):
+    """The sampled (aberrated) eyes of a study Dataset: every eye but the average eye."""
+    return ds.sel(eye=~ds.is_average.values)
+
+
+def average(ds):
+    """The average eye of a study Dataset (its eye axis dropped)."""
+    return ds.sel(eye=ds.is_average.values).isel(eye=0)
 
 
 @dataclass
@@ -109,8 +121,8 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
     frac = float(ds.attrs.get("config_dof_fraction", 0.8)) if dof_fraction is None else dof_fraction
     layouts = list(ds.layout.values)
     lf = [name for name in LF_LAYOUTS if name in layouts]
-    ab = _aberrated(ds)
-    av = _average(ds)
+    ab = aberrated(ds)
+    av = average(ds)
     rel = ds.depth_rel_cdp.values
     depths = ds.depth.values
     claims: list[Claim] = []
@@ -363,4 +375,6 @@ __all__ = [
     "Claim",
     "dof_D",
     "evaluate_claims",
+    "aberrated",
+    "average",
 ]

@@ -1,0 +1,260 @@
+"""The whole package imports in one direction, with no circle (docs/design.md#layers).
+
+Every module of ``lfjax/`` is parsed with ``ast`` (nothing is imported or run) and its
+imports, those inside functions included, are checked against the layer table below:
+
+* a module imports only modules of its own or a lower layer;
+* the import graph has no circle (within a layer too);
+* an application never imports a private name (or a private module) of another application:
+  what two of them share lives below both;
+* an import inside a function body is allowed only for the heavy optional dependencies in
+  ``DEFERRED_OK``, each with its reason.
+
+The graph is also what ``docs/import_graph.py`` draws into ``docs/img/import-graph.svg``.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+LFJAX = ROOT / "lfjax"
+
+LAYER_NAMES = (
+    "conventions and data",
+    "apertures, Fourier grids, the display and the scene",
+    "the elemental optics kernel",
+    "metrics of an OTF",
+    "the pure pipeline",
+    "host-side entry points",
+    "shared by applications",
+    "applications",
+    "the command line and the package's face",
+)
+
+LAYERS = {
+    # conventions and data
+    "lfjax._types": 0, "lfjax._version": 0, "lfjax._files": 0, "lfjax._tables": 0,
+    "lfjax.units": 0, "lfjax.zernike": 0, "lfjax.options": 0, "lfjax.eyes": 0,
+    "lfjax.spectral": 0, "lfjax.display_spectra": 0, "lfjax.layouts": 0,
+    "lfjax.layout_files": 0,
+    # apertures and Fourier grids; the display's parameters and the scene pytrees that the
+    # kernel takes whole
+    "lfjax.sampling": 1, "lfjax.apertures": 1, "lfjax.display": 1, "lfjax.scene": 1,
+    # the kernel
+    "lfjax.optics": 2,
+    "lfjax.metrics": 3,
+    "lfjax.pipeline": 4,
+    # host-side entry points
+    "lfjax.psf": 5, "lfjax.through_focus": 5, "lfjax.peaks": 5, "lfjax.planner": 5,
+    "lfjax.images": 5, "lfjax.panel": 5,
+    # shared by applications
+    "lfjax.claims": 6, "lfjax.layout_plots": 6,
+    # applications (every module of these packages)
+    "lfjax.reproduce": 7, "lfjax.sweep": 7, "lfjax.layout_opt": 7, "lfjax.display_effects": 7,
+    "lfjax.array_views": 7, "lfjax.design": 7,
+    # the top
+    "lfjax.cli": 8, "lfjax": 8,
+}
+"""Layer of each module, or of every module of a package (its longest listed prefix)."""
+
+APPLICATIONS = ("lfjax.reproduce", "lfjax.sweep", "lfjax.layout_opt", "lfjax.display_effects",
+                "lfjax.array_views", "lfjax.design")
+
+DEFERRED_OK = {
+    "matplotlib": "plotting is optional and slow to import; only figure-writing calls pay",
+    "xarray": "Datasets are built only when a study or a sweep writes them",
+    "zarr": "only the sweep's store opens it",
+    "pandas": "tables only; slow to import",
+    "tqdm": "progress bars only",
+    "colour": "colour-science loads its CIE tables on import; read once, then cached",
+    "jaxopt": "an optional solver of the layout optimiser",
+    "scipy": "the display design's host-side L-BFGS-B only; slow to import",
+    "beartype": "shape checks are switched on only in the test suite",
+}
+"""Top-level packages that may be imported inside a function, and why."""
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def modules() -> dict[str, Path]:
+    return {module_name(p): p for p in sorted(LFJAX.rglob("*.py"))}
+
+
+def layer_of(name: str) -> int:
+    parts = name.split(".")
+    for k in range(len(parts), 0, -1):
+        prefix = ".".join(parts[:k])
+        if prefix in LAYERS:
+            return LAYERS[prefix]
+    raise KeyError(name)
+
+
+def application_of(name: str) -> str | None:
+    return next((a for a in APPLICATIONS if name == a or name.startswith(a + ".")), None)
+
+
+def imports(path: Path, name: str, known: set[str]):
+    """(target module, imported names, line, inside a function) for every import of ``path``.
+
+    A ``from pkg import x`` whose ``pkg.x`` is a module counts as importing that module."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    in_function: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+            in_function.update(id(n) for n in ast.walk(node) if n is not node)
+    found = []
+    for node in ast.walk(tree):
+        deferred = id(node) in in_function
+        if isinstance(node, ast.Import):
+            found += [(a.name, (), node.lineno, deferred) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module
+            plain = []
+            for alias in node.names:
+                sub = f"{target}.{alias.name}"
+                if sub in known:
+                    found.append((sub, (), node.lineno, deferred))
+                else:
+                    plain.append(alias.name)
+            if plain or not node.names:
+                found.append((target, tuple(plain), node.lineno, deferred))
+    return found
+
+
+def graph() -> dict[str, set[str]]:
+    """{module: lfjax modules it imports} (a package's import means its ``__init__``)."""
+    mods = modules()
+    known = set(mods)
+    return {
+        name: {t for t, _, _, _ in imports(path, name, known) if t in known and t != name}
+        for name, path in mods.items()
+    }
+
+
+def test_every_module_has_a_layer():
+    missing = [m for m in modules() if not _has_layer(m)]
+    assert not missing, f"give these modules a layer in LAYERS: {missing}"
+
+
+def _has_layer(name: str) -> bool:
+    try:
+        layer_of(name)
+    except KeyError:
+        return False
+    return True
+
+
+def test_no_module_imports_a_higher_layer():
+    wrong = [
+        f"{m} (layer {layer_of(m)}: {LAYER_NAMES[layer_of(m)]}) imports {d} "
+        f"(layer {layer_of(d)}: {LAYER_NAMES[layer_of(d)]})"
+        for m, deps in graph().items() for d in sorted(deps) if layer_of(d) > layer_of(m)
+        # a package's __init__ imports its own parts (the package's face)
+        and not d.startswith(m + ".")
+    ]
+    assert not wrong, "\n".join(wrong)
+
+
+def find_cycle(g: dict[str, set[str]]) -> list[str] | None:
+    state: dict[str, str] = {}
+
+    def visit(node, path):
+        state[node] = "open"
+        for dep in sorted(g.get(node, ())):
+            if state.get(dep) == "open":
+                return [*path, node, dep]
+            if dep not in state:
+                cycle = visit(dep, [*path, node])
+                if cycle:
+                    return cycle
+        state[node] = "done"
+        return None
+
+    for node in sorted(g):
+        if node not in state:
+            cycle = visit(node, [])
+            if cycle:
+                return cycle
+    return None
+
+
+def test_import_graph_has_no_cycle():
+    g = graph()
+    # A module's import of its own package is the package's __init__ being run first, which
+    # Python does anyway; the edges that could close a circle are the others.
+    g = {m: {d for d in deps if not m.startswith(d + ".")} for m, deps in g.items()}
+    cycle = find_cycle(g)
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def test_applications_import_each_other_in_one_direction():
+    """Collapsed to one node per application, the graph still has no circle (a circle
+    between two packages can hide behind module-level edges that are each acyclic)."""
+    g: dict[str, set[str]] = {}
+    for m, deps in graph().items():
+        a = application_of(m)
+        if a is None:
+            continue
+        g.setdefault(a, set()).update(
+            b for b in map(application_of, deps) if b is not None and b != a)
+    cycle = find_cycle(g)
+    assert cycle is None, "applications import each other in a circle: " + " -> ".join(cycle)
+
+
+def test_applications_use_no_private_name_of_another():
+    mods = modules()
+    known = set(mods)
+    wrong = []
+    for name, path in mods.items():
+        mine = application_of(name)
+        if mine is None:
+            continue
+        for target, names, line, _ in imports(path, name, known):
+            theirs = application_of(target)
+            if theirs is None or theirs == mine:
+                continue
+            private_module = any(p.startswith("_") and p != "__init__" for p in target.split("."))
+            private_names = [n for n in names if n.startswith("_")]
+            if private_module or private_names:
+                wrong.append(f"{name}:{line} imports {target} {private_names or ''}")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_imports_inside_functions_only_for_heavy_optional_dependencies():
+    mods = modules()
+    known = set(mods)
+    wrong = [
+        f"{name}:{line} imports {target} inside a function"
+        for name, path in mods.items()
+        for target, _, line, deferred in imports(path, name, known)
+        if deferred and target.split(".")[0] not in DEFERRED_OK
+    ]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_checks_see_what_they_must(tmp_path):
+    """Guards the guard: a relative import inside a function is found, resolved and marked
+    deferred, a submodule imported by name counts as a module, and a circle is found."""
+    pkg = tmp_path / "lfjax" / "reproduce"
+    pkg.mkdir(parents=True)
+    module = pkg / "claims.py"
+    module.write_text("from . import report\ndef f():\n    from ..sweep.store import _x\n")
+    found = imports(module, "lfjax.reproduce.claims", {"lfjax.reproduce.report", "lfjax.sweep.store"})
+    assert ("lfjax.reproduce.report", (), 1, False) in found
+    assert ("lfjax.sweep.store", ("_x",), 3, True) in found
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": set()}) is None
+    assert layer_of("lfjax.sweep.store") == LAYERS["lfjax.sweep"]
+    assert application_of("lfjax.layout_opt._solver") == "lfjax.layout_opt"
