@@ -349,7 +349,7 @@ def test_reproduce_display_section_studies_the_average_eye_and_the_first_eyes(mo
     """lfjax reproduce --display-effects --display-eyes 1: the study gets the first virtual
     eye and the average eye of the reproduction, its layouts, depths (whole dioptres) and
     options (the computation itself is the notebook test's)."""
-    from lfjax import display_effects as de
+    import lfjax.reproduce as rp
     from lfjax.reproduce import StudyConfig, _display_effects, study_eyes
 
     seen = {}
@@ -363,9 +363,10 @@ def test_reproduce_display_section_studies_the_average_eye_and_the_first_eyes(mo
         on_scene("a sweep scene")
         return "sweep"
 
-    monkeypatch.setattr(de, "run_display_study", fake_study)
-    monkeypatch.setattr(de, "lenslet_sweep", fake_sweep)
-    monkeypatch.setattr(de, "display_effects_markdown", lambda study, sweep: f"{study}+{sweep}")
+    # the reproduction imports these names at module level: replace them where it looks them up
+    monkeypatch.setattr(rp, "run_display_study", fake_study)
+    monkeypatch.setattr(rp, "lenslet_sweep", fake_sweep)
+    monkeypatch.setattr(rp, "display_effects_markdown", lambda study, sweep: f"{study}+{sweep}")
     config = StudyConfig.quick(n_eyes=3, depth_offsets_D=(-2.0, -0.5, 0.0, 1.0))
     stages, notes = [], []
     study, sweep, markdown = _display_effects(config, 1, stages.append, notes.append)
