@@ -227,15 +227,63 @@ def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum:
     return total
 
 
+# Working memory one call of the kernel may hold for the states it transforms together, in
+# bytes. Each (state, view) pair keeps, per wavelength, its PSF accumulator, its padded
+# complex field and transform, and the squared modulus: about KERNEL_BYTES_PER_SAMPLE bytes
+# per frequency sample (float32). Above the budget the states go through in chunks, one
+# after the other, so that a scene with many states, views and a large window (lenslet
+# diffraction at 4×4 asked for several GiB) needs the budget, not the product. The answer
+# does not change: each state is transformed on its own either way.
+KERNEL_WORKSPACE_BYTES = 768 * 2**20
+KERNEL_BYTES_PER_SAMPLE = 40
+
+
+def state_chunk(n_states: int, n_views: int, n_fft: int,
+                workspace_bytes: int | None = None) -> int:
+    """Accommodation states transformed together by the kernel: all of them when their
+    working memory (``KERNEL_BYTES_PER_SAMPLE`` × n_views × n_fft² bytes per state) fits
+    ``workspace_bytes`` (default :data:`KERNEL_WORKSPACE_BYTES`), else the fewest equal
+    chunks that fit (at least one state per chunk)."""
+    budget = KERNEL_WORKSPACE_BYTES if workspace_bytes is None else int(workspace_bytes)
+    per_state = KERNEL_BYTES_PER_SAMPLE * max(n_views, 1) * n_fft * n_fft
+    fits = max(1, budget // per_state)
+    if fits >= n_states:
+        return max(n_states, 1)
+    n_chunks = -(-n_states // fits)
+    return -(-n_states // n_chunks)  # equal chunks: the least padding
+
+
 def _elemental_otfs_band(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
                          accommodation: Accommodation, n_fft: int, sampling: Sampling):
-    """One band of :func:`elemental_otfs`: every wavelength's PSFs lie on the same angular
-    grid (the pupil step is λ·Δf), so the band's weighted PSFs are summed first and
-    transformed once (the transform is linear); the zero-frequency term is set from the
-    summed analytic energies (a finite pupil sum under-counts the soft edge)."""
+    """One band of :func:`elemental_otfs`, the states in chunks of :func:`state_chunk`
+    (``lax.map``) when they do not fit the kernel's working memory together."""
+    states_D = accommodation.states_D
+    n_states, n_views = states_D.shape[0], scene.centres_mm.shape[0]
+    chunk = state_chunk(n_states, n_views, n_fft)
+
+    def states_band(states):
+        return _elemental_otfs_states(zernike_um, measured_pupil_mm, scene, spectrum, accommodation,
+                                      states, n_fft, sampling)
+
+    if chunk >= n_states:
+        return states_band(states_D)
+    n_chunks = -(-n_states // chunk)
+    # the last chunk is filled up with copies of the last state, computed and dropped
+    padded = jnp.concatenate([states_D, jnp.broadcast_to(states_D[-1:], (n_chunks * chunk - n_states,))])
+    otf = jax.lax.map(states_band, padded.reshape(n_chunks, chunk))
+    return otf.reshape((n_chunks * chunk,) + otf.shape[2:])[:n_states]
+
+
+def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
+                           accommodation: Accommodation, accommodation_D, n_fft: int,
+                           sampling: Sampling):
+    """One band of :func:`elemental_otfs` for the accommodation states ``accommodation_D``
+    (n_states,) D: every wavelength's PSFs lie on the same angular grid (the pupil step is
+    λ·Δf), so the band's weighted PSFs are summed first and transformed once (the transform
+    is linear); the zero-frequency term is set from the summed analytic energies (a finite
+    pupil sum under-counts the soft edge)."""
     pupil_diameter_mm, cdp_D = scene.pupil_diameter_mm, scene.cdp_D
     centres_mm, diameters_mm, display = scene.centres_mm, scene.diameters_mm, scene.display
-    accommodation_D = accommodation.states_D
     df_rad = sampling.freq_step_cpd * DEGREES_PER_RADIAN
     real = jnp.result_type(float)
     use_mft = sampling.transform == "mft"

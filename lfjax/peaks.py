@@ -69,6 +69,7 @@ from .pipeline import (
     reference_normalisers,
     retinal_metrics,
 )
+from .optics import state_chunk
 from .spectral import Spectrum
 
 PEAK_METHODS = ("auto", "newton", "golden", "bfgs", "local", "parabola", "vertex", "grid")
@@ -200,7 +201,35 @@ LOCAL_TRUST_D = 0.05
 """``"local"`` trusts its fitted vertex this far (D) from the stencil's centre."""
 
 
-def _local_refinement(value_fn, vertex_D, lower_D, upper_D, args) -> Peak:
+# Kernel evaluations one refinement step holds at once, per (eye, depth) pair and state it
+# evaluates: the local stencil's points; Newton's location is a root of the metric's slope,
+# so each step carries the value with its first and second forward derivatives.
+STATE_COST = {"local": len(LOCAL_OFFSETS_D), "newton": 4, "golden": 1, "bfgs": 3, "parabola": 1}
+
+
+def _pairs_per_batch(scene: Scene, config: PipelineConfig, method: str, n_candidates: int) -> int:
+    """(eye, depth) pairs refined together: as many as the kernel's working memory holds
+    (:func:`lfjax.optics.state_chunk`), counting each pair's states, their derivatives
+    and the candidates refined side by side."""
+    n_views = scene.centres_mm.shape[0]
+    states = state_chunk(2**31, n_views, config.n_fft)
+    return max(1, states // (STATE_COST.get(method, 1) * n_candidates))
+
+
+def _map_pairs(fn, batch: int, *args):
+    """``jax.vmap(jax.vmap(fn))(*args)`` over the leading (n_eyes, n_depth) axes of every
+    argument, in batches of ``batch`` pairs one after another (``lax.map``) when there are
+    more: the pairs are independent, so the values are those of one vmap over all."""
+    lead = jax.tree_util.tree_leaves(args)[0].shape[:2]
+    n_pairs = lead[0] * lead[1]
+    if batch >= n_pairs:
+        return jax.vmap(jax.vmap(fn))(*args)
+    flat = jax.tree_util.tree_map(lambda x: x.reshape((n_pairs,) + x.shape[2:]), args)
+    out = jax.lax.map(lambda xs: fn(*xs), flat, batch_size=batch)
+    return jax.tree_util.tree_map(lambda x: x.reshape(lead + x.shape[1:]), out)
+
+
+def _local_refinement(value_fn, vertex_D, lower_D, upper_D, args, batch: int) -> Peak:
     offsets = jnp.asarray(LOCAL_OFFSETS_D, vertex_D.dtype)
     # The stencil is moved inside the usable bracket rather than clipped at its ends: clipped
     # points would coincide at the hyperopic limit and leave the fit singular.
@@ -210,7 +239,7 @@ def _local_refinement(value_fn, vertex_D, lower_D, upper_D, args) -> Peak:
                                              0.5 * (low + upper_D), centre))
     points = centre[..., None] + offsets
     batched = jax.vmap(value_fn, in_axes=(0, None))  # over the stencil's points
-    values = jax.vmap(jax.vmap(batched))(points, args)  # (n_eyes, n_depth, n_points)
+    values = _map_pairs(batched, batch, points, args)  # (n_eyes, n_depth, n_points)
     # least-squares parabola in x = point − centre: minimise Σ (c0 + c1 x + c2 x² − v)²
     x = points - centre[..., None]
     design = jnp.stack([jnp.ones_like(x), x, x * x], axis=-1)
@@ -438,6 +467,9 @@ def peaks_from_grid(
     coefficients = _eye_coefficients(eyes, config)
     z_b = jnp.broadcast_to(coefficients[:, None, :], values.shape[:2] + coefficients.shape[-1:])
 
+    n_candidates = 2 if refine_second else 1
+    batch = _pairs_per_batch(scene, config, method, n_candidates)
+
     def refine(index):  # index (n_eyes, n_depth)
         lo, hi = bracket_of(index)
         start = take(states_b, index)
@@ -446,7 +478,7 @@ def peaks_from_grid(
                         jnp.full(start.shape, -1, jnp.int32), jnp.zeros(start.shape, jnp.int32))
         if method == "parabola":
             a = jnp.clip(parabola_vertex(states_b, jnp.where(allowed_b, values, -jnp.inf), index), lo, hi)
-            v = jax.vmap(jax.vmap(value_fn))(a, (z_b, depths_b))
+            v = _map_pairs(value_fn, batch, a, (z_b, depths_b))
             return Peak(a, v, jnp.ones(a.shape, bool), jnp.full(a.shape, -1, jnp.int32),
                         jnp.zeros(a.shape, jnp.int32))
         if method == "vertex":
@@ -457,13 +489,14 @@ def peaks_from_grid(
                         jnp.zeros(a.shape, jnp.int32))
         if method == "local":
             return _local_refinement(value_fn, parabola_vertex(
-                states_b, jnp.where(allowed_b, values, -jnp.inf), index), lo, hi, (z_b, depths_b))
+                states_b, jnp.where(allowed_b, values, -jnp.inf), index), lo, hi, (z_b, depths_b),
+                batch)
         if method == "newton":  # start from the grid parabola's vertex: fewer steps
             start = jnp.clip(parabola_vertex(states_b, jnp.where(allowed_b, values, -jnp.inf),
                                              index), lo, hi)
         solve = lambda lo_, hi_, s_, z_, d_: refine_peak(  # noqa: E731
             value_fn, lo_, hi_, s_, (z_, d_), method, atol_D, max_steps)
-        return jax.vmap(jax.vmap(solve))(lo, hi, start, z_b, depths_b)
+        return _map_pairs(solve, batch, lo, hi, start, z_b, depths_b)
 
     has_second = second >= 0
     second_index = jnp.where(has_second, second, best)

@@ -365,6 +365,51 @@ def test_eye_batches_vmap_and_chunks_equal_loop():
     np.testing.assert_allclose(vmapped, batched, rtol=0, atol=1e-13)
 
 
+@pytest.mark.parametrize("budget_states", [1, 2])
+def test_states_in_chunks_equal_states_together(monkeypatch, budget_states):
+    """A kernel workspace that holds one (or two) of three accommodation states sends them
+    through in chunks (lax.map, the last chunk padded), with the OTFs — and their gradient
+    with respect to an eye coefficient — of all states at once."""
+    from lfjax import optics
+
+    eyes = lfjax.eyes.make_eyes(np.asarray(lfjax.sample_eyes(1, 3).zernike_um)[:, :6], 3.0)
+    spec = H.spectrum_550_plain()
+    layout = lfjax.layouts.grid_layout(2, 3.0)
+    acc = jnp.asarray([1.5, 1.8, 2.3])
+
+    def otf_and_grad():
+        jax.clear_caches()  # the budget is read while tracing
+
+        def real_part_sum(z):
+            otf = lfjax.polychromatic_otf(lfjax.Eyes(z, 3.0), acc, 3.0, 2.0, spec, SMALL_SAMPLING,
+                                          H.PLAIN, layout=layout).otf
+            return jnp.sum(jnp.real(otf) ** 2), otf
+
+        (_, otf), grad = jax.value_and_grad(real_part_sum, has_aux=True)(eyes.zernike_um)
+        return np.asarray(otf), np.asarray(grad)
+
+    together, grad_together = otf_and_grad()
+    n_fft = together.shape[-2]
+    per_state = optics.KERNEL_BYTES_PER_SAMPLE * 4 * n_fft * n_fft
+    assert optics.state_chunk(3, 4, n_fft) == 3
+    monkeypatch.setattr(optics, "KERNEL_WORKSPACE_BYTES", budget_states * per_state)
+    assert optics.state_chunk(3, 4, n_fft) == budget_states
+    chunked, grad_chunked = otf_and_grad()
+    jax.clear_caches()
+    np.testing.assert_allclose(chunked, together, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(grad_chunked, grad_together, rtol=1e-12, atol=1e-14)
+
+
+def test_state_chunk_counts():
+    """Equal chunks, the fewest that fit; never fewer than one state."""
+    from lfjax.optics import state_chunk
+
+    per_state = 40 * 16 * 512 * 512  # bytes of one state of 16 views at L = 512
+    assert state_chunk(31, 16, 512, workspace_bytes=31 * per_state) == 31
+    assert state_chunk(31, 16, 512, workspace_bytes=10 * per_state) == 8  # 4 chunks of 8, not 10+10+10+1
+    assert state_chunk(31, 16, 512, workspace_bytes=per_state // 2) == 1
+
+
 def test_outer_jit_equals_direct_call():
     """The public pipeline traced inside a user's jax.jit (host checks skipped, coefficients
     and accommodation traced) equals the direct call."""

@@ -337,3 +337,28 @@ def test_peak_narrower_than_the_grid_step_is_missed_by_the_bracketing_grid():
             assert bool(peak.success)
             assert abs(float(peak.accommodation_D) - 1.0) < 1e-3
             assert float(peak.value) < float(two_peaks(2.1))
+
+
+@pytest.mark.parametrize("method", ["local", "newton", "parabola"])
+def test_pairs_refined_in_batches_equal_pairs_refined_together(monkeypatch, method):
+    """A kernel workspace too small for more than one (eye, depth) pair at a time refines
+    the pairs one batch after another (lax.map): the same peaks as all pairs at once."""
+    from lfjax import optics
+
+    layout = lfjax.open_pupil(3.0)
+    cfg, scene, grid, allowed = _pipeline(layout, [2.0, 2.5], cdp_D=2.5)
+    eyes = lfjax.Eyes(np.concatenate([_defocused_eye(d).zernike_um for d in (0.37, -0.61, 0.05)]), 3.0)
+
+    def peaks():
+        jax.clear_caches()  # the workspace is read while tracing
+        p = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", method, allowed)
+        return np.asarray(p.accommodation_D), np.asarray(p.value), np.asarray(p.success)
+
+    together = peaks()
+    one_state = optics.KERNEL_BYTES_PER_SAMPLE * cfg.n_fft**2
+    monkeypatch.setattr(optics, "KERNEL_WORKSPACE_BYTES", one_state)
+    assert lfjax.peaks._pairs_per_batch(scene, cfg, method, 2) == 1
+    batched = peaks()
+    jax.clear_caches()
+    for a, b in zip(batched, together):
+        np.testing.assert_array_equal(a, b)
