@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import jax.numpy as jnp
 import numpy as np
 
 from lfjax.layouts import Layout, make_layout
@@ -229,4 +230,249 @@ def array_through_focus(eyes, panel: Panel, depths_D, accommodation_D, *, diffra
     return out
 
 
-__all__ = ["ArrayViews", "array_views", "idealisation_gap", "array_through_focus"]
+
+
+
+# ----------------------------------------------------------------------------- diffraction
+
+
+def _disc_fresnel_table(radius_mm: float, wavelength_nm: float, distance_mm: float, r_max_mm: float):
+    """(radial grid (mm), the Fresnel integral without its outer chirp on it): see
+    :func:`disc_fresnel_field`."""
+    from scipy.special import j0
+
+    lam_z = wavelength_nm * 1e-6 * distance_mm
+    rho0 = float(radius_mm)
+    step = lam_z / rho0 / 50.0
+    grid = np.arange(0.0, float(r_max_mm) + 2 * step, step)
+    # cycles of the integrand over [0, ρ₀]: the chirp's N/2 and J₀'s r·ρ₀/(λz)
+    cycles = rho0 * rho0 / (2 * lam_z) + float(r_max_mm) * rho0 / lam_z
+    n_nodes = int(min(20_000, 64 + 24 * math.ceil(cycles)))
+    x, w = np.polynomial.legendre.leggauss(n_nodes)
+    rho = 0.5 * rho0 * (x + 1.0)
+    inner = np.exp(1j * np.pi * rho * rho / lam_z) * rho * (0.5 * rho0 * w)
+    values = np.empty(grid.size, complex)
+    block = max(1, 4_000_000 // n_nodes)
+    for start in range(0, grid.size, block):
+        g = grid[start:start + block]
+        values[start:start + block] = j0(2 * np.pi * np.outer(g, rho) / lam_z) @ inner
+    return grid, values
+
+
+def _disc_fresnel_at(table, wavelength_nm: float, distance_mm: float, r_mm):
+    grid, values = table
+    lam_z = wavelength_nm * 1e-6 * distance_mm
+    r = np.asarray(r_mm, float)
+    smooth = np.interp(r, grid, values.real) + 1j * np.interp(r, grid, values.imag)
+    return (2 * np.pi / (1j * lam_z)) * np.exp(1j * np.pi * r * r / lam_z) * smooth
+
+
+def disc_fresnel_field(radius_mm: float, wavelength_nm: float, distance_mm: float, r_mm):
+    """Fresnel field of a uniformly lit disc of ``radius_mm`` (amplitude 1) after
+    ``distance_mm``, at radii ``r_mm`` (any shape, mm) from the disc's axis; complex, host
+    float64.
+
+    U(r) = (2π/(iλz)) exp(iπr²/(λz)) ∫₀^ρ₀ exp(iπρ²/(λz)) J₀(2πrρ/(λz)) ρ dρ — the Fresnel
+    integral in polar form with the constant phase exp(ikz) dropped, so U → 1 inside the
+    disc as z → 0 (the convention of :func:`lfjax.apertures.fresnel_propagate`, which this
+    computes independently: a Gauss–Legendre quadrature in ρ, not a discrete convolution).
+    The integral (without the outer chirp) varies with r on the scale λz/ρ₀; it is
+    evaluated on a radial grid 50 points to that scale and interpolated linearly."""
+    r = np.asarray(r_mm, float)
+    table = _disc_fresnel_table(radius_mm, wavelength_nm, distance_mm, float(np.max(r)) if r.size else 0.0)
+    return _disc_fresnel_at(table, wavelength_nm, distance_mm, r)
+
+
+def _fast_len(n: int) -> int:
+    from scipy.fft import next_fast_len
+
+    return int(next_fast_len(int(n)))
+
+
+@dataclass(frozen=True)
+class ViewCurves:
+    """Through-focus VSOTF of a point rendered by a set of diffracted views (host arrays).
+
+    Attributes
+    ----------
+    accommodation_D : (n_states,) D
+    vsotf : (n_states,) Σ NCSF·Re OTF over the reference's (the pipeline's: the idealised
+        views of the same panel as geometric footprints, no aberrations, accommodated on
+        the CDP and the point rendered on it)
+    n_views : views summed
+    energy : (n_views,) the power each view's beam brings through the pupil, relative to a
+        beam that fills its geometric footprint inside the pupil (1 for a central view of a
+        large Fresnel number)
+    dropped_energy_fraction : the share of the considered beams' power left out as below
+        ``min_view_energy`` (reported, never hidden)
+    """
+
+    accommodation_D: np.ndarray
+    vsotf: np.ndarray
+    n_views: int
+    energy: np.ndarray
+    dropped_energy_fraction: float
+
+
+def _view_vsotf_numerators(zernike_um, measured_pupil_mm: float, panel: Panel, accommodation_D,
+                           centres_mm, shifts_rad, wavelength_nm: float, freq_step_cpd: float,
+                           options, min_view_energy: float, chunk: int, diffracted: bool = True):
+    """Σ NCSF·Re OTF (OTF(0) = 1) per accommodation state of incoherent diffracted views:
+    view k's pupil field is the Fresnel pattern of the magnified lenslet aperture centred on
+    ``centres_mm[k]`` times the eye's pupil (Stiles–Crawford amplitude, aberrations,
+    defocus from the CDP, accommodation SA), its PSF displaced by ``shifts_rad[k]`` (the
+    pipeline's sign: the phase ramp exp(−2πi f·Δθ) on its OTF). Returns (numerators
+    (n_states,), per-view energy, dropped fraction, n_views kept)."""
+    from scipy import fft as sfft
+
+    from .metrics import ncsf_half_plane
+    from .scene import sa_parameters
+    from .spectral import lca_dioptres, make_spectrum
+    from .units import DEGREES_PER_RADIAN, dioptres_to_c20_um
+    from .zernike import wavefront_um
+
+    lam_mm = wavelength_nm * 1e-6
+    pupil = float(panel.pupil_diameter_mm)
+    radius = 0.5 * pupil
+    df_rad = freq_step_cpd * DEGREES_PER_RADIAN
+    dx = lam_mm * df_rad
+    n_p = int(math.ceil(pupil / dx)) + 2
+    n_p += n_p % 2
+    n_fft = _fast_len(2 * n_p)
+    offsets = (np.arange(n_p) - n_p // 2) * dx
+    xx, yy = np.meshgrid(offsets, offsets)  # [y, x]
+    r2 = xx * xx + yy * yy
+    inside = r2 <= radius * radius
+    rho = float(np.asarray(make_spectrum([wavelength_nm], options).sce_rho_per_mm2)[0])
+    amplitude = np.where(inside, 10.0 ** (-rho * r2), 0.0)  # ρ carries the SCE's form
+    z = np.array(zernike_um, float).reshape(-1)
+    if options.zero_piston_tilt:
+        z[:3] = 0.0
+    r_meas = 0.5 * float(measured_pupil_mm)
+    eye = np.asarray(wavefront_um(jnp.asarray(z), jnp.asarray(xx / r_meas), jnp.asarray(yy / r_meas)), float)
+    rn2 = r2 / (radius * radius)
+    z20 = math.sqrt(3.0) * (2 * rn2 - 1)
+    sa_per_D, sa_radius = (float(v) for v in np.asarray(sa_parameters(options, pupil)))
+    rs2 = r2 / (sa_radius * sa_radius)
+    z40 = math.sqrt(5.0) * (6 * rs2 * rs2 - 6 * rs2 + 1)
+    lca = float(np.asarray(lca_dioptres(np.asarray([wavelength_nm]), options))[0])
+    cdp = float(panel.cdp_D)
+    # the beams: the magnified aperture's Fresnel pattern over z_eff, centred on each view
+    d = float(panel.view_diameter_mm)
+    z_eff = float(panel.fresnel_distance_mm)
+    centres = np.asarray(centres_mm, float).reshape(-1, 2)
+    shifts = np.asarray(shifts_rad, float).reshape(-1, 2)
+    beams = []
+    energy = np.empty(len(centres))
+    if not len(centres):
+        raise ValueError("no lenslet's beam reaches the pupil at this depth")
+    r_max = float(np.max(np.hypot(centres[:, 0], centres[:, 1]))) + radius + dx if len(centres) else 0.0
+    table = _disc_fresnel_table(0.5 * d, wavelength_nm, z_eff, r_max)
+    for k, c in enumerate(centres):
+        distance = np.hypot(xx - c[0], yy - c[1])
+        b = (_disc_fresnel_at(table, wavelength_nm, z_eff, distance) if diffracted
+             else (distance <= 0.5 * d).astype(float))
+        b = np.where(inside, b, 0.0)
+        beams.append(b)
+        energy[k] = float(np.sum(np.abs(b) ** 2)) * dx * dx
+    full = min(math.pi * d * d / 4.0, math.pi * radius * radius)
+    energy = energy / full
+    keep = energy >= min_view_energy * float(np.max(energy))
+    dropped = float(np.sum(energy[~keep]) / np.sum(energy))
+    beams = np.stack([b for b, k in zip(beams, keep) if k]).astype(np.complex64)
+    shifts = shifts[keep]
+    fy = np.fft.fftfreq(n_fft, 1.0 / n_fft) * df_rad
+    fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft) * df_rad
+    ramp = (np.exp(-2j * np.pi * shifts[:, 1, None, None] * fy[None, :, None])
+            * np.exp(-2j * np.pi * shifts[:, 0, None, None] * fx[None, None, :])).astype(np.complex64)
+    weighted_ncsf = np.asarray(ncsf_half_plane(n_fft, freq_step_cpd, options.ncsf), float)
+    out = []
+    for a in np.asarray(accommodation_D, float).reshape(-1):
+        c20 = float(dioptres_to_c20_um(a - cdp + lca, pupil))
+        w_um = eye + c20 * z20 + sa_per_D * a * z40
+        pupil_field = (amplitude * np.exp(-2j * np.pi * w_um / (wavelength_nm * 1e-3))).astype(np.complex64)
+        otf = np.zeros((n_fft, n_fft // 2 + 1), np.complex128)
+        for start in range(0, len(beams), chunk):
+            field = beams[start:start + chunk] * pupil_field
+            spec = sfft.fft2(field, s=(n_fft, n_fft), workers=-1)
+            psf = (spec.real ** 2 + spec.imag ** 2).astype(np.float32)
+            otf += np.sum(sfft.rfft2(psf, workers=-1) * ramp[start:start + chunk], axis=0)
+        otf /= otf[0, 0].real
+        out.append(float(np.sum(otf.real * weighted_ncsf)))
+    return np.asarray(out), energy[keep], dropped, int(np.sum(keep))
+
+
+def _idealised_views(panel: Panel, depth_D: float):
+    """The n×n layout's centres (mm) and the pipeline's displacement (D − D_CDP)·p (rad)."""
+    centres = np.asarray(panel.layout(panel.n_views_per_side()).centres_mm, float)
+    return centres, (float(depth_D) - float(panel.cdp_D)) * centres * 1e-3
+
+
+def _array_views_shifts(panel: Panel, views: ArrayViews):
+    """Displacement of each lit pixel's image (rad, the pipeline's sign): the image P_k of
+    the pixel on the CDP lies at X_k = u_k + (u_k − q̂_k)(L − z_m)/z_m (the line from P_k
+    through the lenslet centre u_k meets the pupil plane at q̂_k), seen at −X_k/L; for an
+    ideal renderer this is the pipeline's (D − D_CDP)·q."""
+    zm = float(panel.distance_mm)
+    cdp = float(panel.cdp_D)
+    u, q = views.lenslet_centres_mm, views.centres_mm
+    if cdp == 0:  # CDP at infinity: the image's angle is that of the beam, (u − q)/z_m
+        return (u - q) / zm
+    length = 1000.0 / cdp
+    x_cdp = u + (u - q) * (length - zm) / zm
+    return -x_cdp / length
+
+
+def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: float,
+                   accommodation_D, *, wavelength_nm: float = 550.0, freq_step_cpd: float = 0.5,
+                   options=None, diffraction_widths: float = 3.0, min_view_energy: float = 1e-3,
+                   pixel_offset_mm=(0.0, 0.0), chunk: int = 32) -> dict[str, ViewCurves]:
+    """Through-focus VSOTF of one eye for a point on the axis at ``depth_D`` (D), rendered
+    (a) by the panel's n×n idealised views (``"idealised"``: the layout of
+    :meth:`~lfjax.panel.Panel.layout`, each displaced as a ray through the point — what the
+    pipeline computes) and (b) by the whole array (``"array"``: every lenslet whose lit
+    pixel's diffracted beam reaches the pupil, within ``diffraction_widths`` ×
+    λ·z_eff/(M·a) of it, at the lit pixel's footprint and displaced to the lit pixel's image),
+    one wavelength (``wavelength_nm``), on a frequency step ``freq_step_cpd`` (cpd).
+
+    An independent, host float64/complex64 computation (diffracted beams by
+    :func:`disc_fresnel_field`, one FFT pair per view and state), for studies; its
+    idealised curves agree with the pipeline's (``tests/test_array_views.py``). Beams
+    bringing less than ``min_view_energy`` of the strongest beam's power through the pupil
+    are left out, and the share they carried is reported. Circular lenslets only.
+
+    ``zernike_um`` (n_modes,) µm on ``measured_pupil_mm``; ``accommodation_D`` (n_states,) D.
+    """
+    from .options import ModelOptions
+
+    options = ModelOptions() if options is None else options
+    if panel.aperture != "circle":
+        raise ValueError(f"array_vs_views models circular lenslets only, got aperture={panel.aperture!r}")
+    if not (math.isfinite(min_view_energy) and 0.0 <= min_view_energy < 1.0):
+        raise ValueError(f"min_view_energy must be in [0, 1), got {min_view_energy}")
+    acc = np.asarray(accommodation_D, float).reshape(-1)
+    if acc.size == 0 or not np.all(np.isfinite(acc)) or np.any(acc < 0):
+        raise ValueError("accommodation_D must be finite, >= 0 D and not empty")
+    common = dict(wavelength_nm=wavelength_nm, freq_step_cpd=freq_step_cpd, options=options,
+                  chunk=chunk)
+    ref_centres, ref_shifts = _idealised_views(panel, float(panel.cdp_D))
+    # the pipeline's reference: the idealised views of an ideal display (geometric footprints)
+    reference, _, _, _ = _view_vsotf_numerators(
+        np.zeros(3), measured_pupil_mm, panel, [float(panel.cdp_D)], ref_centres, ref_shifts,
+        min_view_energy=0.0, diffracted=False, **common)
+    out = {}
+    centres, shifts = _idealised_views(panel, depth_D)
+    values, energy, dropped, n = _view_vsotf_numerators(
+        zernike_um, measured_pupil_mm, panel, acc, centres, shifts, min_view_energy=0.0, **common)
+    out["idealised"] = ViewCurves(acc, values / reference[0], n, energy, dropped)
+    views = array_views(panel, float(depth_D), wavelength_nm=wavelength_nm,
+                        diffraction_widths=diffraction_widths, pixel_offset_mm=pixel_offset_mm)
+    values, energy, dropped, n = _view_vsotf_numerators(
+        zernike_um, measured_pupil_mm, panel, acc, views.centres_mm, _array_views_shifts(panel, views),
+        min_view_energy=min_view_energy, **common)
+    out["array"] = ViewCurves(acc, values / reference[0], n, energy, dropped)
+    return out
+
+
+__all__ = ["ArrayViews", "array_views", "idealisation_gap", "array_through_focus", "ViewCurves",
+           "disc_fresnel_field", "array_vs_views"]
