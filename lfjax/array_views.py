@@ -305,6 +305,8 @@ class ViewCurves:
         large Fresnel number)
     dropped_energy_fraction : the share of the considered beams' power left out as below
         ``min_view_energy`` (reported, never hidden)
+    diffraction_only_fraction : the share of the summed beams' power brought by lenslets
+        whose geometric footprint misses the pupil (0 for the idealised views)
     """
 
     accommodation_D: np.ndarray
@@ -312,6 +314,7 @@ class ViewCurves:
     n_views: int
     energy: np.ndarray
     dropped_energy_fraction: float
+    diffraction_only_fraction: float
 
 
 def _view_vsotf_numerators(zernike_um, measured_pupil_mm: float, panel: Panel, accommodation_D,
@@ -322,7 +325,7 @@ def _view_vsotf_numerators(zernike_um, measured_pupil_mm: float, panel: Panel, a
     ``centres_mm[k]`` times the eye's pupil (Stiles–Crawford amplitude, aberrations,
     defocus from the CDP, accommodation SA), its PSF displaced by ``shifts_rad[k]`` (the
     pipeline's sign: the phase ramp exp(−2πi f·Δθ) on its OTF). Returns (numerators
-    (n_states,), per-view energy, dropped fraction, n_views kept)."""
+    (n_states,), every view's energy, the views kept, the dropped share of the energy))."""
     from scipy import fft as sfft
 
     from .metrics import ncsf_half_plane
@@ -399,7 +402,7 @@ def _view_vsotf_numerators(zernike_um, measured_pupil_mm: float, panel: Panel, a
             otf += np.sum(sfft.rfft2(psf, workers=-1) * ramp[start:start + chunk], axis=0)
         otf /= otf[0, 0].real
         out.append(float(np.sum(otf.real * weighted_ncsf)))
-    return np.asarray(out), energy[keep], dropped, int(np.sum(keep))
+    return np.asarray(out), energy, keep, dropped
 
 
 def _idealised_views(panel: Panel, depth_D: float):
@@ -462,15 +465,17 @@ def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: 
         min_view_energy=0.0, diffracted=False, **common)
     out = {}
     centres, shifts = _idealised_views(panel, depth_D)
-    values, energy, dropped, n = _view_vsotf_numerators(
+    values, energy, keep, dropped = _view_vsotf_numerators(
         zernike_um, measured_pupil_mm, panel, acc, centres, shifts, min_view_energy=0.0, **common)
-    out["idealised"] = ViewCurves(acc, values / reference[0], n, energy, dropped)
+    out["idealised"] = ViewCurves(acc, values / reference[0], int(keep.sum()), energy[keep], dropped, 0.0)
     views = array_views(panel, float(depth_D), wavelength_nm=wavelength_nm,
                         diffraction_widths=diffraction_widths, pixel_offset_mm=pixel_offset_mm)
-    values, energy, dropped, n = _view_vsotf_numerators(
+    values, energy, keep, dropped = _view_vsotf_numerators(
         zernike_um, measured_pupil_mm, panel, acc, views.centres_mm, _array_views_shifts(panel, views),
         min_view_energy=min_view_energy, **common)
-    out["array"] = ViewCurves(acc, values / reference[0], n, energy, dropped)
+    by_diffraction = float(np.sum(energy[keep & ~views.geometric]) / np.sum(energy[keep]))
+    out["array"] = ViewCurves(acc, values / reference[0], int(keep.sum()), energy[keep], dropped,
+                              by_diffraction)
     return out
 
 
