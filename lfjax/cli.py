@@ -466,12 +466,7 @@ def _reproduce(args, t_start: float) -> int:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     except Exception as err:  # one line, no traceback; nothing half-written
-        message = " ".join(str(err).split()) or type(err).__name__
-        print(f"{prog}: error: {type(err).__name__}: {message}; nothing written",
-              file=sys.stderr)
-        if os.environ.get("LFJAX_DEBUG"):
-            raise
-        return 1
+        return _unexpected_error(prog, err, "; nothing written")
     verdicts = ", ".join(f"{c.id} {c.verdict}" for c in result["claims"])
     print(f"{prog}: claims: {verdicts}")
     print(f"{prog}: wrote {len(result['files'])} files to {result['out']} in "
@@ -563,11 +558,7 @@ def _optimise(args, t_start: float) -> int:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
     except Exception as err:  # one line, no traceback
-        message = " ".join(str(err).split()) or type(err).__name__
-        print(f"{prog}: error: {type(err).__name__}: {message}", file=sys.stderr)
-        if os.environ.get("LFJAX_DEBUG"):
-            raise
-        return 1
+        return _unexpected_error(prog, err)
     print(result["summary"])
     print(f"{prog}: wrote {len(result['files'])} files to {out} in "
           f"{time.perf_counter() - t_start:.1f} s")
@@ -741,13 +732,8 @@ def _sweep(args, t_start: float) -> int:
                     if out.exists() else "no chunk had finished, so no store was kept")
             print(f"{prog}: error: the disk is full: {kept}", file=sys.stderr)
             return 1
-        message = " ".join(str(err).split()) or type(err).__name__
         notes = " ".join(getattr(err, "__notes__", []))
-        print(f"{prog}: error: {type(err).__name__}: {message}" + (f" ({notes})" if notes else ""),
-              file=sys.stderr)
-        if os.environ.get("LFJAX_DEBUG"):
-            raise
-        return 1
+        return _unexpected_error(prog, err, f" ({notes})" if notes else "")
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
@@ -779,11 +765,7 @@ def _sweep_report(args) -> int:
         print(f"{prog}: error: {err}", file=sys.stderr)
         return 2
     except Exception as err:  # one line, no traceback
-        message = " ".join(str(err).split()) or type(err).__name__
-        print(f"{prog}: error: {type(err).__name__}: {message}", file=sys.stderr)
-        if os.environ.get("LFJAX_DEBUG"):
-            raise
-        return 1
+        return _unexpected_error(prog, err)
     print(f"{prog}: wrote {len(files)} files to {out}: "
           + ", ".join(sorted(p.name for p in files.values())))
     return 0
@@ -945,15 +927,21 @@ def _design(args, t_start: float) -> int:
         print(f"{prog}: error: {' '.join(str(err).split())}", file=sys.stderr)
         return 2
     except Exception as err:  # one line, no traceback
-        message = " ".join(str(err).split()) or type(err).__name__
-        print(f"{prog}: error: {type(err).__name__}: {message}", file=sys.stderr)
-        if os.environ.get("LFJAX_DEBUG"):
-            raise
-        return 1
+        return _unexpected_error(prog, err)
     print(result.summary())
     print(f"{prog}: wrote {len(files)} files to {out} in {time.perf_counter() - t_start:.1f} s")
     return 0
 
+
+
+def _unexpected_error(prog: str, err: Exception, suffix: str = "") -> int:
+    """An error no check foresaw: one line on stderr, no traceback (``LFJAX_DEBUG=1``
+    re-raises it); exit status 1."""
+    message = " ".join(str(err).split()) or type(err).__name__
+    print(f"{prog}: error: {type(err).__name__}: {message}{suffix}", file=sys.stderr)
+    if os.environ.get("LFJAX_DEBUG"):
+        raise err
+    return 1
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -303,3 +303,22 @@ def test_notebook_executes(tmp_path):
     assert len(images) >= 10  # Figs. 3–11 and the retinal images
     text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
     assert "(1)" in text and "(7)" in text
+
+
+def test_an_unforeseen_error_is_one_line_and_lfjax_debug_shows_it(monkeypatch, tmp_path, capsys):
+    """An exception no check foresaw ends the command with one line on stderr (type and
+    message, whitespace folded) and status 1; LFJAX_DEBUG=1 lets it through."""
+    from lfjax import cli
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("the\n  unexpected")
+
+    monkeypatch.setattr(cli, "is_store", lambda path: True)
+    monkeypatch.setattr(cli, "sweep_report", broken)
+    monkeypatch.delenv("LFJAX_DEBUG", raising=False)
+    assert cli.main(["sweep-report", str(tmp_path / "store"), "--out", str(tmp_path / "r")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["lfjax sweep-report: error: RuntimeError: the unexpected"]
+    monkeypatch.setenv("LFJAX_DEBUG", "1")
+    with pytest.raises(RuntimeError, match="unexpected"):
+        cli.main(["sweep-report", str(tmp_path / "store"), "--out", str(tmp_path / "r")])
