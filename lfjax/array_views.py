@@ -32,9 +32,13 @@ propagates each view's aperture from inside the pupil window only, so a lenslet 
 reaches the pupil by diffraction alone contributes nothing there; :class:`ArrayViews`
 counts them so that a study can say where that matters.
 
-What is not modelled yet: the tilt ε_k in the image (reported per view, in arcmin) — the
-pipeline shifts every view as a ray through the rendered point — and lenslets whose
-footprint lies outside the pupil.
+:func:`array_through_focus` runs the pipeline on the lenslets whose footprints overlap the
+pupil (each view displaced as a ray through the rendered point, so without the tilt ε_k).
+:func:`array_vs_views` computes the whole array independently of the pipeline, at one
+wavelength: every lenslet whose lit pixel's diffracted beam reaches the pupil (those that
+reach it by diffraction alone included, as the Fresnel field of the magnified aperture by
+quadrature, :func:`disc_fresnel_field`), each displaced to its lit pixel's image on the CDP
+(tilt included), beside the n×n idealisation computed the same way.
 """
 
 from __future__ import annotations
