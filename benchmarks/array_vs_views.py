@@ -3,7 +3,8 @@
 Run:  python benchmarks/array_vs_views.py [--out benchmarks/array_vs_views] [--max-views 600]
 
 Part 1 — where the idealisation holds. The display study's 2×2 lenslet arrays (3 mm pupil,
-CDP 2 D, f/5, circular lenslets, an ideal renderer: vanishing pixels) at 30–495 mm from the
+CDP 2 D, f/5, circular lenslets, an ideal renderer: pixels 1e-6 of the lenslet pitch, so
+that quantisation moves no beam measurably) at 30–495 mm from the
 eye, Fresnel numbers 32 → 0.021. For the Thibos average eye and the first two virtual eyes
 of seed 0, points on the axis at 1, 2 and 3 D: the through-focus VSOTF (550 nm, 0–5 D in
 0.25 D steps, 0.5 cpd) of (a) the four idealised views — what the pipeline computes — and
@@ -34,7 +35,7 @@ def _sweep_panel(distance_mm: float):
 
     lenslets = lenslets_for_layout(2, 3.0, 2.0, distance_mm, f_number=5.0)
     pitch = float(lenslets.pitch_mm)
-    return Panel(pitch * 1e-3, pitch, 1.0, float(lenslets.focal_length_mm), float(lenslets.gap_mm),
+    return Panel(pitch * 1e-6, pitch, 1.0, float(lenslets.focal_length_mm), float(lenslets.gap_mm),
                  distance_mm, name=f"2x2 at {distance_mm:g} mm")
 
 

@@ -191,7 +191,7 @@ def _sweep_panel(distance_mm: float) -> Panel:
 
     lenslets = lenslets_for_layout(2, 3.0, 2.0, distance_mm, f_number=5.0)
     pitch = float(lenslets.pitch_mm)
-    return Panel(pitch * 1e-3, pitch, 1.0, float(lenslets.focal_length_mm), float(lenslets.gap_mm),
+    return Panel(pitch * 1e-6, pitch, 1.0, float(lenslets.focal_length_mm), float(lenslets.gap_mm),
                  distance_mm)
 
 
