@@ -524,3 +524,32 @@ def test_accommodation_sa_readings_match_the_reference(random_eyes_vs_reference,
     e0 = float(np.abs(free - ref_free).max())
     assert control_variate_residual(pairs, ref, free, ref_free) <= CV_BOUND * e0
     assert np.abs(pairs - d["pairs"]).max() > 5 * (b_fast + b_ref)
+
+
+def test_a_workspace_of_one_state_bounds_the_compiled_programs_memory(monkeypatch):
+    """XLA's own account of the compiled program (temporary buffers): eight accommodation
+    states transformed together need several times what one state at a time needs — the
+    bound the workspace budget exists for (RESULTS §13: a display scene's program fell from
+    3.5 to 0.8 GiB)."""
+    from lfjax import optics
+
+    eyes = lfjax.eyes.make_eyes(np.asarray(lfjax.sample_eyes(1, 3).zernike_um)[:, :6], 3.0)
+    spec = H.spectrum_550_plain()
+    layout = lfjax.layouts.grid_layout(2, 3.0)
+    acc = jnp.asarray(np.linspace(1.0, 3.0, 8))
+
+    def compiled():
+        jax.clear_caches()
+        run = jax.jit(lambda z: lfjax.polychromatic_otf(lfjax.Eyes(z, 3.0), acc, 3.0, 2.0, spec,
+                                                        SMALL_SAMPLING, H.PLAIN, layout=layout).otf)
+        return run.lower(eyes.zernike_um).compile()
+
+    together = compiled()
+    n_fft = lfjax.polychromatic_otf(eyes, acc[:1], 3.0, 2.0, spec, SMALL_SAMPLING, H.PLAIN,
+                                    layout=layout).otf.shape[-2]
+    monkeypatch.setattr(optics, "KERNEL_WORKSPACE_BYTES", optics.KERNEL_BYTES_PER_SAMPLE * 4 * n_fft**2)
+    one_state = compiled()
+    jax.clear_caches()
+    t_all = together.memory_analysis().temp_size_in_bytes
+    t_one = one_state.memory_analysis().temp_size_in_bytes
+    assert t_one < 0.5 * t_all, (t_one, t_all)
