@@ -339,26 +339,31 @@ def test_peak_narrower_than_the_grid_step_is_missed_by_the_bracketing_grid():
             assert float(peak.value) < float(two_peaks(2.1))
 
 
-@pytest.mark.parametrize("method", ["local", "newton", "parabola"])
+@pytest.mark.parametrize("method", ["local", "newton"])
 def test_pairs_refined_in_batches_equal_pairs_refined_together(monkeypatch, method):
     """A kernel workspace too small for more than one (eye, depth) pair at a time refines
-    the pairs one batch after another (lax.map): the same peaks as all pairs at once."""
+    the pairs one batch after another (lax.map): the same peaks as all pairs at once (to
+    float64 rounding: the batched program sums in another order).
+    (peaks_from_grid is called outside any jit, so the changed budget is traced afresh.)"""
     from lfjax import optics
+    from lfjax.peaks import peaks_from_grid
+    from lfjax.pipeline import reference_normalisers
 
     layout = lfjax.open_pupil(3.0)
     cfg, scene, grid, allowed = _pipeline(layout, [2.0, 2.5], cdp_D=2.5)
     eyes = lfjax.Eyes(np.concatenate([_defocused_eye(d).zernike_um for d in (0.37, -0.61, 0.05)]), 3.0)
+    values = retinal_metrics(eyes, scene, SPECTRUM, grid, cfg).vsotf
+    reference = reference_normalisers(scene, SPECTRUM, grid, cfg)
 
     def peaks():
-        jax.clear_caches()  # the workspace is read while tracing
-        p = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", method, allowed)
+        p = peaks_from_grid(values, eyes, scene, SPECTRUM, grid, cfg, reference, "vsotf", method,
+                            allowed)
         return np.asarray(p.accommodation_D), np.asarray(p.value), np.asarray(p.success)
 
     together = peaks()
-    one_state = optics.KERNEL_BYTES_PER_SAMPLE * cfg.n_fft**2
-    monkeypatch.setattr(optics, "KERNEL_WORKSPACE_BYTES", one_state)
+    monkeypatch.setattr(optics, "KERNEL_WORKSPACE_BYTES", optics.KERNEL_BYTES_PER_SAMPLE * cfg.n_fft**2)
     assert lfjax.peaks._pairs_per_batch(scene, cfg, method, 2) == 1
     batched = peaks()
-    jax.clear_caches()
-    for a, b in zip(batched, together):
-        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(batched[2], together[2])
+    for a, b in zip(batched[:2], together[:2]):  # float64 rounding of another program only
+        np.testing.assert_allclose(a, b, rtol=1e-13, atol=0)
