@@ -99,24 +99,22 @@ def enable_compilation_cache(folder: Path | None = None) -> Path | None:
     return folder
 
 
-def _positive_int(text: str) -> int:
+def _whole_number(text: str, lowest: int, below: int | None = None, allowed: str = "") -> int:
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    if value < lowest or (below is not None and value >= below):
+        raise argparse.ArgumentTypeError(f"must be {allowed or f'>= {lowest}'}, got {value}")
     return value
+
+
+def _positive_int(text: str) -> int:
+    return _whole_number(text, 1)
 
 
 def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if not (0 <= value < 2**32):
-        raise argparse.ArgumentTypeError(f"must be in 0 … 4294967295, got {value}")
-    return value
+    return _whole_number(text, 0, 2**32, "in 0 … 4294967295")
 
 
 def _finite_float(text: str) -> float:
@@ -131,13 +129,7 @@ def _finite_float(text: str) -> float:
 
 def _count(text: str) -> int:
     """Whole number >= 0."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
-    return value
+    return _whole_number(text, 0)
 
 
 def _objective(text: str):
