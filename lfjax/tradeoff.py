@@ -45,6 +45,7 @@ from .layouts import Layout, make_layout
 from .options import ModelOptions
 from .panel import Panel, sampling_limit_cpd
 from .sweep import SweepConfig, open_store, plan_sweep, run_sweep
+from .sweep.run import peak_rss_mb
 from .sweep.store import completed_chunks, is_store
 
 TRADEOFF_FORMAT = "lfjax-tradeoff/1"
@@ -170,8 +171,8 @@ def sweep_config(panel: Panel, n_per_side: int, layout_path, config: TradeoffCon
         lenslet_distance_mm=float(panel.distance_mm),
         pixel_width_arcmin=float(panel.emitter_arcmin()),
         accommodation_step_D=float(config.accommodation_step_D),
-        accommodation_max_D=float(math.ceil((float(panel.cdp_D) + max(config.depth_offsets_D)
-                                             + config.window_D) / config.accommodation_step_D)
+        accommodation_max_D=float(math.ceil((round(float(panel.cdp_D), 4) + max(config.depth_offsets_D)
+                                             + config.window_D) / config.accommodation_step_D - 1e-6)
                                   * config.accommodation_step_D),
         window_D=float(config.window_D), wavelengths_nm=tuple(config.wavelengths_nm),
         continuous_peaks=("vsotf",), chunk_size=int(config.chunk_size), options=config.options)
@@ -228,8 +229,6 @@ def run_tradeoff(template: Panel, work_dir, config: TradeoffConfig = TradeoffCon
     compute nothing. Returns the parts (``seconds``: wall time of each sweep, s;
     ``peak_rss_mb``: the process's peak RSS after it, MiB; ``chunk_seconds``: each
     computed chunk's, s, the first with compilation)."""
-    from .sweep.run import peak_rss_mb
-
     parts = plan_tradeoff(template, work_dir, config)
     for part in parts:
         t0 = time.perf_counter()
