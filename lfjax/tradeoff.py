@@ -251,7 +251,9 @@ def part_values(part: TradeoffPart) -> dict:
     ``perceivable_cpd``, ``optical_cutoff_cpd``, ``sampling_limit_cpd`` (n_depth,),
     ``accommodation_D`` (continuous VSOTF peak, the grid peak where it failed),
     ``error_D`` (minus the rendered depth), ``display_error_D`` (less the eye's own error
-    on the CDP), ``peak_success`` and ``depths_D`` (n_depth,)."""
+    on the CDP), ``peak_success``, ``modulation`` (the through-focus VSOTF's (max − min)/max
+    over the depth's window: near 0, a flat curve that predicts no accommodation) and
+    ``depths_D`` (n_depth,)."""
     ds = open_store(part.store, complete_only=True).isel(pupil=0, layout=0).sel(metric="vsotf")
     depths = np.round(np.asarray(ds.depth.values, float), 6)
     cont = np.asarray(ds.predicted_accommodation_continuous.values, float)
@@ -262,7 +264,10 @@ def part_values(part: TradeoffPart) -> dict:
     limit = np.asarray(sampling_limit_cpd(part.panel, depths), float)
     err = acc - depths[None, :]
     cdp = int(np.argmin(np.abs(depths - float(part.panel.cdp_D))))
+    curves = np.asarray(ds.vsotf.values, float)  # NaN outside each depth's window
+    top = np.nanmax(curves, axis=-1)
     return {"depths_D": depths, "perceivable_cpd": np.minimum(optical, limit[None, :]),
+            "modulation": (top - np.nanmin(curves, axis=-1)) / top,
             "optical_cutoff_cpd": optical, "sampling_limit_cpd": limit, "accommodation_D": acc,
             "error_D": err, "display_error_D": err - err[:, cdp:cdp + 1], "peak_success": ok}
 
@@ -270,7 +275,8 @@ def part_values(part: TradeoffPart) -> dict:
 def tradeoff_table(parts: list[TradeoffPart], panel_name: str | None = None) -> list[dict]:
     """Rows (one per count and rendered depth, then one per count over all depths,
     ``depth_D`` None): median and 5/95 percentiles of the perceivable resolution (cpd) and
-    of the accommodation error (D), the display-share RMSE (D), the sampling limit (cpd),
+    of the accommodation error (D), the display-share RMSE (D), the median through-focus
+    modulation (:func:`part_values`), the sampling limit (cpd),
     the panel's lenslet pitch, gap, focal length (mm), pixel angle (arcmin), Fresnel number
     and eye count."""
     rows = []
@@ -294,30 +300,37 @@ def tradeoff_table(parts: list[TradeoffPart], panel_name: str | None = None) -> 
                                                  else float(v["sampling_limit_cpd"][j])),
                              error_D_median=em, error_D_p05=e5, error_D_p95=e95,
                              display_error_rmse_D=float(np.sqrt(np.mean(rel**2))),
+                             modulation_median=float(np.median(v["modulation"][:, sl])),
                              peak_success_fraction=float(np.mean(v["peak_success"][:, sl]))))
     return rows
 
 
-def optimum(rows: list[dict], tolerance_D: float = DEFAULT_TOLERANCE_D) -> dict | None:
+MIN_PEAK_SUCCESS = 0.5
+"""Fewest (eye, depth) peaks that must converge inside their window for a count to be an
+optimum: a maximum on the window's edge is no prediction of accommodation, so an error
+read from it measures the window, not the display."""
+
+
+def optimum(rows: list[dict], tolerance_D: float = DEFAULT_TOLERANCE_D,
+            min_peak_success: float = MIN_PEAK_SUCCESS) -> dict | None:
     """The all-depth row (``depth_D`` None) of the count with the highest median perceivable
     resolution among counts above 1×1 whose display-share accommodation RMSE is at most
-    ``tolerance_D`` (D); when none is, the one with the smallest RMSE (its row gets
-    ``within_tolerance`` False). None without a count above 1×1."""
-    pooled = [r for r in rows if r["depth_D"] is None and r["n_per_side"] > 1]
-    if not pooled:
-        return None
-    ok = [r for r in pooled if r["display_error_rmse_D"] <= tolerance_D]
-    if ok:
-        return dict(max(ok, key=lambda r: r["perceivable_cpd_median"]), within_tolerance=True)
-    return dict(min(pooled, key=lambda r: r["display_error_rmse_D"]), within_tolerance=False)
+    ``tolerance_D`` (D) and whose peaks converged inside their window for at least
+    ``min_peak_success`` of the eyes and depths. None when no count qualifies (1×1 drives
+    no accommodation and never does)."""
+    ok = [r for r in rows if r["depth_D"] is None and r["n_per_side"] > 1
+          and r["display_error_rmse_D"] <= tolerance_D
+          and r.get("peak_success_fraction", 1.0) >= min_peak_success]
+    return max(ok, key=lambda r: r["perceivable_cpd_median"]) if ok else None
 
 
 def markdown_table(rows: list[dict], best: dict | None) -> str:
     """The all-depth rows as a Markdown table, the optimum in bold, then the per-depth
     medians."""
     out = ["| views | lenslet mm | gap mm | pixel ′ | Fresnel N | perceivable cpd median [5–95 %] "
-           "| acc. error D median [5–95 %] | display share RMSE D | peaks converged |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "| acc. error D median [5–95 %] | display share RMSE D | peaks converged "
+           "| through-focus modulation |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if r["depth_D"] is not None:
             continue
@@ -326,7 +339,8 @@ def markdown_table(rows: list[dict], best: dict | None) -> str:
                    f"{r['pixel_arcmin']:.3g} | {r['fresnel_number']:.3g} | "
                    f"{r['perceivable_cpd_median']:.2f} [{r['perceivable_cpd_p05']:.2f}, {r['perceivable_cpd_p95']:.2f}] | "
                    f"{r['error_D_median']:+.2f} [{r['error_D_p05']:+.2f}, {r['error_D_p95']:+.2f}] | "
-                   f"{r['display_error_rmse_D']:.3f} | {r['peak_success_fraction']:.0%} |")
+                   f"{r['display_error_rmse_D']:.3f} | {r['peak_success_fraction']:.0%} | "
+                   f"{r['modulation_median']:.2f} |")
     depths = sorted({r["depth_D"] for r in rows if r["depth_D"] is not None})
     out += ["", "| views | " + " | ".join(f"cpd @ {d:g} D (limit)" for d in depths) + " | "
             + " | ".join(f"error D @ {d:g} D" for d in depths) + " |",
@@ -339,11 +353,13 @@ def markdown_table(rows: list[dict], best: dict | None) -> str:
     return "\n".join(out)
 
 
-def fig_tradeoff(results: dict, tolerance_D: float = DEFAULT_TOLERANCE_D):
+def fig_tradeoff(results: dict, tolerance_D: float = DEFAULT_TOLERANCE_D,
+                 window_D: float | None = None):
     """The trade-off figure: one row per panel class (``results``: {name: rows of
     :func:`tradeoff_table`}), perceivable resolution (cpd) and accommodation error (D)
     against views per side, one line per rendered depth with its 5–95 % band, the
-    optimum (:func:`optimum`) marked."""
+    optimum (:func:`optimum`) marked; ``window_D`` (D) draws the search window's edges,
+    where an error means the curve had no peak inside it."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -365,15 +381,21 @@ def fig_tradeoff(results: dict, tolerance_D: float = DEFAULT_TOLERANCE_D):
         for ax in (ax_r, ax_e):
             if best is not None:
                 ax.axvline(best["n_per_side"], color="tab:red", lw=1.2, ls="--",
-                           label=f"optimum {best['views']}" + ("" if best["within_tolerance"] else " (none within tolerance)"))
+                           label=f"optimum {best['views']}")
             ax.set_xlabel("views per side n (n×n views in the pupil)")
             ax.set_xticks(sorted({r["n_per_side"] for r in rows}))
             ax.grid(alpha=0.3)
         ax_e.axhline(0, color="0.5", lw=0.8)
+        if window_D is not None:
+            for sign in (-1, 1):
+                ax_e.axhline(sign * window_D, color="0.3", lw=0.8, ls=":",
+                             label="window edge (no peak inside)" if sign > 0 else None)
         n_eyes = rows[0]["n_eyes"]
         ax_r.set_ylabel("perceivable resolution, cpd")
         ax_r.set_title(f"{name}: perceivable cut-off at the predicted accommodation\n"
-                       f"(median, 5–95 % of {n_eyes} eyes; dotted: sampling limit)", fontsize=9)
+                       f"(median, 5–95 % of {n_eyes} eyes; dotted: sampling limit)"
+                       + ("" if best is not None else f"\nno optimum: no count above 1×1 drives "
+                          f"accommodation within {tolerance_D:g} D"), fontsize=9)
         ax_e.set_ylabel("accommodation error, D")
         ax_e.set_title(f"{name}: predicted accommodation − rendered depth\n(median, 5–95 %)", fontsize=9)
         ax_e.legend(fontsize=7, title="rendered depth", title_fontsize=7)
@@ -393,6 +415,7 @@ __all__ = [
     "part_values",
     "tradeoff_table",
     "optimum",
+    "MIN_PEAK_SUCCESS",
     "markdown_table",
     "fig_tradeoff",
 ]

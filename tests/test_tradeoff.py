@@ -91,20 +91,21 @@ def test_config_refuses(changes, message):
         to.TradeoffConfig(**changes)
 
 
-def _row(n, cpd, rmse, depth=None):
+def _row(n, cpd, rmse, depth=None, success=1.0):
     return {"n_per_side": n, "views": f"{n}x{n}", "depth_D": depth, "perceivable_cpd_median": cpd,
-            "display_error_rmse_D": rmse}
+            "display_error_rmse_D": rmse, "peak_success_fraction": success}
 
 
 def test_optimum_is_the_sharpest_count_within_the_tolerance():
-    rows = [_row(1, 9.0, 0.8), _row(2, 5.0, 0.1), _row(3, 6.0, 0.2), _row(4, 7.0, 0.4),
-            _row(3, 99.0, 0.0, depth=1.0)]
+    rows = [_row(1, 9.0, 0.0), _row(2, 5.0, 0.1), _row(3, 6.0, 0.2), _row(4, 7.0, 0.4),
+            _row(5, 8.0, 0.1, success=0.4), _row(3, 99.0, 0.0, depth=1.0)]
     best = to.optimum(rows, 0.25)
-    assert best["n_per_side"] == 3 and best["within_tolerance"]
-    # none within: the smallest RMSE, flagged; 1x1 never
-    worst = to.optimum([_row(1, 9.0, 0.01), _row(2, 5.0, 0.6), _row(3, 6.0, 0.5)], 0.25)
-    assert worst["n_per_side"] == 3 and not worst["within_tolerance"]
-    assert to.optimum([_row(1, 9.0, 0.0)]) is None
+    assert best["n_per_side"] == 3
+    # 4x4 is sharper but beyond the tolerance, 5x5 too but its peaks sit on window edges
+    assert to.optimum(rows, 0.5)["n_per_side"] == 4
+    assert to.optimum(rows, 0.5, min_peak_success=0.3)["n_per_side"] == 5
+    # none qualifies: no optimum; 1x1 never is one
+    assert to.optimum([_row(1, 9.0, 0.0), _row(2, 5.0, 0.6), _row(3, 6.0, 0.5)], 0.25) is None
 
 
 def test_a_tiny_tradeoff_end_to_end(tmp_path):
@@ -125,6 +126,7 @@ def test_a_tiny_tradeoff_end_to_end(tmp_path):
     assert np.all(v["perceivable_cpd"] > 0) and np.all(np.isfinite(v["accommodation_D"]))
     assert v["error_D"] == pytest.approx(v["accommodation_D"] - v["depths_D"][None])
     assert v["display_error_D"][:, 1] == pytest.approx([0.0])
+    assert np.all((v["modulation"] > 0) & (v["modulation"] <= 1))
     rows = to.tradeoff_table([part])
     assert [r["depth_D"] for r in rows] == pytest.approx([1.0, 1.5, None])
     pooled = rows[-1]
