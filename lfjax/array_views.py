@@ -50,9 +50,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from lfjax.layouts import Layout, make_layout
+from lfjax.metrics import ncsf_half_plane
+from lfjax.options import ModelOptions
 from lfjax.panel import Panel
+from lfjax.scene import sa_parameters
+from lfjax.spectral import lca_dioptres, make_spectrum
 from lfjax.through_focus import through_focus
-from lfjax.units import ARCMIN_PER_RADIAN
+from lfjax.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN, dioptres_to_c20_um
+from lfjax.zernike import wavefront_um
 
 
 @dataclass(frozen=True)
@@ -338,11 +343,6 @@ def _view_vsotf_numerators(zernike_um, measured_pupil_mm: float, panel: Panel, a
     (n_states,), every view's energy, the views kept, the dropped share of the energy))."""
     from scipy import fft as sfft
 
-    from .metrics import ncsf_half_plane
-    from .scene import sa_parameters
-    from .spectral import lca_dioptres, make_spectrum
-    from .units import DEGREES_PER_RADIAN, dioptres_to_c20_um
-    from .zernike import wavefront_um
 
     lam_mm = wavelength_nm * 1e-6
     pupil = float(panel.pupil_diameter_mm)
@@ -456,8 +456,6 @@ def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: 
 
     ``zernike_um`` (n_modes,) µm on ``measured_pupil_mm``; ``accommodation_D`` (n_states,) D.
     """
-    from .options import ModelOptions
-
     options = ModelOptions() if options is None else options
     if panel.aperture != "circle":
         raise ValueError(f"array_vs_views models circular lenslets only, got aperture={panel.aperture!r}")

@@ -5,11 +5,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import jax
 import numpy as np
 import pytest
 
+import helpers as H
 from lfjax import cli
 from lfjax.design import (
     DesignConstraints,
@@ -186,3 +188,25 @@ def test_cli_design_bad_input_one_line_exit_2(capsys, tmp_path, args, message):
     code = cli.main(["design", *args, "--out", str(tmp_path / "x")])
     err = capsys.readouterr().err
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+
+
+# ------------------------------------------------------------------ notebook
+
+NOTEBOOK = Path(__file__).resolve().parents[1] / "notebooks" / "display_design.ipynb"
+
+
+def test_notebook_matches_its_script_twin():
+    outputs = H.committed_notebook_outputs(NOTEBOOK)
+    assert len([o for o in outputs if "image/png" in o.get("data", {})]) >= 1
+
+
+def test_notebook_executes(tmp_path):
+    """notebooks/display_design.ipynb runs top to bottom at its tiny size: the panel's
+    derived quantities, the sampling limits, the views-per-pupil family, a one-step fit, the
+    specification and the drawing."""
+    _, images, text = H.execute_notebook_tiny(NOTEBOOK, tmp_path)
+    assert len(images) == 1
+    assert "fresnel_number" in text and "chosen: 2 views per side" in text
+    assert "lenslet_pitch_mm" in text and "sampling limit" in text
+    out = tmp_path / "display_design_out"
+    assert {p.name for p in out.iterdir()} == {"design.json", "design.png"}

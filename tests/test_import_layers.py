@@ -53,14 +53,14 @@ LAYERS = {
     "lfjax.claims": 6, "lfjax.layout_plots": 6,
     # applications (every module of these packages)
     "lfjax.reproduce": 7, "lfjax.sweep": 7, "lfjax.layout_opt": 7, "lfjax.display_effects": 7,
-    "lfjax.array_views": 7, "lfjax.design": 7,
+    "lfjax.array_views": 7, "lfjax.design": 7, "lfjax.tradeoff": 7,
     # the top
     "lfjax.cli": 8, "lfjax": 8,
 }
 """Layer of each module, or of every module of a package (its longest listed prefix)."""
 
 APPLICATIONS = ("lfjax.reproduce", "lfjax.sweep", "lfjax.layout_opt", "lfjax.display_effects",
-                "lfjax.array_views", "lfjax.design")
+                "lfjax.array_views", "lfjax.design", "lfjax.tradeoff")
 
 DEFERRED_OK = {
     "matplotlib": "plotting is optional and slow to import; only figure-writing calls pay",
