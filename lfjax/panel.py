@@ -197,28 +197,27 @@ class Panel(eqx.Module):
     @property
     def image_vergence_per_mm(self):
         """V = 1/z_0 − 1/f, 1/mm (0: the CDP at infinity)."""
-        return 1.0 / self.gap_mm - 1.0 / self.focal_length_mm
+        return self.lenslets.image_vergence_per_mm
 
     @property
     def magnification(self):
         """M = 1 + z_m·V: lenslet plane → pupil plane scale of the views (unitless, ≥ 1)."""
-        return 1.0 + self.distance_mm * self.image_vergence_per_mm
+        return self.lenslets.magnification
 
     @property
     def cdp_D(self):
         """The central depth plane 1000/L, D (L = z_m + 1/V from the eye, mm; 0 when V = 0)."""
-        v = self.image_vergence_per_mm
-        return 1000.0 * v / (1.0 + self.distance_mm * v)
+        return self.lenslets.cdp_D
 
     @property
     def view_pitch_mm(self):
         """Spacing of the views in the pupil, M·Δu, mm."""
-        return self.magnification * self.lenslet_pitch_mm
+        return self.lenslets.subaperture_pitch_mm
 
     @property
     def view_diameter_mm(self):
         """Geometric width of each view in the pupil, M·a, mm (diameter or side)."""
-        return self.magnification * self.aperture_mm
+        return self.lenslets.subaperture_diameter_mm
 
     @property
     def views_across(self):
@@ -240,12 +239,12 @@ class Panel(eqx.Module):
     @property
     def fresnel_distance_mm(self):
         """z_eff = z_m·M, the distance over which each magnified aperture diffracts, mm."""
-        return self.distance_mm * self.magnification
+        return self.lenslets.fresnel_distance_mm
 
     def fresnel_number(self, wavelength_nm=550.0):
         """Fresnel number of one lenslet, (a/2)²/(λ·z_m·v/L) = (M·a/2)²/(λ·z_eff)
         (unitless; ≫ 1 geometric views, ≲ 1 each view spreads over much of the pupil)."""
-        return (0.5 * self.view_diameter_mm) ** 2 / (wavelength_nm * 1e-6 * self.fresnel_distance_mm)
+        return self.lenslets.fresnel_number(wavelength_nm)
 
     def optics(self, diffraction: str | None = None) -> DisplayOptics:
         """The pipeline's :class:`~lfjax.display.DisplayOptics`: lenslet diffraction over
