@@ -414,6 +414,7 @@ def through_focus_variants(
     peak_method: str = "auto",
     refine_second_peaks: bool = True,
     display: DisplayOptics | None = None,
+    batch: str = "auto",
 ) -> list[ThroughFocus]:
     """:func:`through_focus` under several :class:`~lfjax.ModelOptions` at once: one
     ``jax.vmap`` over their stacked :class:`~lfjax.options.ModelParameters` per sampling.
@@ -428,10 +429,20 @@ def through_focus_variants(
     10 nm steps), its chromatic leaves computed inside the program from each variant's
     parameters (float32 rounding apart, the numbers :func:`through_focus` gives).
 
+    ``batch``: how the one program runs the variants — ``"vmap"`` (side by side: what an
+    accelerator wants), ``"map"`` (one after another inside the program, ``jax.lax.map``:
+    one variant's memory, and on CPU as fast as separate calls; the vmapped batch was
+    slower there, benchmarks/RESULTS.md §15) or ``"auto"`` (default: ``"map"`` on the CPU,
+    ``"vmap"`` elsewhere).
+
     An :class:`~lfjax.AliasingError` from a variant's sampling check carries ``variant``,
     its index in ``options``. Other arguments as :func:`through_focus`. Returns one
     :class:`ThroughFocus` per variant, in order.
     """
+    if batch not in VARIANT_BATCHES:
+        raise ValueError(f"batch must be one of {VARIANT_BATCHES}, got {batch!r}")
+    if batch == "auto":
+        batch = "map" if jax.default_backend() == "cpu" else "vmap"
     options = list(options)
     if not options or not all(isinstance(o, ModelOptions) for o in options):
         raise ValueError("options must be a non-empty sequence of ModelOptions")
@@ -471,7 +482,7 @@ def through_focus_variants(
         metrics, peaks = _metrics_and_peaks_variants(
             eyes, first.scene, wl, weights, rho_tables, parameters, first.grid, first.index,
             jnp.asarray(pupil_diameter_mm, float), config, first.allowed, continuous_peaks,
-            peak_method, refine_second_peaks,
+            peak_method, refine_second_peaks, batch,
         )
         # sliced on the host: an eager x[k] per leaf and variant compiles a program each
         metrics, peaks = jax.device_get((metrics, peaks))
@@ -481,12 +492,16 @@ def through_focus_variants(
     return results
 
 
+VARIANT_BATCHES = ("auto", "vmap", "map")
+
+
 @eqx.filter_jit
 def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables, parameters,
                                 states_D, pair_index, pupil_diameter_mm, config, allowed,
-                                peak_metrics, peak_method, refine_second):
-    """:func:`_metrics_and_peaks` vmapped over stacked ModelParameters (leading axis) and
-    their ρ(λ) tables (n_variants, n_wavelengths): one compiled program for them all."""
+                                peak_metrics, peak_method, refine_second, batch="vmap"):
+    """:func:`_metrics_and_peaks` over stacked ModelParameters (leading axis) and their ρ(λ)
+    tables (n_variants, n_wavelengths), vmapped or mapped (``batch``): one compiled program
+    for them all."""
 
     def one(p, rho_table):
         spectrum = model_spectrum(wavelengths_nm, weights, rho_table, p)
@@ -494,6 +509,8 @@ def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables
         return _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed,
                                   peak_metrics, peak_method, refine_second)
 
+    if batch == "map":
+        return jax.lax.map(lambda xs: one(*xs), (parameters, rho_tables))
     return jax.vmap(one)(parameters, rho_tables)
 
 

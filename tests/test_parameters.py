@@ -155,9 +155,10 @@ def test_numbers_do_not_recompile_static_choices_do():
         jax.monitoring.unregister_event_duration_listener(listener)
 
 
-def test_vmapped_variants_equal_the_variants_one_by_one():
-    """through_focus_variants (one vmapped program over stacked parameters) gives each
-    variant's through_focus numbers, and refuses variants differing in a static choice."""
+@pytest.mark.parametrize("batch", ["vmap", "map"])
+def test_batched_variants_equal_the_variants_one_by_one(batch):
+    """through_focus_variants (one program over stacked parameters, vmapped or mapped) gives
+    each variant's through_focus numbers, and refuses variants differing in a static choice."""
     eyes = lfjax.sample_eyes(1, 1)
     layout = lfjax.grid_layout(2, 3.0)
     options = [ModelOptions(), ModelOptions(sce="intensity", lca_A=633.46),
@@ -166,7 +167,7 @@ def test_vmapped_variants_equal_the_variants_one_by_one():
     kw = dict(accommodation_D=[1.6, 2.0, 2.4], pupil_diameter_mm=3.0, cdp_D=2.0)
     sampling = lfjax.Sampling(1.5)
     batch = through_focus_variants(eyes, layout, [2.0, 2.4], options, wavelengths_nm=wl,
-                                   samplings=[sampling] * 3, **kw)
+                                   samplings=[sampling] * 3, batch=batch, **kw)
     for o, b in zip(options, batch):
         one = through_focus(eyes, layout, [2.0, 2.4], spectrum=make_spectrum(wl, o),
                             sampling=sampling, options=o, **kw)
