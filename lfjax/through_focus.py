@@ -416,8 +416,8 @@ def through_focus_variants(
     display: DisplayOptics | None = None,
     batch: str = "auto",
 ) -> list[ThroughFocus]:
-    """:func:`through_focus` under several :class:`~lfjax.ModelOptions` at once: one
-    ``jax.vmap`` over their stacked :class:`~lfjax.options.ModelParameters` per sampling.
+    """:func:`through_focus` under several :class:`~lfjax.ModelOptions` at once: one compiled
+    program over their stacked :class:`~lfjax.options.ModelParameters` per sampling.
 
     The variants may differ in every number and in every choice that has a numeric form
     (SCE form, accommodation SA reading, wavelength normalisation, LCA and SA constants,
@@ -431,9 +431,9 @@ def through_focus_variants(
 
     ``batch``: how the one program runs the variants — ``"vmap"`` (side by side: what an
     accelerator wants), ``"map"`` (one after another inside the program, ``jax.lax.map``:
-    one variant's memory, and on CPU as fast as separate calls; the vmapped batch was
-    slower there, benchmarks/RESULTS.md §15) or ``"auto"`` (default: ``"map"`` on the CPU,
-    ``"vmap"`` elsewhere).
+    one variant's memory; on the CPU it gave separate calls' report to the last printed
+    digit, while the vmapped batch was slower there, benchmarks/RESULTS.md §15) or
+    ``"auto"`` (default: ``"map"`` on the CPU, ``"vmap"`` elsewhere).
 
     An :class:`~lfjax.AliasingError` from a variant's sampling check carries ``variant``,
     its index in ``options``. Other arguments as :func:`through_focus`. Returns one

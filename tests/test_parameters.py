@@ -71,6 +71,9 @@ def test_bad_parameters_are_refused_by_name():
     with pytest.raises(ValueError, match=r"ModelParameters.sa_reference_pupil_mm must be > 0"):
         stack_parameters([ModelOptions().parameters(),
                           ModelOptions().parameters().replace(sa_reference_pupil_mm=0.0)])
+    with pytest.raises(ValueError, match="batch must be one of"):
+        through_focus_variants(lfjax.sample_eyes(0, 1), None, [2.0], [ModelOptions()],
+                               batch="pmap")
 
 
 # ----------------------------------------------------------------------------- gradients

@@ -5,7 +5,8 @@
 <lfjax.reproduce.config.StudyConfig.reduced>` under each of them (and a baseline on the
 same reduced set) and evaluates the claims. Every alternative changes only numbers of the
 model (:class:`~lfjax.options.ModelParameters`), so each layout's baseline and
-alternatives run as one vmapped batch (:func:`~lfjax.reproduce.study.run_study_variants`).
+alternatives run as one compiled program over their stacked parameters
+(:func:`~lfjax.reproduce.study.run_study_variants`).
 
 Imports :mod:`~lfjax.reproduce.config` and :mod:`~lfjax.reproduce.study` from the package,
 and the claims from :mod:`lfjax.claims`.

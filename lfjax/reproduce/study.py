@@ -134,7 +134,7 @@ def run_study_variants(
     """:func:`run_study` under several model options, {name: ModelOptions} → {name: Dataset}.
 
     Each layout's variants run as one batch (:func:`layout_through_focus_variants`: one
-    ``jax.vmap`` over their stacked :class:`~lfjax.options.ModelParameters`); ``stage``
+    compiled program over their stacked :class:`~lfjax.options.ModelParameters`); ``stage``
     is called once per layout. Each Dataset's ``compute_seconds`` is the whole batch's."""
     return _run_studies(config, dict(variants), stage, batched=True)
 
@@ -145,7 +145,7 @@ def layout_through_focus_variants(
     """:func:`layout_through_focus` for several model options in one batch: each variant's
     sampling planned (and, if the field would alias, made finer) on its own, as
     :func:`layout_through_focus` does, then the variants computed together by
-    :func:`lfjax.through_focus.through_focus_variants` (one vmapped call per sampling)."""
+    :func:`lfjax.through_focus.through_focus_variants` (one compiled call per sampling)."""
     samplings = [_planned_sampling(eyes, layout, depths_D, config, o) for o in options]
     for _ in range(16 * len(options)):
         try:
