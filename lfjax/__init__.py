@@ -41,6 +41,7 @@ from .layouts import hex_layout as hex_layout
 from .layouts import make_layout as make_layout
 from .layouts import open_pupil as open_pupil
 from .options import ModelOptions as ModelOptions
+from .options import ModelParameters as ModelParameters
 from .panel import Panel as Panel
 from .psf import monochromatic_psf as monochromatic_psf
 from .psf import polychromatic_otf as polychromatic_otf

@@ -22,39 +22,44 @@ from ._types import as_index_array
 from ._types import as_real_array as _real
 from .display import DisplayOptics
 from .layouts import Layout
-from .options import ModelOptions
+from .options import ModelOptions, ModelParameters, model_numbers
 
 # ----------------------------------------------------------------------------- accommodation SA
 
 
-def _sa_geometry(options: ModelOptions, pupil_diameter_mm):
-    """(scale, radius_mm) so that c(4,0)_applied = slope · a · scale on Z(4,0)(r/radius)."""
-    ref = options.sa_reference_pupil_mm
-    form = options.accommodation_sa
-    if form == "scaled":
-        return (pupil_diameter_mm / ref) ** 4, 0.5 * pupil_diameter_mm
-    if form == "wavefront_5mm":
-        return 1.0, 0.5 * ref
-    if form == "unscaled":
-        return 1.0, 0.5 * pupil_diameter_mm
-    return 0.0, 0.5 * pupil_diameter_mm
+def _sa_geometry(options: ModelOptions | ModelParameters, pupil_diameter_mm):
+    """(scale, radius_mm) so that c(4,0)_applied = slope · a · scale on Z(4,0)(r/radius).
+
+    scale = g (d/d_ref)^p and radius = ½(d + w (d_ref − d)), from the numeric form of
+    ``accommodation_sa`` (:data:`lfjax.options.ACCOMMODATION_SA_NUMBERS`): "scaled"
+    (1, 4, 0), "wavefront_5mm" (1, 0, 1), "unscaled" (1, 0, 0), "off" (0, 0, 0)."""
+    n = model_numbers(options)
+    ref, exponent = n.sa_reference_pupil_mm, n.sa_pupil_exponent
+    if isinstance(exponent, float) and exponent.is_integer():
+        exponent = int(exponent)  # x**4 as products (jax's integer_pow), as it always was
+    scale = n.sa_gain * (pupil_diameter_mm / ref) ** exponent
+    radius = 0.5 * (pupil_diameter_mm + n.sa_reference_radius_weight * (ref - pupil_diameter_mm))
+    return scale, radius
 
 
-def sa_c40_um(accommodation_D, pupil_diameter_mm, options: ModelOptions = ModelOptions()):
+def sa_c40_um(accommodation_D, pupil_diameter_mm,
+              options: ModelOptions | ModelParameters = ModelOptions()):
     """Accommodation spherical aberration added to c(4,0), µm, on the radius of ``_sa_geometry``."""
     scale, _ = _sa_geometry(options, pupil_diameter_mm)
-    return options.sa_slope_um_per_D * accommodation_D * scale
+    return model_numbers(options).sa_slope_um_per_D * accommodation_D * scale
 
 
-def sa_parameters(options: ModelOptions, pupil_diameter_mm):
+def sa_parameters(options: ModelOptions | ModelParameters, pupil_diameter_mm):
     """(µm of c(4,0) per dioptre of accommodation, radius in mm of that Z(4,0)) as an array.
 
     Passed to the jitted pipeline as data, so switching the accommodation-SA reading does
-    not recompile.
+    not recompile. From ``ModelOptions`` the numbers are combined on the host in float64;
+    from :class:`~lfjax.options.ModelParameters` (possibly traced) in its own precision.
     """
     scale, radius = _sa_geometry(options, pupil_diameter_mm)
+    slope = model_numbers(options).sa_slope_um_per_D
     return jnp.stack(
-        [jnp.asarray(options.sa_slope_um_per_D * scale, float), jnp.asarray(radius, float)]
+        [jnp.asarray(slope * scale, float), jnp.asarray(radius, float)]
     )
 
 
@@ -130,8 +135,11 @@ class Accommodation(eqx.Module):
             )
 
     @classmethod
-    def per_depth(cls, accommodation_D, options: ModelOptions, pupil_diameter_mm) -> Accommodation:
-        """States given per rendered depth, (n_depth, n_k) in D: each pair computed on its own."""
+    def per_depth(cls, accommodation_D, options: ModelOptions | ModelParameters,
+                  pupil_diameter_mm) -> Accommodation:
+        """States given per rendered depth, (n_depth, n_k) in D: each pair computed on its own.
+        ``options``: the accommodation SA's numbers, from ``ModelOptions`` or (traceable)
+        ``ModelParameters``."""
         acc = _real(accommodation_D)
         if acc.ndim != 2:
             raise ValueError(f"accommodation_D must have shape (n_depth, n_k), got {acc.shape}")
@@ -139,8 +147,10 @@ class Accommodation(eqx.Module):
         return cls.shared(acc.reshape(-1), index, options, pupil_diameter_mm)
 
     @classmethod
-    def shared(cls, states_D, pair_index, options: ModelOptions, pupil_diameter_mm) -> Accommodation:
-        """States ``states_D`` (D) shared by depths through ``pair_index`` (n_depth, n_k)."""
+    def shared(cls, states_D, pair_index, options: ModelOptions | ModelParameters,
+               pupil_diameter_mm) -> Accommodation:
+        """States ``states_D`` (D) shared by depths through ``pair_index`` (n_depth, n_k);
+        ``options`` as in :meth:`per_depth`."""
         sa = sa_parameters(options, _real(pupil_diameter_mm))
         return cls(states_D, pair_index, sa[0], sa[1])
 

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._types import as_real_array
-from .options import ModelOptions
+from .options import ModelOptions, ModelParameters, model_numbers
 
 LEF_NAME = "CIE 2008 2 Degree Physiologically Relevant LEF"
 
@@ -58,13 +58,14 @@ def luminous_efficiency(wavelengths_nm) -> np.ndarray:
     return np.interp(wavelengths_nm, wl, values)
 
 
-def lca_dioptres(wavelengths_nm, options: ModelOptions = ModelOptions()):
+def lca_dioptres(wavelengths_nm, options: ModelOptions | ModelParameters = ModelOptions()):
     """Longitudinal chromatic aberration in dioptres (positive: more power, myopic).
 
     .. math:: D(λ) = A\\left(\\frac{1}{λ - c} - \\frac{1}{λ_{ref} - c}\\right)
 
     Thibos et al. (1992) "chromatic eye", constants from ``options`` (paper: A = 633.26,
-    c = 214.10 nm, λ_ref = 550 nm). Works on numpy or jax arrays.
+    c = 214.10 nm, λ_ref = 550 nm). Works on numpy or jax arrays; with
+    :class:`~lfjax.options.ModelParameters` the constants may be traced (``jax.grad`` in A).
     """
     return options.lca_A * (
         1.0 / (wavelengths_nm - options.lca_c_nm)
@@ -134,7 +135,8 @@ class Spectrum(eqx.Module):
 
 
 def make_spectrum(
-    wavelengths_nm=None, options: ModelOptions = ModelOptions(), weights=None
+    wavelengths_nm=None, options: ModelOptions = ModelOptions(), weights=None,
+    parameters: ModelParameters | None = None,
 ) -> Spectrum:
     """Spectrum for ``wavelengths_nm`` (default 400–700 nm in 10 nm steps).
 
@@ -148,6 +150,11 @@ def make_spectrum(
     weights : array_like, optional
         Spectral weights; default V(λ) times the trapezoid width of each sample. Normalised
         to sum 1.
+    parameters : ModelParameters, optional
+        The numeric model to use instead of ``options``' numbers (LCA constants, SCE
+        exponent and ρ scale, normalisation blend); may be traced, so ``jax.grad`` and
+        ``jax.vmap`` reach them (:func:`model_spectrum`). ``options`` still picks the ρ(λ)
+        table and whether it is read at all (``sce="off"``).
     """
     if wavelengths_nm is None:
         wavelengths_nm = np.arange(400.0, 701.0, 10.0)
@@ -174,18 +181,46 @@ def make_spectrum(
     if w.sum() <= 0:
         raise ValueError("spectral weights sum to zero")
     w = w / w.sum()
-    if options.sce == "off":
-        rho = np.zeros_like(wl)
-    else:
-        rho = sce_rho_per_mm2(wl, options.sce_table)
-        if options.sce == "intensity":
-            rho = rho / 2.0
+    rho_table = sce_rho_table(wl, options)
+    if parameters is not None:
+        return model_spectrum(wl, w, rho_table, parameters)
+    # Concrete constants: computed on the host in float64, as the pipeline has always had them.
+    n = model_numbers(options)
     return Spectrum(
         wavelengths_nm=jnp.asarray(wl),
         weights=jnp.asarray(w),
-        lca_D=jnp.asarray(lca_dioptres(wl, options)),
-        sce_rho_per_mm2=jnp.asarray(rho),
-        unit_sum=float(options.wavelength_normalisation == "unit_sum"),
+        lca_D=jnp.asarray(lca_dioptres(wl, n)),
+        sce_rho_per_mm2=jnp.asarray(rho_table * (n.sce_exponent * n.sce_rho_scale)),
+        unit_sum=n.unit_sum,
+    )
+
+
+def sce_rho_table(wavelengths_nm, options: ModelOptions = ModelOptions()) -> np.ndarray:
+    """ρ(λ) of ``options.sce_table`` at ``wavelengths_nm``, mm⁻² (host); zeros when
+    ``options.sce == "off"`` (the table, 400–700 nm, is then not read)."""
+    wl = np.atleast_1d(np.asarray(wavelengths_nm, float))
+    if options.sce == "off":
+        return np.zeros_like(wl)
+    return sce_rho_per_mm2(wl, options.sce_table)
+
+
+def model_spectrum(wavelengths_nm, weights, sce_rho_table_per_mm2,
+                   parameters: ModelParameters) -> Spectrum:
+    """Spectrum whose chromatic leaves come from ``parameters`` (traceable, vmappable).
+
+    ``wavelengths_nm`` (n,) nm and ``weights`` (n,) (summing to 1) as :func:`make_spectrum`
+    makes them; ``sce_rho_table_per_mm2`` (n,) mm⁻² from :func:`sce_rho_table`. LCA (D) is
+    A (1/(λ−c) − 1/(λ_ref−c)), the Stiles–Crawford ρ the table times
+    ``sce_exponent · sce_rho_scale``, and ``unit_sum`` the normalisation's blend weight —
+    computed in the caller's precision (float32 inside a float32 program)."""
+    wl = as_real_array(wavelengths_nm)
+    rho = as_real_array(sce_rho_table_per_mm2)
+    return Spectrum(
+        wavelengths_nm=wl,
+        weights=as_real_array(weights),
+        lca_D=lca_dioptres(wl, parameters),
+        sce_rho_per_mm2=rho * (parameters.sce_exponent * parameters.sce_rho_scale),
+        unit_sum=parameters.unit_sum,
     )
 
 
@@ -201,5 +236,7 @@ __all__ = [
     "sce_rho_per_mm2",
     "Spectrum",
     "make_spectrum",
+    "model_spectrum",
+    "sce_rho_table",
     "monochromatic_spectrum",
 ]

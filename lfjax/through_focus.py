@@ -24,7 +24,7 @@ from .eyes import Eyes, check_eyes
 from .layouts import Layout, open_pupil
 from .metrics import cutoff_frequency
 from .optics import _field_check, _validate_coefficients, validate_pupil, validate_states
-from .options import ModelOptions
+from .options import STATIC_CHOICES, ModelOptions, stack_parameters
 from .peaks import METRICS, PEAK_METHODS, Peaks, peaks_from_grid
 from .pipeline import (
     Accommodation,
@@ -35,8 +35,8 @@ from .pipeline import (
     vsotf_and_strehl,
 )
 from .planner import plan_sampling
-from .sampling import Sampling
-from .spectral import Spectrum, make_spectrum
+from .sampling import AliasingError, Sampling
+from .spectral import Spectrum, make_spectrum, model_spectrum, sce_rho_table
 
 
 class ThroughFocus(eqx.Module):
@@ -304,15 +304,46 @@ def through_focus(
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
     aberration-free, focused and rendered at the CDP, accommodation SA and LCA kept).
     """
+    spectrum = make_spectrum(options=options) if spectrum is None else spectrum
+    prepared = _prepare(eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D,
+                        spectrum, sampling, options, accommodation_offsets_D, window_D,
+                        eye_chunk, check_aliasing, continuous_peaks, peak_method, display)
+    metrics, peaks = _metrics_and_peaks(
+        eyes, prepared.scene, spectrum,
+        Accommodation.shared(prepared.grid, prepared.index, options, pupil_diameter_mm),
+        prepared.config, prepared.allowed, tuple(continuous_peaks), peak_method,
+        refine_second_peaks,
+    )
+    return _result(prepared, metrics, peaks)
+
+
+class _Prepared(eqx.Module):
+    """What :func:`through_focus` settles on the host before the compiled call."""
+
+    scene: Scene
+    grid: np.ndarray  # (n_states,) D
+    index: np.ndarray  # (n_depth, n_acc) state of each pair
+    allowed: np.ndarray  # (n_depth, n_acc) bool
+    absolute: np.ndarray  # (n_depth, n_acc) D
+    depths: np.ndarray  # (n_depth,) D
+    cdp_D: float = eqx.field(static=True)
+    layout_name: str = eqx.field(static=True)
+    sampling: Sampling = eqx.field(static=True)
+    config: PipelineConfig = eqx.field(static=True)
+
+
+def _prepare(eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
+             sampling, options, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
+             continuous_peaks, peak_method, display) -> _Prepared:
+    """Host checks, the accommodation grid, the sampling (planned or checked) and the static
+    configuration of one :func:`through_focus` call."""
     check_eyes(eyes)
     validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
     validate_states(None, depths_D, cdp_D)
-    spectrum = make_spectrum(options=options) if spectrum is None else spectrum
     layout = open_pupil(float(pupil_diameter_mm)) if layout is None else layout
     depths = np.atleast_1d(np.asarray(cdp_D if depths_D is None else depths_D, float))
     if accommodation_D is not None and accommodation_offsets_D is not None:
         raise ValueError("give accommodation_D or accommodation_offsets_D, not both")
-    continuous_peaks = tuple(continuous_peaks)
     for name in continuous_peaks:
         if name not in METRICS:
             raise ValueError(f"continuous_peaks must name metrics in {METRICS}, got {name!r}")
@@ -349,19 +380,153 @@ def through_focus(
     config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
                                   float(pupil_diameter_mm), sampling, options, eye_chunk,
                                   traced_checks=False, display=display)
-    metrics, peaks = _metrics_and_peaks(
-        eyes, Scene.from_layout(layout, depths, cdp_D, pupil_diameter_mm, display), spectrum,
-        Accommodation.shared(grid, index, options, pupil_diameter_mm), config, allowed,
-        continuous_peaks, peak_method, refine_second_peaks,
-    )
-    mask = jnp.asarray(allowed)
+    return _Prepared(Scene.from_layout(layout, depths, cdp_D, pupil_diameter_mm, display), grid,
+                     index, allowed, absolute, depths, float(cdp_D), layout.name, sampling, config)
+
+
+def _result(prepared: _Prepared, metrics, peaks) -> ThroughFocus:
+    mask = jnp.asarray(prepared.allowed)
     # NaN marks states beyond the hyperopic limit (never computed); `allowed` says which.
     return ThroughFocus(
         jnp.where(mask[None], metrics.vsotf, jnp.nan), jnp.where(mask[None], metrics.strehl, jnp.nan),
-        metrics.radial_mtf, jnp.arange(config.n_fft // 2 + 1) * sampling.freq_step_cpd,
-        np.asarray(absolute, float), np.asarray(allowed), depths, float(cdp_D), layout.name,
-        sampling, peaks,
+        metrics.radial_mtf,
+        jnp.arange(prepared.config.n_fft // 2 + 1) * prepared.sampling.freq_step_cpd,
+        np.asarray(prepared.absolute, float), np.asarray(prepared.allowed), prepared.depths,
+        prepared.cdp_D, prepared.layout_name, prepared.sampling, peaks,
     )
+
+
+def through_focus_variants(
+    eyes: Eyes,
+    layout: Layout | None,
+    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None,
+    options: Sequence[ModelOptions],
+    accommodation_D: Real[ArrayLike, " n_acc"] | Sequence[float] | None = None,
+    pupil_diameter_mm: float = 3.0,
+    cdp_D: float = 2.0,
+    wavelengths_nm=None,
+    samplings: Sequence[Sampling | None] | None = None,
+    accommodation_offsets_D=None,
+    window_D: float | None = None,
+    eye_chunk: int | None = None,
+    check_aliasing: bool = True,
+    continuous_peaks: tuple = (),
+    peak_method: str = "auto",
+    refine_second_peaks: bool = True,
+    display: DisplayOptics | None = None,
+    batch: str = "auto",
+) -> list[ThroughFocus]:
+    """:func:`through_focus` under several :class:`~lfjax.ModelOptions` at once: one compiled
+    program over their stacked :class:`~lfjax.options.ModelParameters` per sampling.
+
+    The variants may differ in every number and in every choice that has a numeric form
+    (SCE form, accommodation SA reading, wavelength normalisation, LCA and SA constants,
+    ρ table and scale); the choices that select code or set shapes
+    (:data:`lfjax.options.STATIC_CHOICES`) must agree. Each variant's sampling is planned
+    (or, given in ``samplings``, checked) on its own, exactly as :func:`through_focus`
+    would; variants whose samplings agree share one compiled, vmapped call. The spectrum is
+    :func:`lfjax.spectral.make_spectrum`'s for ``wavelengths_nm`` (default 400–700 nm in
+    10 nm steps), its chromatic leaves computed inside the program from each variant's
+    parameters (float32 rounding apart, the numbers :func:`through_focus` gives).
+
+    ``batch``: how the variants run — ``"vmap"`` (one program, side by side: what an
+    accelerator wants), ``"map"`` (one program, one variant after another inside it,
+    ``jax.lax.map``: one variant's memory), ``"loop"`` (a :func:`through_focus` call per
+    variant: the programs are those of the baseline, compiled once for every variant of the
+    same shapes, since the parameters are data) or ``"auto"`` (default: ``"loop"`` on the
+    CPU, where both batched forms were slower — more programs to compile and no parallel
+    hardware to fill, benchmarks/RESULTS.md §17 — and ``"vmap"`` elsewhere, not yet timed
+    on an accelerator).
+
+    An :class:`~lfjax.AliasingError` from a variant's sampling check carries ``variant``,
+    its index in ``options``. Other arguments as :func:`through_focus`. Returns one
+    :class:`ThroughFocus` per variant, in order.
+    """
+    if batch not in VARIANT_BATCHES:
+        raise ValueError(f"batch must be one of {VARIANT_BATCHES}, got {batch!r}")
+    if batch == "auto":
+        batch = "loop" if jax.default_backend() == "cpu" else "vmap"
+    options = list(options)
+    if not options or not all(isinstance(o, ModelOptions) for o in options):
+        raise ValueError("options must be a non-empty sequence of ModelOptions")
+    for name in STATIC_CHOICES:
+        values = {getattr(o, name) for o in options}
+        if len(values) > 1:
+            raise ValueError(
+                f"the variants' ModelOptions.{name} must agree (it selects code or sets "
+                f"shapes; run them apart), got {sorted(map(repr, values))}"
+            )
+    samplings = [None] * len(options) if samplings is None else list(samplings)
+    if len(samplings) != len(options):
+        raise ValueError(f"samplings must hold one entry per variant ({len(options)}), "
+                         f"got {len(samplings)}")
+    continuous_peaks = tuple(continuous_peaks)
+    spectra = [make_spectrum(wavelengths_nm, o) for o in options]
+    if batch == "loop":
+        results = []
+        for i, (o, spectrum, sampling) in enumerate(zip(options, spectra, samplings)):
+            try:
+                results.append(through_focus(
+                    eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
+                    sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
+                    continuous_peaks, peak_method, refine_second_peaks, display))
+            except AliasingError as err:
+                err.variant = i
+                raise
+        return results
+    prepared = []
+    for i, (o, spectrum, sampling) in enumerate(zip(options, spectra, samplings)):
+        try:
+            prepared.append(_prepare(
+                eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
+                sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
+                continuous_peaks, peak_method, display))
+        except AliasingError as err:
+            err.variant = i
+            raise
+    groups: dict[PipelineConfig, list[int]] = {}
+    for i, p in enumerate(prepared):
+        groups.setdefault(p.config, []).append(i)
+    wl = np.asarray(spectra[0].wavelengths_nm)
+    weights = np.asarray(spectra[0].weights)
+    results: list[ThroughFocus | None] = [None] * len(options)
+    for config, members in groups.items():
+        first = prepared[members[0]]
+        parameters = stack_parameters([options[i].parameters() for i in members])
+        rho_tables = np.stack([sce_rho_table(wl, options[i]) for i in members])
+        metrics, peaks = _metrics_and_peaks_variants(
+            eyes, first.scene, wl, weights, rho_tables, parameters, first.grid, first.index,
+            jnp.asarray(pupil_diameter_mm, float), config, first.allowed, continuous_peaks,
+            peak_method, refine_second_peaks, batch,
+        )
+        # sliced on the host: an eager x[k] per leaf and variant compiles a program each
+        metrics, peaks = jax.device_get((metrics, peaks))
+        for k, i in enumerate(members):
+            one = jax.tree_util.tree_map(lambda x, k=k: jnp.asarray(x[k]), (metrics, peaks))
+            results[i] = _result(prepared[i], *one)
+    return results
+
+
+VARIANT_BATCHES = ("auto", "vmap", "map", "loop")
+
+
+@eqx.filter_jit
+def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables, parameters,
+                                states_D, pair_index, pupil_diameter_mm, config, allowed,
+                                peak_metrics, peak_method, refine_second, batch="vmap"):
+    """:func:`_metrics_and_peaks` over stacked ModelParameters (leading axis) and their ρ(λ)
+    tables (n_variants, n_wavelengths), vmapped or mapped (``batch``): one compiled program
+    for them all."""
+
+    def one(p, rho_table):
+        spectrum = model_spectrum(wavelengths_nm, weights, rho_table, p)
+        accommodation = Accommodation.shared(states_D, pair_index, p, pupil_diameter_mm)
+        return _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed,
+                                  peak_metrics, peak_method, refine_second)
+
+    if batch == "map":
+        return jax.lax.map(lambda xs: one(*xs), (parameters, rho_tables))
+    return jax.vmap(one)(parameters, rho_tables)
 
 
 @eqx.filter_jit
@@ -452,4 +617,5 @@ def metrics_at(
     return vsotf_and_strehl(eyes, scene, spectrum, accommodation, config)
 
 
-__all__ = ["ThroughFocus", "through_focus", "relative_accommodation_grid", "metrics_at"]
+__all__ = ["ThroughFocus", "through_focus", "through_focus_variants",
+           "relative_accommodation_grid", "metrics_at"]

@@ -53,6 +53,7 @@ from ..display_effects import (
     sweep_table,
 )
 from ..eyes import Eyes
+from ..options import ModelOptions
 from ..sweep.store import open_store
 from ..sweep.ten_eyes import check_population_store, ten_eye_claims, ten_eye_markdown, ten_eye_table
 from .alternatives import ALTERNATIVES, run_alternatives
@@ -201,6 +202,9 @@ def population_section(population_store, config: StudyConfig, claims: list[Claim
                 window_D=config.window_D, wavelengths_nm=list(config.wavelengths_nm),
                 options=config.options.as_dict())
     theirs = dict(stored, pupil_diameters_mm=pupil)
+    if isinstance(theirs.get("options"), dict):
+        # a store written before an option existed ran with that option's default
+        theirs["options"] = {**ModelOptions().as_dict(), **theirs["options"]}
     differ = [key for key, value in ours.items() if theirs.get(key) != value]
     lines = [
         f"Are this run's verdicts what any {config.n_eyes} eyes would give? The population "
@@ -247,8 +251,7 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
     if "2x2" in layouts:
         stages.append("examples: 2x2 viewpoints")
     if config.alternatives:
-        stages += [f"alternative {v}: {n}" for v in ["baseline (reduced)", *ALTERNATIVES]
-                   for n in layouts]
+        stages += [f"alternatives: {n}" for n in layouts]
     if population_store is not None:
         stages.append("population: samples of the study's size")
     if display_effects_eyes is not None:

@@ -3,7 +3,10 @@
 ``ALTERNATIVES`` names each choice as a :class:`~lfjax.ModelOptions` change;
 :func:`run_alternatives` reruns the study on :meth:`StudyConfig.reduced
 <lfjax.reproduce.config.StudyConfig.reduced>` under each of them (and a baseline on the
-same reduced set) and evaluates the claims.
+same reduced set) and evaluates the claims. Every alternative changes only numbers of the
+model (:class:`~lfjax.options.ModelParameters`), so each layout's baseline and
+alternatives run as one compiled program over their stacked parameters
+(:func:`~lfjax.reproduce.study.run_study_variants`).
 
 Imports :mod:`~lfjax.reproduce.config` and :mod:`~lfjax.reproduce.study` from the package,
 and the claims from :mod:`lfjax.claims`.
@@ -13,7 +16,7 @@ from __future__ import annotations
 
 from ..claims import evaluate_claims
 from .config import StudyConfig
-from .study import run_study
+from .study import run_study_variants
 
 ALTERNATIVES: dict[str, dict] = {
     "sce=intensity": {"sce": "intensity"},
@@ -24,6 +27,9 @@ ALTERNATIVES: dict[str, dict] = {
 }
 """Modelling choices the paper leaves open (docs/design.md#modelling-choices), as ``ModelOptions`` changes."""
 
+BASELINE = "baseline (reduced)"
+"""Name of the baseline rerun on the reduced set, the first entry of :func:`run_alternatives`."""
+
 
 def run_alternatives(config: StudyConfig, stage=None) -> dict:
     """Claims under each modelling-choice alternative on :meth:`StudyConfig.reduced`.
@@ -32,21 +38,19 @@ def run_alternatives(config: StudyConfig, stage=None) -> dict:
     same reduced set first.
     """
     reduced = config.reduced()
-    results = {}
-    variants = {"baseline (reduced)": {}} | ALTERNATIVES
-    for name, change in variants.items():
-        options = config.options.replace(**change)
+    variants = {name: config.options.replace(**change)
+                for name, change in ({BASELINE: {}} | ALTERNATIVES).items()}
 
-        def sub_stage(layout, _name=name):
-            if stage is not None:
-                stage(f"alternative {_name}: {layout}")
+    def sub_stage(layout):
+        if stage is not None:
+            stage(f"alternatives: {layout}")
 
-        ds = run_study(reduced.replace(options=options), options, stage=sub_stage)
-        results[name] = evaluate_claims(ds, config.dof_fraction)
-    return results
+    datasets = run_study_variants(reduced, variants, stage=sub_stage)
+    return {name: evaluate_claims(ds, config.dof_fraction) for name, ds in datasets.items()}
 
 
 __all__ = [
     "ALTERNATIVES",
+    "BASELINE",
     "run_alternatives",
 ]

@@ -33,7 +33,7 @@ from ..options import ModelOptions
 from ..psf import polychromatic_otf
 from ..sampling import AliasingError, Sampling, finer_step
 from ..spectral import make_spectrum
-from ..through_focus import ThroughFocus, through_focus
+from ..through_focus import ThroughFocus, through_focus, through_focus_variants
 from .config import METRICS, StudyConfig, _planned_sampling, study_eyes
 
 # ----------------------------------------------------------------------------- one layout
@@ -123,12 +123,76 @@ def run_study(
     from the layout's native frequency grid), ``mtf_at_peak``, ``zernike_um``,
     ``freq_step_cpd``, ``n_fft``.
     """
-    import xarray as xr
-
     options = config.options if options is None else options
+    return _run_studies(config, {"": options}, stage, batched=False)[""]
+
+
+def run_study_variants(
+    config: StudyConfig, variants: dict[str, ModelOptions],
+    stage: Callable[[str], None] | None = None,
+) -> dict:
+    """:func:`run_study` under several model options, {name: ModelOptions} → {name: Dataset}.
+
+    Each layout's variants run as one batch (:func:`layout_through_focus_variants`: one
+    compiled program over their stacked :class:`~lfjax.options.ModelParameters`); ``stage``
+    is called once per layout. Each Dataset's ``compute_seconds`` is the whole batch's."""
+    return _run_studies(config, dict(variants), stage, batched=True)
+
+
+def layout_through_focus_variants(
+    eyes: Eyes, layout: Layout, depths_D, config: StudyConfig, options: list[ModelOptions],
+) -> list[tuple[ThroughFocus, Sampling]]:
+    """:func:`layout_through_focus` for several model options in one batch: each variant's
+    sampling planned (and, if the field would alias, made finer) on its own, as
+    :func:`layout_through_focus` does, then the variants computed together by
+    :func:`lfjax.through_focus.through_focus_variants` (one compiled call per sampling)."""
+    samplings = [_planned_sampling(eyes, layout, depths_D, config, o) for o in options]
+    for _ in range(16 * len(options)):
+        try:
+            tfs = through_focus_variants(
+                eyes, layout, np.asarray(depths_D, float), options,
+                accommodation_D=config.accommodation_D, window_D=config.window_D,
+                pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
+                wavelengths_nm=config.wavelength_grid_nm, samplings=samplings,
+                continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
+            )
+            return list(zip(jax.block_until_ready(tfs), samplings))
+        except AliasingError as err:
+            i = err.variant
+            samplings[i] = dataclasses.replace(
+                samplings[i], freq_step_cpd=finer_step(err, samplings[i].freq_step_cpd))
+    raise RuntimeError(f"no aliasing-free sampling found for layout {layout.name}")
+
+
+def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool) -> dict:
     eyes, labels = study_eyes(config)
     layouts = paper_layouts(config.pupil_diameter_mm)
-    spectrum = make_spectrum(config.wavelength_grid_nm, options)
+    depths = config.depths_D
+    per_layout = {name: [] for name in variants}  # variant → [(tf, sampling, seconds)]
+    spectra = {name: make_spectrum(config.wavelength_grid_nm, o) for name, o in variants.items()}
+    for name in config.layouts:
+        if stage is not None:
+            stage(name)
+        t0 = time.perf_counter()
+        layout_depths = np.array([config.cdp_D]) if name == "natural" else depths
+        if batched:
+            results = layout_through_focus_variants(eyes, layouts[name], layout_depths, config,
+                                                    list(variants.values()))
+        else:
+            results = [layout_through_focus(eyes, layouts[name], layout_depths, config,
+                                            spectra[v], o) for v, o in variants.items()]
+        seconds = time.perf_counter() - t0
+        for variant, (tf, sampling) in zip(variants, results):
+            per_layout[variant].append((tf, sampling, seconds))
+    return {variant: _study_dataset(config, o, eyes, labels, layouts, per_layout[variant])
+            for variant, o in variants.items()}
+
+
+def _study_dataset(config: StudyConfig, options: ModelOptions, eyes: Eyes, labels, layouts,
+                   per_layout):
+    """The study's Dataset from each layout's (ThroughFocus, Sampling, seconds)."""
+    import xarray as xr
+
     depths = config.depths_D
     acc = config.accommodation_D
     n_eye, n_depth, n_acc = len(labels), depths.size, acc.size
@@ -145,14 +209,8 @@ def run_study(
     native = {}
     steps, nffts, times, samplings = [], [], [], {}
     cdp_index = int(np.argmin(np.abs(depths - config.cdp_D)))
-    for li, name in enumerate(names):
-        if stage is not None:
-            stage(name)
-        t0 = time.perf_counter()
-        layout_depths = np.array([config.cdp_D]) if name == "natural" else depths
-        tf, sampling = layout_through_focus(eyes, layouts[name], layout_depths, config, spectrum,
-                                            options)
-        times.append(time.perf_counter() - t0)
+    for li, (name, (tf, sampling, seconds)) in enumerate(zip(names, per_layout)):
+        times.append(seconds)
         slots = [cdp_index] if name == "natural" else list(range(n_depth))
         vs[li][:, slots] = np.asarray(tf.vsotf, float)
         sr[li][:, slots] = np.asarray(tf.strehl, float)
@@ -408,6 +466,8 @@ def compute_examples(ds, config: StudyConfig = StudyConfig(), stage=None):  # no
 __all__ = [
     "compute_examples",
     "layout_through_focus",
+    "layout_through_focus_variants",
     "run_study",
+    "run_study_variants",
     "study_sampling",
 ]
