@@ -77,7 +77,7 @@ WAVELENGTH_STEPS_NM = (50.0, 25.0, 20.0, 10.0, 5.0)
 # Cost model: seconds per eye = FFT flops / R_fft + matrix-product flops / R_mm + pupil
 # samples evaluated × t_pupil. Calibrated by least squares on four warm pipeline runs on
 # the 2-core reference machine (2×2 and 4×4, FFT and MFT, 31 λ, 21 states, 3 eyes; fit within
-# 8 %); small transforms run well below the large-FFT rate of NOTES-deps. Only the ratio
+# 8 %); small transforms run well below the rate of large FFTs on this machine. Only the ratio
 # of the two paths matters for the choice, and benchmarks/speed_accuracy.py re-measures it.
 _FFT_FLOPS_PER_S = 4.1e9
 _MATMUL_FLOPS_PER_S = 92e9

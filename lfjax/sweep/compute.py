@@ -9,7 +9,8 @@ pipeline (:func:`lfjax.pipeline.retinal_metrics`), the grid and continuous peaks
 re-uses it for every chunk of the same size; it counts traces, so a recompilation per chunk
 is caught, not merely slow. With several local devices the eye axis is split over them with
 ``shard_map`` over a one-axis :class:`jax.sharding.Mesh` (each device runs its eyes' FFTs;
-plain ``jit`` with a ``NamedSharding`` would all-gather the FFT batch, see NOTES-deps).
+plain ``jit`` with a ``NamedSharding`` would all-gather the FFT batch: XLA does not
+partition an FFT along its batch axis).
 """
 
 from __future__ import annotations
