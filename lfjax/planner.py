@@ -19,7 +19,7 @@ How each choice is made (all on the host, in numpy; 1–30 s per plan):
   one converged proxy value (Richardson, order 2, from a half and a quarter of the largest
   admissible step, or a quarter and an eighth for tight targets), × ``ESTIMATE_SAFETY``.
 * **Wavelength step** (when only a range is given): proxy through-focus curves at each
-  candidate step against a 2.5 nm reference; the step must keep the VSOTF error within its
+  candidate step against a 5 nm reference; the step must keep the VSOTF error within its
   share of the tolerance and leave every proxy peak where it was.
 * **Zernike order**: the eyes' wavefront RMS above the kept order, converted to a VSOTF
   change by the Maréchal approximation (2πσ/λ)².
@@ -53,7 +53,7 @@ import scipy.fft as sfft
 
 from .display import DisplayOptics
 from .layouts import Layout, open_pupil
-from .metrics import _half_plane_weights_np, ncsf
+from .metrics import _half_plane_weights_np, _radial_bins, ncsf
 from .optics import field_radius_arcmin, pupil_window_size, sa_parameters
 from .options import ModelOptions
 from .sampling import EDGE_EXTENT_SCALES, EYE_BLOCK, Sampling, next_fast_size, wavelength_bands
@@ -71,8 +71,15 @@ ESTIMATE_SAFETY = 1.05
 """Factor on the proxy's VSOTF error estimates (calibration against the pipeline:
 benchmarks/planner_validation.py)."""
 
-WAVELENGTH_STEPS_NM = (50.0, 25.0, 20.0, 10.0, 5.0)
+WAVELENGTH_STEPS_NM = (50.0, 30.0, 25.0, 20.0, 10.0, 5.0)
 """Wavelength steps the planner chooses from (coarsest first)."""
+
+SPECTRAL_REFERENCE_STEP_NM = 5.0
+"""Wavelength step of the proxy's converged spectrum, against which candidate steps are
+measured. The V(λ)-weighted sum is a trapezoid rule on an integrand that vanishes at both
+ends of 400–700 nm, so it converges fast: on the study's eleven eyes 20 and 25 nm agree with
+5 nm to 8e-4 D in peaks and 0.06 cpd in natural-view cut-offs (benchmarks/RESULTS.md §18).
+(It was 2.5 nm; the 121-wavelength proxy cost 5–10 s per plan.)"""
 
 # Cost model: seconds per eye = FFT flops / R_fft + matrix-product flops / R_mm + pupil
 # samples evaluated × t_pupil. Calibrated by least squares on four warm pipeline runs on
@@ -120,11 +127,33 @@ class _Estimates:
     def _error(self, values) -> float:
         return ESTIMATE_SAFETY * float(np.max(np.abs(values - self.converged)))
 
+    def values(self, df: float) -> np.ndarray:
+        """Proxy VSOTF of the FFT path at frequency step df, per pair."""
+        key = ("values", round(df, 12))
+        if key not in self.cache:
+            self.cache[key] = self.proxy.vsotf(df, self.pairs)
+        return self.cache[key]
+
     def vsotf(self, df: float) -> float:
         """VSOTF error of the FFT path at frequency step df."""
-        key = ("fft", round(df, 12))
+        return self._error(self.values(df))
+
+    def peak_shift(self, df: float) -> float:
+        """Largest through-focus peak shift (D) of the FFT path at step df against the
+        converged curves (× the estimates' safety factor)."""
+        return ESTIMATE_SAFETY * _peak_shift_D(self.values(df), self.converged, self.pairs)
+
+    def cutoff_shift(self, df: float, threshold: float) -> float:
+        """Largest cut-off shift (cpd) of the FFT path at step df, at each depth's converged
+        peak state, against a quarter of the reference step (× the safety factor)."""
+        key = ("cutoff", round(df, 12), threshold)
         if key not in self.cache:
-            self.cache[key] = self._error(self.proxy.vsotf(df, self.pairs))
+            states = _peak_states(self.converged, self.pairs)
+            fine = ("cutoff-ref", threshold)
+            if fine not in self.cache:
+                self.cache[fine] = self.proxy.cutoffs(self.df_reference / 4.0, states, threshold)
+            self.cache[key] = ESTIMATE_SAFETY * float(np.max(np.abs(
+                self.proxy.cutoffs(df, states, threshold) - self.cache[fine])))
         return self.cache[key]
 
     def psf(self, df: float) -> tuple[float, float]:
@@ -592,10 +621,7 @@ class _Proxy:
         vs = num / den
         if not with_psf:
             return vs
-        psf = 0.0
-        for (_, maps), otf_g in zip(self.groups, rendered):
-            psf_g = np.fft.fftshift(sfft.irfft2(otf_g, s=(n_fft, n_fft), workers=-1), axes=(-2, -1))
-            psf = psf + sum(_map_psf(psf_g, m) for m in maps)
+        psf = self._psf(rendered, n_fft)
         energy = psf.sum(axis=(-2, -1))
         h = n_fft // 2
         folded = psf + np.roll(psf, h, -1) + np.roll(psf, h, -2) + np.roll(np.roll(psf, h, -1), h, -2)
@@ -613,6 +639,87 @@ class _Proxy:
 
         truncation = np.abs(vsotf_of(psf[:, c, c]) - vsotf_of(folded[:, c, c]))
         return vs[:-1], wrapped[:-1], float(truncation.max())
+
+
+    def _psf(self, rendered, n_fft: int) -> np.ndarray:
+        """The scene's PSF per pair (n_pairs, n_fft, n_fft), zero angle at the centre, from
+        each view group's rendered OTFs: every member adds the representative's PSF mapped
+        by its symmetry."""
+        psf = 0.0
+        for (_, maps), otf_g in zip(self.groups, rendered):
+            psf_g = np.fft.fftshift(sfft.irfft2(otf_g, s=(n_fft, n_fft), workers=-1), axes=(-2, -1))
+            psf = psf + sum(_map_psf(psf_g, m) for m in maps)
+        return psf
+
+    def cutoffs(self, df_cpd: float, pairs, threshold: float) -> np.ndarray:
+        """Cut-off frequency (cpd) of the radial MTF per pair, FFT path at step df: the
+        frequency where the meridian-averaged MTF first falls to ``threshold``, linearly
+        interpolated, as :func:`lfjax.metrics.cutoff_frequency` reads the pipeline's."""
+        return self.vsotf_and_cutoffs(df_cpd, pairs, threshold)[1]
+
+    def vsotf_and_cutoffs(self, df_cpd: float, pairs, threshold: float):
+        """(VSOTF, cut-off frequency in cpd) per pair of the FFT path at step df, from one
+        set of transforms."""
+        n_fft = Sampling(df_cpd, edge_width_samples=self.edge).window_size(
+            self.scene.largest_diameter_mm, float(self.wl.min()), self.scene.pupil_mm)
+        df_rad = df_cpd * DEGREES_PER_RADIAN
+        num, den, rendered = self._sums(pairs, lambda lam: lam * 1e-6 * df_rad, n_fft,
+                                        lambda lam: df_cpd, keep_otf=True)
+        psf = self._psf(rendered, n_fft)
+        otf = sfft.rfft2(np.fft.ifftshift(psf, axes=(-2, -1)), workers=-1)
+        modulus = np.abs(otf) / np.abs(otf[:, :1, :1])
+        index, weights, k = _radial_bins(n_fft)
+        radial = np.sum(modulus.reshape(modulus.shape[0], -1)[:, index] * weights, axis=-1)
+        return num / den, _first_crossing(radial, k * df_cpd, threshold)
+
+
+def _first_crossing(radial: np.ndarray, frequencies_cpd: np.ndarray, threshold: float) -> np.ndarray:
+    """numpy twin of :func:`lfjax.metrics.cutoff_frequency` (…, n_freq) → (…,) cpd."""
+    below = radial[..., 1:] <= threshold
+    idx = np.argmax(below, axis=-1) + 1
+    hi = np.take_along_axis(radial, idx[..., None], -1)[..., 0]
+    lo = np.take_along_axis(radial, (idx - 1)[..., None], -1)[..., 0]
+    frac = np.clip((lo - threshold) / np.where(lo - hi > 0, lo - hi, 1.0), 0.0, 1.0)
+    crossing = frequencies_cpd[idx - 1] + frac * (frequencies_cpd[idx] - frequencies_cpd[idx - 1])
+    return np.where(below.any(axis=-1), crossing, frequencies_cpd[-1])
+
+
+def _vertex_peaks(values, pairs) -> np.ndarray:
+    """Per depth (sorted): the vertex (D) of the parabola through the largest value and its
+    two neighbours in accommodation — how the pipeline's continuous peaks start — or NaN
+    where the largest value is at an end of the depth's states. The difference of two
+    curves' vertices is their VSOTF difference propagated through the curve's curvature
+    (first order: δa = −δV′/V″)."""
+    acc, dep = (np.asarray(x, float) for x in pairs)
+    values = np.asarray(values, float)
+    out = []
+    for d in np.unique(dep):
+        sel = np.nonzero(dep == d)[0]
+        sel = sel[np.argsort(acc[sel])]
+        a, v = acc[sel], values[sel]
+        i = int(np.argmax(v))
+        if i == 0 or i == a.size - 1:
+            out.append(np.nan)
+            continue
+        x0, x1, x2 = a[i - 1:i + 2]
+        y0, y1, y2 = v[i - 1:i + 2]
+        num = (x1 - x0) ** 2 * (y1 - y2) - (x1 - x2) ** 2 * (y1 - y0)
+        den = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0)
+        out.append(x1 - 0.5 * num / den if den != 0 else np.nan)
+    return np.asarray(out)
+
+
+def _peak_shift_D(values, reference, pairs) -> float:
+    """Largest shift (D) of the proxy's through-focus peak vertices from the reference's;
+    inf where one curve has its peak at an end of its states and the other not, or where
+    the two pick different grid peaks by more than one state."""
+    a, b = _vertex_peaks(values, pairs), _vertex_peaks(reference, pairs)
+    if np.any(np.isnan(a) != np.isnan(b)):
+        return float("inf")
+    both = np.isfinite(a)
+    grid_a, grid_b = np.asarray(_peaks(values, pairs)), np.asarray(_peaks(reference, pairs))
+    shift = np.where(both, np.abs(a - b), np.abs(grid_a - grid_b))
+    return float(np.max(shift)) if shift.size else 0.0
 
 
 # ----------------------------------------------------------------------------- cost
@@ -671,9 +778,19 @@ def _order_rms_um(zernike_um, measured_pupil_mm: float, pupil_mm: float) -> dict
     return out
 
 
-def _validate(vsotf_tolerance, psf_tolerance, margin, pupil_diameter_mm, wavelength_step_nm):
-    if not (0 < vsotf_tolerance < 0.5):
+def _validate(vsotf_tolerance, psf_tolerance, margin, pupil_diameter_mm, wavelength_step_nm,
+              peak_tolerance_D=None, cutoff_tolerance_cpd=None, cutoff_threshold=0.05):
+    if vsotf_tolerance is None and peak_tolerance_D is None and cutoff_tolerance_cpd is None:
+        raise ValueError("give an accuracy target: vsotf_tolerance, peak_tolerance_D or "
+                         "cutoff_tolerance_cpd")
+    if vsotf_tolerance is not None and not (0 < vsotf_tolerance < 0.5):
         raise ValueError(f"vsotf_tolerance must be in (0, 0.5), got {vsotf_tolerance}")
+    if peak_tolerance_D is not None and not (0 < peak_tolerance_D <= 0.5):
+        raise ValueError(f"peak_tolerance_D must be in (0, 0.5] D, got {peak_tolerance_D}")
+    if cutoff_tolerance_cpd is not None and not (0 < cutoff_tolerance_cpd <= 10):
+        raise ValueError(f"cutoff_tolerance_cpd must be in (0, 10] cpd, got {cutoff_tolerance_cpd}")
+    if not (0 < cutoff_threshold < 1):
+        raise ValueError(f"cutoff_threshold must be in (0, 1), got {cutoff_threshold}")
     if not (0 < psf_tolerance < 1):
         raise ValueError(f"psf_tolerance must be in (0, 1) (fraction of the PSF peak), got {psf_tolerance}")
     if not (margin >= 1):
@@ -703,8 +820,11 @@ def plan_sampling(
     accommodation_D=None,
     wavelength_range_nm: tuple[float, float] = (400.0, 700.0),
     wavelength_step_nm: float | None = None,
-    vsotf_tolerance: float = 1e-3,
+    vsotf_tolerance: float | None = 1e-3,
     psf_tolerance: float = 2e-3,
+    peak_tolerance_D: float | None = None,
+    cutoff_tolerance_cpd: float | None = None,
+    cutoff_threshold: float = 0.05,
     transform: str = "fft",
     mft_pupil_samples: int | None = None,
     max_zernike_order: int | None = None,
@@ -729,11 +849,20 @@ def plan_sampling(
         widen the field; their RMS per order sets the Zernike order)
     options : ModelOptions (LCA, SCE, NCSF and VSOTF reference as the study uses them)
 
-    Accuracy target
+    Accuracy target (in the units of the question; any combination, each one a bound)
     ---------------
-    vsotf_tolerance : largest VSOTF error (absolute) against a converged sampling
+    vsotf_tolerance : largest VSOTF error (absolute) against a converged sampling; None:
+        no VSOTF target (then every Zernike order is kept)
+    peak_tolerance_D : largest shift of a through-focus peak, D: the proxy's VSOTF error
+        propagated through each curve's curvature (the vertex of the parabola through the
+        peak and its neighbours, candidate against converged); half of it for the
+        wavelength step, half for the frequency step
+    cutoff_tolerance_cpd : largest shift of a cut-off frequency, cpd (the proxy's radial MTF
+        at each depth's peak state falling to ``cutoff_threshold``; the MTF's error read
+        through its slope); split as the peak target
     psf_tolerance : largest PSF intensity wrapped back into the field, relative to its peak
-    The target also asks that no proxy through-focus peak moves (wavelength step).
+    Without ``peak_tolerance_D`` the wavelength step must also leave every proxy
+    through-focus grid peak where it was.
 
     Overrides (each fixes one choice; the rest is still planned)
     ---------
@@ -757,9 +886,13 @@ def plan_sampling(
     Guard parameters: margin (field safety factor ≥ 1), wrap_tolerance (spectral weight
     allowed to wrap), min_samples_per_subaperture (floor on pupil samples).
     """
-    _validate(vsotf_tolerance, psf_tolerance, margin, pupil_diameter_mm, wavelength_step_nm)
+    _validate(vsotf_tolerance, psf_tolerance, margin, pupil_diameter_mm, wavelength_step_nm,
+              peak_tolerance_D, cutoff_tolerance_cpd, cutoff_threshold)
     if transform not in ("auto", "fft", "mft"):
         raise ValueError(f"transform must be 'auto', 'fft' or 'mft', got {transform!r}")
+    if transform != "fft" and vsotf_tolerance is None and estimate_accuracy:
+        raise ValueError(f"transform={transform!r} plans the MFT's pupil samples for a VSOTF "
+                         "target: give vsotf_tolerance (the D / cpd targets plan the FFT path)")
     layout = open_pupil(pupil_diameter_mm) if layout is None else layout
     if pairs is None:
         pair_acc, pair_depth = _scene_pairs(depths_D, accommodation_D, accommodation_window_D)
@@ -782,12 +915,16 @@ def plan_sampling(
             raise ValueError(f"wavelength_range_nm must be increasing, got {wavelength_range_nm}")
         step_choice = wavelength_step_nm
         wl = None
-    budget = vsotf_tolerance
+    # Without a VSOTF target the VSOTF budget is unbounded: the D/cpd targets decide.
+    budget = math.inf if vsotf_tolerance is None else float(vsotf_tolerance)
 
     # --- Zernike order
     errors: dict[str, float] = {}
     order_kept = max_zernike_order
-    if eyes_zernike_um is not None:
+    if eyes_zernike_um is not None and vsotf_tolerance is None and order_kept is None:
+        errors["zernike"] = 0.0
+        reasons.append("Zernike: every order kept (no VSOTF target to spend on truncation)")
+    elif eyes_zernike_um is not None:
         rms = _order_rms_um(eyes_zernike_um, measured_pupil_mm, pupil_diameter_mm)
         orders = sorted(o for o in rms if o >= 2)
         if order_kept is None:
@@ -831,32 +968,54 @@ def plan_sampling(
         peak = scene.peak_pairs()
         lo, hi = map(float, wavelength_range_nm)
 
-        def proxy_curve(step):
+        def proxy_spectrum(step):
             grid = np.arange(lo, hi + 1e-6, step)
-            p = _Proxy(scene, make_spectrum(grid, options), edge_width_samples, n_wavelengths=grid.size)
-            return p.vsotf(spec_proxy_df, peak)
+            return _Proxy(scene, make_spectrum(grid, options), edge_width_samples,
+                          n_wavelengths=grid.size)
 
-        ref = proxy_curve(2.5)
+        def curves(proxy_step):
+            # Cut-offs at every state near each depth's peak, not the peak alone: a real
+            # eye's aberrations blur it like the proxy's defocus, and a blurred MTF crosses
+            # the threshold with a shallow slope, where a spectral error moves it most.
+            if cutoff_tolerance_cpd is None:
+                return proxy_step.vsotf(spec_proxy_df, peak), None
+            return proxy_step.vsotf_and_cutoffs(spec_proxy_df, peak, cutoff_threshold)
+
+        ref, ref_cut = curves(proxy_spectrum(SPECTRAL_REFERENCE_STEP_NM))
         ref_peak = _peaks(ref, peak)
         candidates = [step_choice] if step_choice is not None else [
-            s for s in WAVELENGTH_STEPS_NM if abs((hi - lo) / s - round((hi - lo) / s)) < 1e-9]
+            s for s in WAVELENGTH_STEPS_NM if abs((hi - lo) / s - round((hi - lo) / s)) < 1e-9
+            and s > SPECTRAL_REFERENCE_STEP_NM]
         chosen = None
         for step in candidates:
-            v = proxy_curve(step)
+            v, cuts = curves(proxy_spectrum(step))
             err = float(np.max(np.abs(v - ref)))
             same_peak = _peaks(v, peak) == ref_peak
-            if step_choice is not None or (err <= 0.5 * budget and same_peak):
+            shift = _peak_shift_D(v, ref, peak)
+            cut = float(np.max(np.abs(cuts - ref_cut))) if cuts is not None else float("nan")
+            ok = err <= 0.5 * budget
+            ok &= shift <= 0.5 * peak_tolerance_D if peak_tolerance_D is not None else same_peak
+            ok &= cutoff_tolerance_cpd is None or cut <= 0.5 * cutoff_tolerance_cpd
+            if step_choice is not None or ok:
                 chosen, errors["spectral"] = step, err
+                errors["spectral_peak_D"], errors["spectral_cutoff_cpd"] = shift, cut
                 reasons.append(
-                    f"wavelength step {step:g} nm: proxy VSOTF error {err:.2g} against 2.5 nm "
-                    f"(budget {0.5 * budget:.2g}), peaks {'unchanged' if same_peak else 'MOVED'}"
+                    f"wavelength step {step:g} nm against {SPECTRAL_REFERENCE_STEP_NM:g} nm on the proxy: VSOTF error "
+                    f"{err:.2g} (budget {0.5 * budget:.2g}), peaks "
+                    + (f"moved ≤ {shift:.2g} D (budget {0.5 * peak_tolerance_D:.2g})"
+                       if peak_tolerance_D is not None else
+                       ('unchanged' if same_peak else 'MOVED'))
+                    + (f", cut-offs moved ≤ {cut:.2g} cpd (budget {0.5 * cutoff_tolerance_cpd:.2g})"
+                       if cutoff_tolerance_cpd is not None else "")
                     + (" (user's step)" if step_choice is not None else "")
                 )
                 break
-        if chosen is None:
-            chosen = WAVELENGTH_STEPS_NM[-1]
-            errors["spectral"] = float(np.max(np.abs(proxy_curve(chosen) - ref)))
-            reasons.append(f"wavelength step {chosen:g} nm: the finest candidate (budget not met)")
+        if chosen is None:  # no coarser step meets the targets: the reference's own step
+            chosen = SPECTRAL_REFERENCE_STEP_NM
+            errors["spectral"] = 0.0
+            errors["spectral_peak_D"] = errors["spectral_cutoff_cpd"] = 0.0
+            reasons.append(f"wavelength step {chosen:g} nm: the reference step (no coarser "
+                           f"candidate met the targets)")
         wl = np.arange(lo, hi + 1e-6, chosen)
     else:
         errors["spectral"] = float("nan")
@@ -896,13 +1055,25 @@ def plan_sampling(
         df_candidates = [df_top / 2.0 ** (k / STEPS_PER_OCTAVE) for k in range(0, 24)]
     fft_plan = None
     mft_field = None
-    estimates = _Estimates(proxy, pairs, df_candidates[0], budget)
+    estimates = _Estimates(proxy, pairs, df_candidates[0],
+                           budget if math.isfinite(budget) else 1e-3)
+    # what the wavelength step left of the D / cpd targets (all of them for a given spectrum)
+    peak_budget = cutoff_budget = None
+    if peak_tolerance_D is not None:
+        peak_budget = peak_tolerance_D - np.nan_to_num(errors.get("spectral_peak_D", 0.0))
+    if cutoff_tolerance_cpd is not None:
+        cutoff_budget = cutoff_tolerance_cpd - np.nan_to_num(errors.get("spectral_cutoff_cpd", 0.0))
     found_at = None
     for i, df in enumerate(df_candidates):
         if fft_plan is not None and (mft_field is not None or transform == "fft" or i > found_at + 3):
             break
         e_pupil = estimates.vsotf(df)
-        want_fft = fft_plan is None and (e_pupil <= budget or freq_step_cpd is not None)
+        meets = e_pupil <= budget
+        if meets and peak_budget is not None:
+            meets = estimates.peak_shift(df) <= peak_budget
+        if meets and cutoff_budget is not None:
+            meets = estimates.cutoff_shift(df, cutoff_threshold) <= cutoff_budget
+        want_fft = fft_plan is None and (meets or freq_step_cpd is not None)
         want_mft = transform != "fft" and mft_field is None
         if not (want_fft or want_mft):
             continue  # the PSF on twice the field is the costly part: only where it decides
@@ -987,9 +1158,28 @@ def plan_sampling(
                 if e > budget:
                     cheaper["pupil"] = (dataclasses.replace(sampling, freq_step_cpd=up),
                                         f"df {up:.4g} cpd: VSOTF error {e:.2g} > budget {budget:.2g}")
+                elif peak_budget is not None and estimates.peak_shift(up) > peak_budget:
+                    cheaper["pupil"] = (dataclasses.replace(sampling, freq_step_cpd=up),
+                                        f"df {up:.4g} cpd: peaks shift {estimates.peak_shift(up):.2g} D "
+                                        f"> {peak_budget:.2g} D")
+                elif (cutoff_budget is not None
+                      and estimates.cutoff_shift(up, cutoff_threshold) > cutoff_budget):
+                    cheaper["pupil"] = (dataclasses.replace(sampling, freq_step_cpd=up),
+                                        f"df {up:.4g} cpd: cut-offs shift "
+                                        f"{estimates.cutoff_shift(up, cutoff_threshold):.2g} cpd "
+                                        f"> {cutoff_budget:.2g} cpd")
             if wrapped_up > psf_tolerance:
                 cheaper["field"] = (dataclasses.replace(sampling, freq_step_cpd=up),
                                     f"df {up:.4g} cpd: wrapped PSF/peak {wrapped_up:.2g} > {psf_tolerance:g}")
+    if peak_tolerance_D is not None and not use_mft:
+        errors["peak_D"] = np.nan_to_num(errors.get("spectral_peak_D", 0.0)) + \
+            estimates.peak_shift(sampling.freq_step_cpd)
+        reasons.append(f"peaks: proxy shift ≤ {errors['peak_D']:.2g} D (target {peak_tolerance_D:g} D)")
+    if cutoff_tolerance_cpd is not None and not use_mft:
+        errors["cutoff_cpd"] = np.nan_to_num(errors.get("spectral_cutoff_cpd", 0.0)) + \
+            estimates.cutoff_shift(sampling.freq_step_cpd, cutoff_threshold)
+        reasons.append(f"cut-offs: proxy shift ≤ {errors['cutoff_cpd']:.2g} cpd "
+                       f"(target {cutoff_tolerance_cpd:g} cpd)")
     errors["total"] = errors["pupil"] + errors["zernike"] + (
         errors["spectral"] if np.isfinite(errors["spectral"]) else 0.0)
     return Plan(
@@ -997,6 +1187,13 @@ def plan_sampling(
         cost, cheaper, bands, _fft_work(bands, layout.n_subapertures), options, reasons,
         weights_kept,
     )
+
+
+def _peak_states(values, pairs) -> tuple[np.ndarray, np.ndarray]:
+    """(accommodation, depth) of each depth's largest value: one pair per depth."""
+    acc, dep = pairs
+    depths = np.unique(dep)
+    return np.asarray(_peaks(values, pairs)), depths
 
 
 def _peaks(values, pairs) -> tuple:

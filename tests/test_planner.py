@@ -270,3 +270,97 @@ def test_proxy_mft_equals_the_pipeline_mft():
     ours = planner._Proxy(scene, spectrum, 0.25).vsotf(
         df, (acc.ravel(), dep.ravel()), transform="mft", mft_samples=samples)
     np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), rtol=0, atol=1e-6)
+
+
+# ----------------------------------------------------------------------------- targets in D and cpd
+
+
+def test_vertex_shift_is_the_error_slope_over_the_curvature():
+    """The peak error the planner reads is the VSOTF error propagated through the curve's
+    curvature: a parabola of curvature κ plus an error of slope s moves its vertex by s/κ
+    exactly, and the planner's vertex reads that shift."""
+    acc = np.round(np.arange(1.0, 3.01, 0.2), 9)
+    pairs = (acc, np.full(acc.size, 2.0))
+    kappa, top = 1.6, 2.07  # 1/D², D
+    curve = 0.5 - 0.5 * kappa * (acc - top) ** 2
+    assert planner._vertex_peaks(curve, pairs)[0] == pytest.approx(top, abs=1e-12)
+    for slope in (-3e-3, 1e-3, 4e-3):
+        shifted = curve + slope * (acc - 2.0)
+        assert planner._peak_shift_D(shifted, curve, pairs) == pytest.approx(
+            abs(slope) / kappa, rel=1e-9)
+    # a peak at the end of the states has no vertex: a shift there cannot be judged small
+    edge = 0.5 - 0.5 * kappa * (acc - 3.2) ** 2
+    assert np.isnan(planner._vertex_peaks(edge, pairs)[0])
+    assert planner._peak_shift_D(edge, curve, pairs) == math.inf
+
+
+def test_first_crossing_is_the_pipelines_cutoff_rule():
+    import jax.numpy as jnp
+
+    from lfjax.metrics import cutoff_frequency
+
+    rng = np.random.default_rng(3)
+    freqs = np.arange(40) * 0.8
+    radial = np.sort(rng.uniform(0.0, 1.0, (6, 40)), axis=-1)[:, ::-1].copy()
+    radial[:, 0] = 1.0
+    radial[5] = np.linspace(1.0, 0.2, 40)  # never reaches the threshold: the last frequency
+    for threshold in (0.05, 0.3):
+        np.testing.assert_allclose(
+            planner._first_crossing(radial, freqs, threshold),
+            np.asarray(cutoff_frequency(jnp.asarray(radial), jnp.asarray(freqs), threshold)),
+            atol=1e-5)
+
+
+def test_proxy_cutoffs_equal_the_pipeline():
+    """For the aberration-free eye the proxy's cut-offs (its views' PSFs assembled by
+    symmetry, ring-averaged MTF, first crossing) are the pipeline's."""
+    from lfjax.metrics import cutoff_frequency
+
+    layout, df = lfjax.grid_layout(3, 3.0), 1.3
+    depths, states = [1.0, 3.0], np.array([0.6, 1.0, 2.6, 3.0, 3.4])
+    spectrum = lfjax.make_spectrum(WAVELENGTHS)
+    tf = through_focus(lfjax.eyes.aberration_free_eye(), layout, depths, states,
+                       pupil_diameter_mm=3.0, spectrum=spectrum, sampling=lfjax.Sampling(df),
+                       check_aliasing=False)
+    expected = np.asarray(cutoff_frequency(tf.radial_mtf[0], tf.radial_freq_cpd, 0.05)).ravel()
+    acc, dep = np.meshgrid(states, depths)
+    scene = planner._Scene(layout, 3.0, 2.0, acc.ravel(), dep.ravel(), lfjax.ModelOptions())
+    vs, cut = planner._Proxy(scene, spectrum, 0.25).vsotf_and_cutoffs(
+        df, (acc.ravel(), dep.ravel()), 0.05)
+    np.testing.assert_allclose(cut, expected, atol=1e-3)
+    np.testing.assert_allclose(vs, np.asarray(tf.vsotf)[0].ravel(), atol=1e-6)
+
+
+def test_peak_and_cutoff_targets_choose_the_wavelength_step():
+    """With targets in D and cpd the wavelength step is the coarsest whose proxy peaks and
+    cut-offs stay within half of each target; a tighter peak target never picks a coarser
+    step, and the plan reports what it measured."""
+    scene = dict(layout=lfjax.grid_layout(2, 3.0), depths_D=[1.0, 2.0],
+                 accommodation_window_D=0.6, wavelength_range_nm=(400.0, 700.0),
+                 vsotf_tolerance=None, estimate_accuracy=False)
+    loose = plan_sampling(peak_tolerance_D=0.05, cutoff_tolerance_cpd=1.0, **scene)
+    tight = plan_sampling(peak_tolerance_D=2e-4, cutoff_tolerance_cpd=0.05, **scene)
+    def step(plan):
+        return plan.wavelengths_nm[1] - plan.wavelengths_nm[0]
+
+    assert step(tight) < step(loose) < 50.0
+    for plan, (peak, cut) in ((loose, (0.05, 1.0)), (tight, (2e-4, 0.05))):
+        if plan.wavelengths_nm[1] - plan.wavelengths_nm[0] > planner.SPECTRAL_REFERENCE_STEP_NM:
+            assert plan.errors["spectral_peak_D"] <= 0.5 * peak
+            assert plan.errors["spectral_cutoff_cpd"] <= 0.5 * cut
+    assert "peaks moved" in loose.summary() and "cut-offs moved" in loose.summary()
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(vsotf_tolerance=None), "accuracy target"),
+        (dict(vsotf_tolerance=None, peak_tolerance_D=0.0), "peak_tolerance_D"),
+        (dict(cutoff_tolerance_cpd=-1.0), "cutoff_tolerance_cpd"),
+        (dict(cutoff_threshold=1.5), "cutoff_threshold"),
+        (dict(vsotf_tolerance=None, peak_tolerance_D=0.01, transform="mft"), "vsotf_tolerance"),
+    ],
+)
+def test_bad_targets_name_the_parameter(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        plan_sampling(depths_D=[2.0], wavelengths_nm=WAVELENGTHS, **kwargs)
