@@ -15,7 +15,7 @@ them out), and ``--full`` the default study (``lfjax reproduce``, alternatives i
 folder again for a warm one).
 
 Run:  PYTHONPATH=. .venv/bin/python benchmarks/count_compiles.py --cache DIR --out DIR
-      [--alternatives | --full]
+      [--alternatives | --full] [--accuracy claims|vsotf]
 """
 
 from __future__ import annotations
@@ -37,6 +37,8 @@ def main(argv=None) -> int:
                         help="quick study with the modelling alternatives")
     parser.add_argument("--full", action="store_true",
                         help="the default (full) study, alternatives included")
+    parser.add_argument("--accuracy", choices=("claims", "vsotf"), default=None,
+                        help="passed to lfjax reproduce (default: its own)")
     args = parser.parse_args(argv)
     os.environ["LFJAX_CACHE_DIR"] = str(Path(args.cache).resolve())
 
@@ -71,7 +73,9 @@ def main(argv=None) -> int:
         from lfjax.cli import main as cli_main
 
         quick = [] if args.full else ["--quick"]
-        rc = cli_main(["reproduce", *quick, "--out", args.out, "--force", "--no-progress"])
+        accuracy = [] if args.accuracy is None else ["--accuracy", args.accuracy]
+        rc = cli_main(["reproduce", *quick, *accuracy, "--out", args.out, "--force",
+                       "--no-progress"])
     wall = time.perf_counter() - t0
     events = counts["/jax/core/compile/backend_compile_duration"]
     hits = counts["/jax/compilation_cache/cache_hits"]
@@ -87,6 +91,7 @@ def main(argv=None) -> int:
         "largest_backend_compiles_s": sorted(largest, reverse=True)[:6],
         "load_average": [round(x, 2) for x in os.getloadavg()],
         "run": "full" if args.full else "quick + alternatives" if args.alternatives else "quick",
+        "accuracy": args.accuracy or "default",
     }
     print(json.dumps(result))
     return rc

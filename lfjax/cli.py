@@ -46,6 +46,7 @@ from .layout_opt import (
 )
 from .panel import PRESETS
 from .reproduce import OutputError, StudyConfig, check_output_dir, check_population, reproduce
+from .reproduce.config import ACCURACY_PLANS
 from .sampling import Sampling
 from .sweep import (
     StoreMismatchError,
@@ -172,7 +173,9 @@ def build_parser() -> argparse.ArgumentParser:
             "at 2 D; natural view and 2x2, 3x3, 4x4 viewpoints in the pupil; points rendered\n"
             "at -2 ... +2 D from the CDP in 0.5 D steps (0 ... 4 D absolute); accommodation\n"
             "through focus on a 0 ... 5 D grid in 0.2 D steps (each depth within +-2 D);\n"
-            "400-700 nm in 10 nm steps, reference wavelength 550 nm; N seeded virtual eyes\n"
+            "400-700 nm, each layout's wavelength step planned so that no peak moves by\n"
+            "more than 0.01 D and no cut-off by more than 0.25 cpd (--accuracy),\n"
+            "reference wavelength 550 nm; N seeded virtual eyes\n"
             "(Thibos et al. 2002) plus the average eye; accommodation predicted by the\n"
             "peaks of VSOTF and of the Strehl ratio; radial MTFs and cut-off frequencies\n"
             "(MTF 0.05). The paper's findings are checked as claims in REPORT.md, also\n"
@@ -203,6 +206,11 @@ def build_parser() -> argparse.ArgumentParser:
                           "CDP, CDP+2 D, accommodation in 0.5 D steps, 30 nm wavelength "
                           "steps, no modelling-choice alternatives; its numbers are not the "
                           "paper's")
+    rep.add_argument("--accuracy", choices=ACCURACY_PLANS, default=None,
+                     help="how the spectrum is sampled: 'claims' (default) plans each "
+                          "layout's wavelength step for peaks to 0.01 D and cut-offs to "
+                          "0.25 cpd; 'vsotf' uses 10 nm steps (lfjax 0.3's plan, made for a "
+                          "VSOTF error of 1e-3). --quick: 30 nm steps")
     rep.add_argument("--no-alternatives", action="store_true",
                      help="skip the reruns under alternative modelling choices (Stiles-"
                           "Crawford form, accommodation spherical aberration, LCA constant)")
@@ -438,6 +446,8 @@ def _reproduce(args, t_start: float) -> int:
             config = StudyConfig(n_eyes=args.eyes or 10, seed=args.seed)
         if args.no_alternatives:
             config = config.replace(alternatives=False)
+        if args.accuracy is not None:
+            config = config.replace(accuracy=args.accuracy)
         if args.population is not None:
             check_population(args.population, config)
         if args.display_effects and args.display_eyes > config.n_eyes:

@@ -137,7 +137,7 @@ def test_quick_run_report_states_every_claim(quick_run):
 def test_help_explains_every_option_with_units(capsys):
     code, out, _ = run_main(capsys, "reproduce", "--help")
     assert code == 0
-    for option in ("--out", "--eyes", "--seed", "--quick", "--force"):
+    for option in ("--out", "--eyes", "--seed", "--quick", "--force", "--accuracy"):
         assert option in out
     for unit in (" D", "cpd", "nm", "mm"):
         assert unit in out
@@ -148,6 +148,7 @@ def test_help_explains_every_option_with_units(capsys):
     (["reproduce", "--eyes", "-3"], "--eyes"),
     (["reproduce", "--eyes", "many"], "--eyes"),
     (["reproduce", "--seed", "-1"], "--seed"),
+    (["reproduce", "--accuracy", "fast"], "--accuracy"),
     (["reproduce", "--bogus"], "unrecognized arguments"),
     (["frobnicate"], "invalid choice"),
 ])
@@ -229,10 +230,43 @@ def test_config_validation():
     for bad in ((("5x5", 48),), (("4x4", 8),), (("4x4", 48.5),), (("4x4",),)):
         with pytest.raises(ValueError, match="mft_pupil_samples"):
             rep.StudyConfig(mft_pupil_samples=bad)
-    reduced = rep.StudyConfig().reduced()
+    for bad, match in ((dict(accuracy="fast"), "accuracy"),
+                       (dict(peak_tolerance_D=0.0), "peak_tolerance_D"),
+                       (dict(cutoff_tolerance_cpd=-0.25), "cutoff_tolerance_cpd"),
+                       (dict(wavelength_steps_nm=(("5x5", 25.0),)), "wavelength_steps_nm")):
+        with pytest.raises(ValueError, match=match):
+            rep.StudyConfig(**bad)
+    reduced = rep.StudyConfig(accuracy="vsotf").reduced()
     assert reduced.mft_pupil_samples == (("4x4", 48),)
     assert reduced.depth_offsets_D == (-2.0, -1.0, 0.0, 1.0, 2.0)
     assert reduced.wavelengths_nm[2] == 20.0 and not reduced.alternatives
+    # the question's plan: the alternatives reuse the main study's planned steps
+    reduced = rep.StudyConfig().reduced({"2x2": 25.0, "natural": 20.0})
+    assert dict(reduced.wavelength_steps_nm) == {"2x2": 25.0, "natural": 20.0}
+    assert reduced.accuracy == "claims" and not reduced.alternatives
+
+
+def test_accuracy_plans_the_wavelength_step_per_layout():
+    """``accuracy="claims"`` asks the planner for each layout's wavelength step (the
+    peak and cut-off targets), ``"vsotf"`` keeps the fixed grid, and a step fixed in
+    ``wavelength_steps_nm`` is used as given."""
+    from lfjax.layouts import paper_layouts
+    from lfjax.reproduce.config import _planned_sampling, study_eyes
+
+    config = rep.StudyConfig(n_eyes=1, depth_offsets_D=(-1.0, 0.0, 1.0))
+    eyes, _ = study_eyes(config)
+    layout = paper_layouts(3.0)["4x4"]
+    _, planned = _planned_sampling(eyes, layout, config.depths_D, config, config.options)
+    step = planned[1] - planned[0]
+    assert 10.0 < step < 50.0 and planned[0] == 400.0 and planned[-1] == 700.0
+    _, fixed = _planned_sampling(eyes, layout, config.depths_D,
+                                 config.replace(accuracy="vsotf"), config.options)
+    np.testing.assert_allclose(fixed, config.wavelength_grid_nm)
+    sampling, given = _planned_sampling(
+        eyes, layout, config.depths_D, config.replace(wavelength_steps_nm=(("4x4", 50.0),)),
+        config.options)
+    np.testing.assert_allclose(given, [400.0, 450.0, 500.0, 550.0, 600.0, 650.0, 700.0])
+    assert sampling.transform == "mft"  # the 4x4's MFT is kept under either plan
 
 
 def test_dof_definition():

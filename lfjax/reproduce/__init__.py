@@ -68,7 +68,13 @@ from .report import (
     summary_table,
     write_report,
 )
-from .study import compute_examples, layout_through_focus, run_study, study_sampling
+from .study import (
+    compute_examples,
+    layout_through_focus,
+    run_study,
+    study_sampling,
+    study_wavelength_steps,
+)
 
 MARKER_FILE = ".lfjax-reproduce"
 """Empty file marking a folder written by :func:`reproduce` (``--force`` replaces only these)."""
@@ -285,7 +291,9 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         ds = run_study(config, stage=lambda n: stage(f"through-focus {n}"))
         examples = compute_examples(ds, config, stage=stage)
         claims = evaluate_claims(ds, config.dof_fraction)
-        alternatives = run_alternatives(config, stage=stage) if config.alternatives else {}
+        alternatives = (run_alternatives(config, stage=stage,
+                                         wavelength_steps_nm=study_wavelength_steps(ds))
+                        if config.alternatives else {})
         population = None
         if population_store is not None:
             stage("population: samples of the study's size")

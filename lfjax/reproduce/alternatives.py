@@ -31,13 +31,15 @@ BASELINE = "baseline (reduced)"
 """Name of the baseline rerun on the reduced set, the first entry of :func:`run_alternatives`."""
 
 
-def run_alternatives(config: StudyConfig, stage=None) -> dict:
+def run_alternatives(config: StudyConfig, stage=None, wavelength_steps_nm=None) -> dict:
     """Claims under each modelling-choice alternative on :meth:`StudyConfig.reduced`.
 
+    ``wavelength_steps_nm``: {layout: step nm} to reuse (the main study's plan,
+    :func:`~lfjax.reproduce.study.study_wavelength_steps`); else each layout's is planned.
     Returns {variant: list[Claim]} with a ``"baseline (reduced)"`` entry computed on the
     same reduced set first.
     """
-    reduced = config.reduced()
+    reduced = config.reduced(wavelength_steps_nm)
     variants = {name: config.options.replace(**change)
                 for name, change in ({BASELINE: {}} | ALTERNATIVES).items()}
 

@@ -28,6 +28,12 @@ from ..sampling import Sampling
 
 METRICS = ("vsotf", "strehl")
 
+ACCURACY_PLANS = ("claims", "vsotf")
+"""How the study samples the spectrum: ``"claims"`` plans each layout's wavelength step for
+what the claims read (peaks to ``peak_tolerance_D``, cut-offs to ``cutoff_tolerance_cpd``);
+``"vsotf"`` uses the fixed ``wavelengths_nm`` grid (400–700 nm in 10 nm steps, the plan of
+lfjax ≤ 0.3, made for a VSOTF error of 1e-3)."""
+
 
 def _grid(start: float, stop: float, step: float) -> tuple[float, ...]:
     n = int(math.floor((stop - start) / step + 1e-9)) + 1
@@ -69,6 +75,21 @@ class StudyConfig:
         Snellen E height for the simulated retinal images (Fig. 9).
     alternatives : bool
         Run the modelling-choice alternatives (on a reduced set, see :meth:`reduced`).
+    accuracy : ``"claims"`` or ``"vsotf"`` (:data:`ACCURACY_PLANS`)
+        ``"claims"`` (default): each layout's wavelength step is planned
+        (:func:`lfjax.planner.plan_sampling` over ``wavelengths_nm``' range) so that no
+        through-focus peak moves by more than ``peak_tolerance_D`` and no cut-off by more
+        than ``cutoff_tolerance_cpd``; ``"vsotf"``: the fixed ``wavelengths_nm`` grid.
+        Either way the frequency step is the field guard's.
+    peak_tolerance_D : float, D
+        Peak target of the ``"claims"`` plan (the claims compare peaks to 0.2 D and
+        means to 0.25 D; 0.01 D leaves them a twentieth).
+    cutoff_tolerance_cpd : float, cpd
+        Cut-off target of the ``"claims"`` plan (the cut-off claims compare layouts that
+        differ by several cpd).
+    wavelength_steps_nm : ((layout, step nm), ...)
+        Wavelength steps fixed per layout instead of planned (the alternatives reuse the
+        main study's plan, so each change is measured on the same spectrum).
     mft_pupil_samples : ((layout, samples), ...)
         Layouts whose elemental PSFs come from the matrix Fourier transform with this many
         pupil samples across a view (:class:`~lfjax.Sampling`), at the field guard's
@@ -98,6 +119,10 @@ class StudyConfig:
     alternatives: bool = True
     mft_pupil_samples: tuple[tuple[str, int], ...] = (("4x4", 48),)
     label: str = "full"
+    accuracy: str = "claims"
+    peak_tolerance_D: float = 0.01
+    cutoff_tolerance_cpd: float = 0.25
+    wavelength_steps_nm: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self):
         if int(self.n_eyes) != self.n_eyes or self.n_eyes < 1:
@@ -121,6 +146,17 @@ class StudyConfig:
             )
         if not (0 < self.cutoff_threshold < 1 and 0 < self.dof_fraction < 1):
             raise ValueError("cutoff_threshold and dof_fraction must be in (0, 1)")
+        if self.accuracy not in ACCURACY_PLANS:
+            raise ValueError(f"accuracy must be one of {ACCURACY_PLANS}, got {self.accuracy!r}")
+        if not (0 < self.peak_tolerance_D <= 0.5):
+            raise ValueError(f"peak_tolerance_D must be in (0, 0.5] D, got {self.peak_tolerance_D}")
+        if not (0 < self.cutoff_tolerance_cpd <= 10):
+            raise ValueError(
+                f"cutoff_tolerance_cpd must be in (0, 10] cpd, got {self.cutoff_tolerance_cpd}")
+        for entry in self.wavelength_steps_nm:
+            if len(entry) != 2 or entry[0] not in PAPER_LAYOUTS or not (0 < entry[1] <= 100):
+                raise ValueError(f"wavelength_steps_nm must hold (layout, step in (0, 100] nm) "
+                                 f"pairs with a layout in {PAPER_LAYOUTS}, got {entry!r}")
         for entry in self.mft_pupil_samples:
             if (len(entry) != 2 or entry[0] not in PAPER_LAYOUTS
                     or int(entry[1]) != entry[1] or entry[1] < 16):
@@ -136,21 +172,26 @@ class StudyConfig:
         base = dict(
             n_eyes=n_eyes, seed=seed, depth_offsets_D=(-2.0, 0.0, 2.0),
             accommodation_step_D=0.5, wavelengths_nm=(400.0, 700.0, 30.0),
-            alternatives=False, label="quick",
+            alternatives=False, label="quick", accuracy="vsotf",
         )
         base.update(changes)
         return cls(**base)
 
-    def reduced(self) -> StudyConfig:
+    def reduced(self, wavelength_steps_nm=None) -> StudyConfig:
         """The reduced set on which modelling-choice alternatives run: the same eyes and
-        accommodation grid, rendered depths CDP−2 … CDP+2 in 1 D steps, 20 nm wavelength
-        steps (a baseline is rerun on the same set, so changes are like for like)."""
+        accommodation grid, rendered depths CDP−2 … CDP+2 in 1 D steps (a baseline is rerun
+        on the same set, so changes are like for like). Wavelengths: with the ``"claims"``
+        plan, ``wavelength_steps_nm`` ({layout: step nm}, the main study's plan) or each
+        layout's own plan; with ``"vsotf"``, 20 nm steps."""
         offsets = tuple(d for d in self.depth_offsets_D if abs(d - round(d)) < 1e-9)
         start, stop, step = self.wavelengths_nm
-        return dataclasses.replace(
-            self, depth_offsets_D=offsets, wavelengths_nm=(start, stop, max(step, 20.0)),
-            alternatives=False, label=f"{self.label}-reduced",
-        )
+        changes = dict(depth_offsets_D=offsets, alternatives=False, label=f"{self.label}-reduced")
+        if self.accuracy == "vsotf":
+            changes["wavelengths_nm"] = (start, stop, max(step, 20.0))
+        elif wavelength_steps_nm:
+            changes["wavelength_steps_nm"] = tuple(
+                (name, float(v)) for name, v in dict(wavelength_steps_nm).items())
+        return dataclasses.replace(self, **changes)
 
     def replace(self, **changes) -> StudyConfig:
         return dataclasses.replace(self, **changes)
@@ -198,27 +239,45 @@ def study_eyes(config: StudyConfig) -> tuple[Eyes, list[str]]:
 # ----------------------------------------------------------------------------- sampling
 
 
-def _planned_sampling(eyes, layout, depths, config, options) -> Sampling:
-    """The frequency step :func:`lfjax.planner.plan_sampling`'s field guard allows for this
-    scene (the largest ladder step whose PSF field holds the blur; milliseconds). The
-    accuracy proxy is skipped: it takes 9–27 s per layout on the paper's grid, and for a
-    1e-3 VSOTF target it asks the 3×3/4×4 layouts for about half the guard's step (~4× the
-    compute); at the guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7).
-    The transform is the FFT, or the MFT for the layouts in ``config.mft_pupil_samples``."""
+def _planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, np.ndarray]:
+    """(Sampling, wavelengths in nm) of one layout's scene.
+
+    The frequency step is :func:`lfjax.planner.plan_sampling`'s field guard (the largest
+    ladder step whose PSF field holds the blur). The accuracy proxy for the frequency step
+    is skipped: it takes 9–27 s per layout on the paper's grid, and for a 1e-3 VSOTF target
+    it asks the 3×3/4×4 layouts for about half the guard's step (~4× the compute); at the
+    guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7). The wavelengths
+    are ``config.wavelength_grid_nm`` (``accuracy="vsotf"``), the step fixed in
+    ``config.wavelength_steps_nm``, or the step the planner chooses for the peak and cut-off
+    targets (``accuracy="claims"``, 2–4 s on the host). The transform is the FFT, or the
+    MFT for the layouts in ``config.mft_pupil_samples``."""
+    start, stop, _ = config.wavelengths_nm
+    fixed_step = dict(config.wavelength_steps_nm).get(layout.name)
+    spectrum = {"wavelengths_nm": config.wavelength_grid_nm}
+    if config.accuracy == "claims" and fixed_step is not None:
+        spectrum = {"wavelengths_nm": np.asarray(_grid(start, stop, fixed_step))}
+    elif config.accuracy == "claims":
+        spectrum = {"wavelength_range_nm": (start, stop), "vsotf_tolerance": None,
+                    "peak_tolerance_D": config.peak_tolerance_D,
+                    "cutoff_tolerance_cpd": config.cutoff_tolerance_cpd,
+                    "cutoff_threshold": config.cutoff_threshold}
     plan = plan_sampling(
         layout=layout, pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
         depths_D=np.asarray(depths, float), accommodation_D=config.accommodation_D,
-        accommodation_window_D=config.window_D,
-        wavelengths_nm=config.wavelength_grid_nm, eyes_zernike_um=np.asarray(eyes.zernike_um),
+        accommodation_window_D=config.window_D, eyes_zernike_um=np.asarray(eyes.zernike_um),
         measured_pupil_mm=eyes.measured_pupil_mm, options=options, estimate_accuracy=False,
+        **spectrum,
     )
+    wavelengths = np.asarray(plan.wavelengths_nm, float)
     mft_samples = dict(config.mft_pupil_samples).get(layout.name)
     if mft_samples is None:
-        return plan.sampling
-    return dataclasses.replace(plan.sampling, transform="mft", mft_pupil_samples=int(mft_samples))
+        return plan.sampling, wavelengths
+    return (dataclasses.replace(plan.sampling, transform="mft", mft_pupil_samples=int(mft_samples)),
+            wavelengths)
 
 
 __all__ = [
+    "ACCURACY_PLANS",
     "LF_LAYOUTS",
     "METRICS",
     "StudyConfig",

@@ -143,6 +143,13 @@ def _md_escape(text: str) -> str:
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
+def _wavelength_step(layout_ds) -> str:
+    """A layout's wavelength step (nm) and count, or "not recorded"."""
+    if "wavelength_step_nm" not in layout_ds:
+        return "not recorded"
+    return f"{float(layout_ds.wavelength_step_nm):g} ({int(layout_ds.n_wavelengths)} λ)"
+
+
 def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timings: dict,
                  files: list[str], population_markdown: str | None = None,
                  display_markdown: str | None = None) -> None:
@@ -162,9 +169,13 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
         f"accommodation grid 0–{config.accommodation_max_D:g} D in "
         f"{config.accommodation_step_D:g} D steps, each depth evaluated within "
         f"±{config.window_D:g} D (and ≥ 0 D); "
-        f"{config.wavelengths_nm[0]:g}–{config.wavelengths_nm[1]:g} nm in "
-        f"{config.wavelengths_nm[2]:g} nm steps, λ_ref {config.options.lca_reference_nm:g} nm. "
-        f"Configuration: `{config.label}`.")
+        f"{config.wavelengths_nm[0]:g}–{config.wavelengths_nm[1]:g} nm "
+        + (f"in {config.wavelengths_nm[2]:g} nm steps (`--accuracy vsotf`)"
+           if config.accuracy == "vsotf" else
+           f"with each layout's wavelength step planned for peaks to "
+           f"{config.peak_tolerance_D:g} D and cut-offs to {config.cutoff_tolerance_cpd:g} cpd "
+           f"(`--accuracy claims`; steps under Settings)")
+        + f", λ_ref {config.options.lca_reference_nm:g} nm. Configuration: `{config.label}`.")
     if config.label == "quick":
         add("")
         add("**This is the `--quick` run**: few eyes, depths, wavelengths and a coarse "
@@ -191,7 +202,9 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
             "docs/design.md#modelling-choices in the lfjax project). Each alternative was "
             "run on a reduced set — the same eyes and accommodation grid, rendered depths "
             f"{', '.join(f'{d:+.0f}' for d in red.depth_offsets_D)} D relative to the CDP, "
-            f"{red.wavelengths_nm[2]:g} nm wavelength steps — next to a baseline on the same "
+            + (f"{red.wavelengths_nm[2]:g} nm wavelength steps" if config.accuracy == "vsotf"
+               else "each layout's planned wavelengths")
+            + " — next to a baseline on the same "
             "set; a verdict in bold differs from that baseline (the choice changes the "
             "conclusion).")
         add("")
@@ -261,8 +274,8 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
     add("## Settings")
     add("")
     add("| layout | subapertures | frequency step (cpd) | PSF field (arcmin) | FFT size | "
-        "PSF transform | time (s) |")
-    add("|---|---|---|---|---|---|---|")
+        "PSF transform | wavelength step (nm) | time (s) |")
+    add("|---|---|---|---|---|---|---|---|")
     # a Dataset assembled elsewhere (the sweep's study view) may record no sampling per layout
     samplings = json.loads(ds.attrs.get("sampling_json", "{}"))
     for name in ds.layout.values:
@@ -273,7 +286,7 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
                      else f"MFT ({sampling.get('mft_pupil_samples')} pupil samples)")
         add(f"| {name} | {int(s.n_subapertures)} | {float(s.freq_step_cpd):g} | "
             f"{60.0 / float(s.freq_step_cpd):.1f} | {int(s.n_fft)} | {transform} | "
-            f"{float(s.compute_seconds):.1f} |")
+            f"{_wavelength_step(s)} | {float(s.compute_seconds):.1f} |")
     add("")
     add("Model options (`lfjax.ModelOptions`):")
     add("")

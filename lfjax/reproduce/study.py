@@ -50,9 +50,17 @@ def layout_through_focus(
     :func:`lfjax.through_focus.through_focus` still reports that the field would alias.
     The transform is the FFT, or the MFT for the layouts in ``config.mft_pupil_samples``.
     """
+    tf, sampling, _ = _layout_run(eyes, layout, depths_D, config, spectrum, options)
+    return tf, sampling
+
+
+def _layout_run(eyes, layout, depths_D, config, spectrum=None, options=None):
+    """:func:`layout_through_focus`, returning also the wavelengths (nm) it used."""
     options = config.options if options is None else options
-    spectrum = make_spectrum(config.wavelength_grid_nm, options) if spectrum is None else spectrum
-    sampling = _planned_sampling(eyes, layout, depths_D, config, options)
+    sampling, wavelengths = _planned_sampling(eyes, layout, depths_D, config, options)
+    if spectrum is None:
+        spectrum = make_spectrum(wavelengths, options)
+    wavelengths = np.asarray(spectrum.wavelengths_nm, float)
     for _ in range(16):
         try:
             tf = through_focus(
@@ -65,7 +73,7 @@ def layout_through_focus(
                 # compiles like the grid (Newton's loop added ~25 s per layout).
                 continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
             )
-            return jax.block_until_ready(tf), sampling
+            return jax.block_until_ready(tf), sampling, wavelengths
         except AliasingError as err:
             sampling = dataclasses.replace(
                 sampling, freq_step_cpd=finer_step(err, sampling.freq_step_cpd)
@@ -146,17 +154,32 @@ def layout_through_focus_variants(
     sampling planned (and, if the field would alias, made finer) on its own, as
     :func:`layout_through_focus` does, then the variants computed together by
     :func:`lfjax.through_focus.through_focus_variants` (one compiled call per sampling)."""
-    samplings = [_planned_sampling(eyes, layout, depths_D, config, o) for o in options]
+    return [(tf, sampling) for tf, sampling, _ in
+            _layout_run_variants(eyes, layout, depths_D, config, options)]
+
+
+def _layout_run_variants(eyes, layout, depths_D, config, options):
+    """:func:`layout_through_focus_variants`, each with the wavelengths (nm) it used: the
+    first variant's (the planned spectrum is the baseline's, so every variant is measured
+    on the same wavelengths)."""
+    first, wavelengths = _planned_sampling(eyes, layout, depths_D, config, options[0])
+    if config.accuracy == "claims" and layout.name not in dict(config.wavelength_steps_nm):
+        step = float(wavelengths[1] - wavelengths[0]) if wavelengths.size > 1 else 100.0
+        config = config.replace(wavelength_steps_nm=tuple(config.wavelength_steps_nm)
+                                + ((layout.name, step),))
+    samplings = [first] + [_planned_sampling(eyes, layout, depths_D, config, o)[0]
+                           for o in options[1:]]
     for _ in range(16 * len(options)):
         try:
             tfs = through_focus_variants(
                 eyes, layout, np.asarray(depths_D, float), options,
                 accommodation_D=config.accommodation_D, window_D=config.window_D,
                 pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
-                wavelengths_nm=config.wavelength_grid_nm, samplings=samplings,
+                wavelengths_nm=wavelengths, samplings=samplings,
                 continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
             )
-            return list(zip(jax.block_until_ready(tfs), samplings))
+            return [(tf, sampling, wavelengths)
+                    for tf, sampling in zip(jax.block_until_ready(tfs), samplings)]
         except AliasingError as err:
             i = err.variant
             samplings[i] = dataclasses.replace(
@@ -168,22 +191,21 @@ def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool) -> d
     eyes, labels = study_eyes(config)
     layouts = paper_layouts(config.pupil_diameter_mm)
     depths = config.depths_D
-    per_layout = {name: [] for name in variants}  # variant → [(tf, sampling, seconds)]
-    spectra = {name: make_spectrum(config.wavelength_grid_nm, o) for name, o in variants.items()}
+    per_layout = {name: [] for name in variants}  # variant → [(tf, sampling, λ, seconds)]
     for name in config.layouts:
         if stage is not None:
             stage(name)
         t0 = time.perf_counter()
         layout_depths = np.array([config.cdp_D]) if name == "natural" else depths
         if batched:
-            results = layout_through_focus_variants(eyes, layouts[name], layout_depths, config,
-                                                    list(variants.values()))
+            results = _layout_run_variants(eyes, layouts[name], layout_depths, config,
+                                           list(variants.values()))
         else:
-            results = [layout_through_focus(eyes, layouts[name], layout_depths, config,
-                                            spectra[v], o) for v, o in variants.items()]
+            results = [_layout_run(eyes, layouts[name], layout_depths, config, None, o)
+                       for o in variants.values()]
         seconds = time.perf_counter() - t0
-        for variant, (tf, sampling) in zip(variants, results):
-            per_layout[variant].append((tf, sampling, seconds))
+        for variant, (tf, sampling, wavelengths) in zip(variants, results):
+            per_layout[variant].append((tf, sampling, wavelengths, seconds))
     return {variant: _study_dataset(config, o, eyes, labels, layouts, per_layout[variant])
             for variant, o in variants.items()}
 
@@ -207,10 +229,11 @@ def _study_dataset(config: StudyConfig, options: ModelOptions, eyes: Eyes, label
     peak = np.full_like(pred, np.nan)
     cutoff = np.full_like(pred, np.nan)
     native = {}
-    steps, nffts, times, samplings = [], [], [], {}
+    steps, nffts, times, samplings, spectra = [], [], [], {}, {}
     cdp_index = int(np.argmin(np.abs(depths - config.cdp_D)))
-    for li, (name, (tf, sampling, seconds)) in enumerate(zip(names, per_layout)):
+    for li, (name, (tf, sampling, wavelengths, seconds)) in enumerate(zip(names, per_layout)):
         times.append(seconds)
+        spectra[name] = [float(w) for w in wavelengths]
         slots = [cdp_index] if name == "natural" else list(range(n_depth))
         vs[li][:, slots] = np.asarray(tf.vsotf, float)
         sr[li][:, slots] = np.asarray(tf.strehl, float)
@@ -307,7 +330,19 @@ def _study_dataset(config: StudyConfig, options: ModelOptions, eyes: Eyes, label
         attrs=_dataset_attrs(config, options, eyes),
     )
     ds.attrs["sampling_json"] = json.dumps(samplings)
+    ds.attrs["wavelengths_json"] = json.dumps(spectra)
+    ds["n_wavelengths"] = (("layout",), np.asarray([len(spectra[n]) for n in names], int), {
+        "long_name": "wavelengths summed in the layout's polychromatic OTF", "units": "1"})
+    ds["wavelength_step_nm"] = (("layout",), np.asarray(
+        [spectra[n][1] - spectra[n][0] if len(spectra[n]) > 1 else np.nan for n in names]), {
+        "long_name": "wavelength step of the layout's spectrum (400-700 nm)", "units": "nm"})
     return ds
+
+
+def study_wavelength_steps(ds) -> dict[str, float]:
+    """{layout: wavelength step in nm} a study Dataset used (its plan, to reuse)."""
+    return {str(n): float(v) for n, v in zip(ds.layout.values, ds.wavelength_step_nm.values)
+            if np.isfinite(v)}
 
 
 def study_sampling(ds, layout: str) -> Sampling:
@@ -336,7 +371,10 @@ def _dataset_attrs(config: StudyConfig, options: ModelOptions, eyes: Eyes) -> di
         "measured_pupil_mm": float(eyes.measured_pupil_mm),
         "eye_orientation": eyes.orientation,
         "eyes_source": "Thibos, Bradley & Hong (2002) statistics, lfjax.sample_eyes(seed, n)",
-        "wavelengths_nm": json.dumps([float(w) for w in config.wavelength_grid_nm]),
+        "wavelengths_nm": (json.dumps([float(w) for w in config.wavelength_grid_nm])
+                           if config.accuracy == "vsotf" else
+                           "planned per layout: wavelengths_json, wavelength_step_nm"),
+        "accuracy_plan": config.accuracy,
         "model_options_json": json.dumps(options.as_dict()),
         "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
@@ -370,7 +408,12 @@ def compute_examples(ds, config: StudyConfig = StudyConfig(), stage=None):  # no
 
     options = config.options
     eyes, labels = study_eyes(config)
-    spectrum = make_spectrum(config.wavelength_grid_nm, options)
+    planned = json.loads(ds.attrs.get("wavelengths_json", "{}"))
+
+    def layout_spectrum(name):  # the wavelengths the study used for this layout
+        return make_spectrum(planned.get(name, config.wavelength_grid_nm), options)
+
+    spectrum = layout_spectrum("natural")
     cdp = config.cdp_D
     out = {}
     coords = {}
@@ -435,7 +478,7 @@ def compute_examples(ds, config: StudyConfig = StudyConfig(), stage=None):  # no
         ei = int(np.argmax(contrast)) if np.any(contrast > 0) else 0
         two = np.array([float(vs_pred[ei]), cdp])
         layout = grid_layout(2, config.pupil_diameter_mm)
-        st2 = polychromatic_otf(eyes[ei], two, config.pupil_diameter_mm, cdp, spectrum,
+        st2 = polychromatic_otf(eyes[ei], two, config.pupil_diameter_mm, cdp, layout_spectrum("2x2"),
                                 study_sampling(ds, "2x2"), options, layout, depths_D=[depth])
         otf2 = st2.otf[0, 0]  # (2, L, Lx)
         pix = 0.25
@@ -470,4 +513,5 @@ __all__ = [
     "run_study",
     "run_study_variants",
     "study_sampling",
+    "study_wavelength_steps",
 ]
