@@ -23,6 +23,13 @@ How each choice is made (all on the host, in numpy; 1–30 s per plan):
   share of the tolerance and leave every proxy peak where it was.
 * **Zernike order**: the eyes' wavefront RMS above the kept order, converted to a VSOTF
   change by the Maréchal approximation (2πσ/λ)².
+* **Targets in the question's units** (``peak_tolerance_D``, ``cutoff_tolerance_cpd``):
+  a through-focus peak's error is the shift of the vertex of the parabola through the
+  proxy's highest sample and its neighbours, candidate against converged (the VSOTF error's
+  slope over the curve's curvature, to first order); a cut-off's error is the shift of the
+  proxy's radial-MTF threshold crossing at every state near each depth's peak (the MTF
+  error over the MTF's slope). Half of each target goes to the wavelength step, the rest
+  to the frequency step.
 * **FFT or MFT** (``transform="auto"``, opt-in): each at its own cheapest
   accuracy-meeting sampling, each measured on a proxy that follows that path exactly; the
   cheaper by a cost model calibrated on this machine.
@@ -965,7 +972,7 @@ def plan_sampling(
     # --- wavelength step
     if wl is None:
         spec_proxy_df = ladder_floor(min(df_top, d_min / (float(guard_wl.max()) * 1e-6 * 24) / DEGREES_PER_RADIAN))
-        peak = scene.peak_pairs()
+        peak = _peak_neighbourhood(scene.pair_depth)
         lo, hi = map(float, wavelength_range_nm)
 
         def proxy_spectrum(step):
@@ -974,15 +981,19 @@ def plan_sampling(
                           n_wavelengths=grid.size)
 
         def curves(proxy_step):
-            # Cut-offs at every state near each depth's peak, not the peak alone: a real
-            # eye's aberrations blur it like the proxy's defocus, and a blurred MTF crosses
-            # the threshold with a shallow slope, where a spectral error moves it most.
             if cutoff_tolerance_cpd is None:
                 return proxy_step.vsotf(spec_proxy_df, peak), None
             return proxy_step.vsotf_and_cutoffs(spec_proxy_df, peak, cutoff_threshold)
 
         ref, ref_cut = curves(proxy_spectrum(SPECTRAL_REFERENCE_STEP_NM))
         ref_peak = _peaks(ref, peak)
+        # Cut-offs at each depth's peak state and its neighbours 0.1 D away, not the peak
+        # alone: a real eye's aberrations blur it like a little defocus, and a blurred MTF
+        # crosses the threshold with a shallower slope, where a spectral error moves it
+        # more. Farther out the defocused MTF oscillates about the threshold and its first
+        # crossing jumps between lobes: no predicted accommodation sits there.
+        near_peak = np.abs(peak[0] - np.asarray(ref_peak)[
+            np.searchsorted(np.unique(peak[1]), peak[1])]) <= 0.1 + 1e-9
         candidates = [step_choice] if step_choice is not None else [
             s for s in WAVELENGTH_STEPS_NM if abs((hi - lo) / s - round((hi - lo) / s)) < 1e-9
             and s > SPECTRAL_REFERENCE_STEP_NM]
@@ -992,7 +1003,8 @@ def plan_sampling(
             err = float(np.max(np.abs(v - ref)))
             same_peak = _peaks(v, peak) == ref_peak
             shift = _peak_shift_D(v, ref, peak)
-            cut = float(np.max(np.abs(cuts - ref_cut))) if cuts is not None else float("nan")
+            cut = (float(np.max(np.abs(cuts - ref_cut)[near_peak])) if cuts is not None
+                   else float("nan"))
             ok = err <= 0.5 * budget
             ok &= shift <= 0.5 * peak_tolerance_D if peak_tolerance_D is not None else same_peak
             ok &= cutoff_tolerance_cpd is None or cut <= 0.5 * cutoff_tolerance_cpd
@@ -1187,6 +1199,23 @@ def plan_sampling(
         cost, cheaper, bands, _fft_work(bands, layout.n_subapertures), options, reasons,
         weights_kept,
     )
+
+
+PEAK_NEIGHBOURHOOD_D = np.round(np.arange(-3, 4) * 0.1, 9)
+"""States (D from each rendered depth) where the wavelength step's proxy reads peaks and
+cut-offs: fine enough for a parabola vertex whatever the scene's accommodation grid (on a
+0.5 D grid the scene's own states near a depth would be one), wide enough to hold the
+aberration-free proxy's peak."""
+
+
+def _peak_neighbourhood(pair_depth) -> tuple[np.ndarray, np.ndarray]:
+    """(accommodation, depth) pairs: every rendered depth ± :data:`PEAK_NEIGHBOURHOOD_D`,
+    states ≥ 0 D (the hyperopic limit)."""
+    depths = np.unique(np.asarray(pair_depth, float))
+    acc = depths[:, None] + PEAK_NEIGHBOURHOOD_D[None, :]
+    dep = np.broadcast_to(depths[:, None], acc.shape)
+    keep = acc >= -1e-9
+    return np.clip(acc[keep], 0.0, None), dep[keep]
 
 
 def _peak_states(values, pairs) -> tuple[np.ndarray, np.ndarray]:

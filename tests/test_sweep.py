@@ -146,6 +146,30 @@ def test_config_round_trips_through_toml(tmp_path):
     assert again.options.sce == "intensity" and again.freq_step_cpd == 1.5
 
 
+def test_a_step_less_spectrum_is_planned_for_the_peak_and_cutoff_targets():
+    """``wavelengths_nm = [start, stop]`` (the default) asks the planner for the step:
+    the finest of each (pupil, layout)'s coarsest step meeting the targets; a tighter
+    target never gets a coarser step; the store, guard and report see the planned grid."""
+    from lfjax.sweep.compute import planned_wavelength_step
+    from lfjax.sweep.guard import estimate
+
+    planned = tiny_config(spectrum={"wavelengths_nm": [400.0, 700.0]},
+                          display={"layouts": ["4x4"]})
+    step = planned_wavelength_step(planned)
+    assert 10.0 < step < 50.0
+    spectrum = sweep_spectrum(planned)
+    np.testing.assert_allclose(np.diff(spectrum.wavelengths_nm), step)
+    assert spectrum.wavelengths_nm[0] == 400.0 and spectrum.wavelengths_nm[-1] == 700.0
+    assert estimate(planned).n_wavelengths == spectrum.n_wavelengths
+    tight = tiny_config(spectrum={"wavelengths_nm": [400.0, 700.0]},
+                        display={"layouts": ["4x4"]}, sampling={"peak_tolerance_D": 1e-4})
+    assert planned_wavelength_step(tight) < step
+    with pytest.raises(SweepConfigError, match="needs a step with spectrum.display"):
+        tiny_config(spectrum={"wavelengths_nm": [400.0, 700.0], "display": "oled"})
+    with pytest.raises(SweepConfigError, match="peak_tolerance_D"):
+        tiny_config(sampling={"peak_tolerance_D": 0.0})
+
+
 # ----------------------------------------------------------------------------- contents
 
 

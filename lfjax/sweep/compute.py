@@ -94,11 +94,50 @@ def population(config: SweepConfig) -> tuple[Eyes, np.ndarray]:
 
 def sweep_spectrum(config: SweepConfig) -> Spectrum:
     """V(λ) white on the config's wavelength grid, or the display's white
-    (``display_spectrum``, cells of the grid's step) on the wavelengths that carry it."""
+    (``display_spectrum``, cells of the grid's step) on the wavelengths that carry it.
+    Without a step in ``wavelengths_nm``, the grid's step is :func:`planned_wavelength_step`."""
     if config.display_spectrum is not None:
         return display_spectrum(config.display_spectrum, "white", config.options,
                                 step_nm=max(float(config.wavelengths_nm[2]), 5.0))
+    if config.wavelength_step_planned:
+        start, stop = config.wavelengths_nm
+        step = planned_wavelength_step(config)
+        return make_spectrum(np.round(np.arange(start, stop + 1e-6, step), 9), config.options)
     return make_spectrum(config.wavelength_grid_nm, config.options)
+
+
+def planned_wavelength_step(config: SweepConfig) -> float:
+    """The wavelength step (nm) of a sweep whose ``wavelengths_nm`` gives none: for every
+    (pupil, layout) the planner's coarsest step whose proxy peaks stay within
+    ``peak_tolerance_D`` and cut-offs within ``cutoff_tolerance_cpd``
+    (:func:`lfjax.planner.plan_sampling`), and the finest of those. Eye-independent and
+    deterministic (a resumed sweep plans the same step); 2–4 s per (pupil, layout), once
+    per configuration in a process."""
+    return _planned_step(config.to_json(), config)
+
+
+@functools.lru_cache(maxsize=8)
+def _planned_step(key: str, config: SweepConfig) -> float:
+    start, stop = config.wavelengths_nm
+    all_depths = config.depths_D
+    cdp = all_depths[[int(np.argmin(np.abs(all_depths - config.cdp_D)))]]
+    steps = []
+    for pupil in config.pupil_diameters_mm:
+        for entry in config.layouts:
+            layout = resolve_layout(config, entry, pupil)
+            plan = plan_sampling(
+                layout=layout, pupil_diameter_mm=pupil, cdp_D=config.cdp_D,
+                depths_D=cdp if entry == "natural" else all_depths,
+                accommodation_D=config.accommodation_D, accommodation_window_D=config.window_D,
+                wavelength_range_nm=(start, stop), vsotf_tolerance=None,
+                peak_tolerance_D=config.peak_tolerance_D,
+                cutoff_tolerance_cpd=config.cutoff_tolerance_cpd,
+                cutoff_threshold=config.cutoff_threshold, options=config.options,
+                estimate_accuracy=False, display=config.display_optics(),
+            )
+            wl = plan.wavelengths_nm
+            steps.append(float(wl[1] - wl[0]) if len(wl) > 1 else float(stop - start))
+    return min(steps)
 
 
 def resolve_layout(config: SweepConfig, entry: str, pupil_mm: float) -> Layout:
@@ -330,5 +369,6 @@ __all__ = [
     "population",
     "resolve_layout",
     "layout_name",
+    "planned_wavelength_step",
     "sweep_spectrum",
 ]

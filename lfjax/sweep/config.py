@@ -93,7 +93,10 @@ class SweepConfig:
 
     Spectrum and sampling
     ---------------------
-    wavelengths_nm : (start, stop, step), nm
+    wavelengths_nm : (start, stop, step), nm; or (start, stop): the step is planned
+        (:func:`lfjax.sweep.compute.sweep_spectrum`): the coarsest whose proxy peaks stay
+        within ``peak_tolerance_D`` and cut-offs within ``cutoff_tolerance_cpd`` in every
+        (pupil, layout) of the sweep (default; 20 nm for the paper's scene)
     display_spectrum : a built-in display's white (:data:`lfjax.display_spectra.DISPLAY_NAMES`)
         weighted by V(λ) on the wavelengths that carry it, instead of V(λ) white on
         ``wavelengths_nm`` (whose step then sets the cell width); None: V(λ) white
@@ -101,6 +104,7 @@ class SweepConfig:
         by :func:`lfjax.planner.plan_sampling` on the whole population
     vsotf_tolerance : with a planned step: the planner's VSOTF accuracy target (its proxy
         runs, seconds per layout); None: its field guard alone (milliseconds)
+    peak_tolerance_D, cutoff_tolerance_cpd : targets of a planned wavelength step (D, cpd)
 
     Metrics
     -------
@@ -129,10 +133,12 @@ class SweepConfig:
     accommodation_step_D: float = 0.2
     accommodation_max_D: float = 5.0
     window_D: float = 2.0
-    wavelengths_nm: tuple[float, float, float] = (400.0, 700.0, 10.0)
+    wavelengths_nm: tuple[float, ...] = (400.0, 700.0)
     display_spectrum: str | None = None
     freq_step_cpd: float | None = None
     vsotf_tolerance: float | None = None
+    peak_tolerance_D: float = 0.01
+    cutoff_tolerance_cpd: float = 0.25
     continuous_peaks: tuple[str, ...] = ("vsotf",)
     peak_method: str = "local"
     cutoff_threshold: float = 0.05
@@ -172,7 +178,17 @@ class SweepConfig:
         return _grid(0.0, self.accommodation_max_D, self.accommodation_step_D)
 
     @property
+    def wavelength_step_planned(self) -> bool:
+        """True when ``wavelengths_nm`` gives no step (the planner chooses it)."""
+        return len(self.wavelengths_nm) == 2
+
+    @property
     def wavelength_grid_nm(self) -> np.ndarray:
+        """The fixed grid (nm); a planned step comes from
+        :func:`lfjax.sweep.compute.sweep_spectrum`."""
+        if self.wavelength_step_planned:
+            raise ValueError("wavelengths_nm gives no step: the sweep plans it "
+                             "(lfjax.sweep.compute.sweep_spectrum)")
         return _grid(*self.wavelengths_nm)
 
     def display_optics(self):
@@ -257,6 +273,8 @@ _SCHEMA: dict[str, dict[str, tuple[str, str]]] = {
     "sampling": {
         "freq_step_cpd": ("freq_step_cpd", "float_or_planned"),
         "vsotf_tolerance": ("vsotf_tolerance", "float"),
+        "peak_tolerance_D": ("peak_tolerance_D", "float"),
+        "cutoff_tolerance_cpd": ("cutoff_tolerance_cpd", "float"),
     },
     "metrics": {
         "continuous_peaks": ("continuous_peaks", "strings"),
@@ -482,10 +500,19 @@ def _range_problems(v: dict, base_dir: Path) -> list[str]:
         p.append(f"accommodation.max_D ({v['accommodation_max_D']} D) leaves no state within "
                  f"window_D of the nearest rendered depth")
     wl = v["wavelengths_nm"]
-    if len(wl) != 3:
-        p.append(f"spectrum.wavelengths_nm must be [start, stop, step] in nm, got {list(wl)}")
+    if not (0 < v["peak_tolerance_D"] <= 0.5):
+        p.append(f"sampling.peak_tolerance_D must be in (0, 0.5] D, got {v['peak_tolerance_D']}")
+    if not (0 < v["cutoff_tolerance_cpd"] <= 10):
+        p.append(f"sampling.cutoff_tolerance_cpd must be in (0, 10] cpd, got "
+                 f"{v['cutoff_tolerance_cpd']}")
+    if len(wl) == 2 and v["display_spectrum"] is not None:
+        p.append("spectrum.wavelengths_nm needs a step with spectrum.display (the step is the "
+                 "width of the display spectrum's cells): [start, stop, step] in nm")
+    if len(wl) not in (2, 3):
+        p.append(f"spectrum.wavelengths_nm must be [start, stop] (step planned) or "
+                 f"[start, stop, step] in nm, got {list(wl)}")
     else:
-        start, stop, step = wl
+        start, stop, step = wl if len(wl) == 3 else (*wl, 5.0)
         if not (step > 0 and stop >= start):
             p.append(f"spectrum.wavelengths_nm: need step > 0 and stop >= start, got {list(wl)}")
         elif step < MIN_WAVELENGTH_STEP_NM - 1e-12:
@@ -583,10 +610,13 @@ _KEY_HELP = {
     "step_D": "absolute accommodation grid 0 ... max_D, step in D",
     "max_D": "last state of the grid, D",
     "window_D": "each depth is evaluated within +-window_D of it, D",
-    "wavelengths_nm": f"start, stop, step in nm (step >= {MIN_WAVELENGTH_STEP_NM:g} nm)",
+    "wavelengths_nm": f"start, stop[, step] in nm (step >= {MIN_WAVELENGTH_STEP_NM:g} nm; "
+                      f"without it the step is planned for the targets below)",
     "display": "a display's white (crt, lcd, oled, laser) instead of V(lambda) white",
     "freq_step_cpd": "OTF frequency step, cpd, or \"planned\" (once, on the whole population)",
     "vsotf_tolerance": "plan for this VSOTF accuracy (the planner's proxy)",
+    "peak_tolerance_D": "a planned wavelength step moves no peak by more, D",
+    "cutoff_tolerance_cpd": "a planned wavelength step moves no cut-off by more, cpd",
     "continuous_peaks": "metrics refined off the grid (lfjax.peaks)",
     "peak_method": f"refinement: {', '.join(PEAK_METHODS)}",
     "cutoff_threshold": "MTF value defining the cut-off frequency",

@@ -180,7 +180,7 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
     """Sizes of ``config``'s sweep; with its planned ``tasks`` (:func:`build_tasks`) also the
     device memory and time. Computes nothing large (grids are counted, not built)."""
     n_acc = _count(0.0, config.accommodation_max_D, config.accommodation_step_D)
-    if config.display_spectrum is None:
+    if config.display_spectrum is None and not config.wavelength_step_planned:
         n_wl = _count(*config.wavelengths_nm)
     else:
         n_wl = float(len(_display_wavelengths(config)))

@@ -336,7 +336,9 @@ def _summary(path: Path, store: Path, ds, config, table, samplings: dict, files:
         f"view: the CDP only); accommodation grid 0–{config.accommodation_max_D:g} D in "
         f"{config.accommodation_step_D:g} D steps, ±{config.window_D:g} D around each depth; "
         f"{config.wavelengths_nm[0]:g}–{config.wavelengths_nm[1]:g} nm in "
-        f"{config.wavelengths_nm[2]:g} nm steps.")
+        f"{_wavelength_step(ds, config):g} nm steps"
+        + (f" (planned for peaks to {config.peak_tolerance_D:g} D and cut-offs to "
+           f"{config.cutoff_tolerance_cpd:g} cpd)." if config.wavelength_step_planned else "."))
     add(f"- Peaks: grid peak of each metric; continuous peaks ({config.peak_method!r}) for "
         f"{', '.join(config.continuous_peaks) or 'no metric'}. Cut-off frequency: where the "
         f"radial MTF at the predicted accommodation falls to {config.cutoff_threshold:g}.")
@@ -516,3 +518,13 @@ __all__ = [
     "stored_config",
     "sweep_report",
 ]
+
+
+def _wavelength_step(ds, config) -> float:
+    """The sweep's wavelength step (nm): the store's recorded wavelengths, else the config's."""
+    recorded = ds.attrs.get("wavelengths_nm")
+    if recorded is not None:
+        wl = json.loads(recorded)
+        if len(wl) > 1:
+            return float(wl[1] - wl[0])
+    return float(config.wavelengths_nm[2]) if len(config.wavelengths_nm) == 3 else float("nan")
