@@ -205,7 +205,10 @@ class Plan:
     blur_radius_arcmin : largest PSF radius the field must hold (the guard), arcmin.
     guard_freq_step_cpd : largest frequency step the aliasing guard accepts, cpd.
     errors : estimated VSOTF errors by source ("pupil", "spectral", "zernike", "total")
-        and "psf_wrap" (wrapped intensity / PSF peak), from the proxy.
+        and "psf_wrap" (wrapped intensity / PSF peak), from the proxy; with the targets in
+        the question's units also the proxy's peak shifts in D ("spectral_peak_D", and
+        "peak_D" for the whole plan) and cut-off shifts in cpd ("spectral_cutoff_cpd",
+        "cutoff_cpd").
     cost_s : modelled seconds per eye for "fft" and "mft" at their own plans.
     cheaper : the sampling one ladder step cheaper in each dimension, with the reason it
         was rejected, e.g. {"field": (Sampling, "…"), "pupil": (Sampling, "…")}.
@@ -1029,6 +1032,18 @@ def plan_sampling(
             reasons.append(f"wavelength step {chosen:g} nm: the reference step (no coarser "
                            f"candidate met the targets)")
         wl = np.arange(lo, hi + 1e-6, chosen)
+        # The guard ran on a 5 nm grid; on the chosen, coarser grid each wavelength carries
+        # more of the weight, so the blue and red ends may no longer be light enough to let
+        # wrap. The field must hold the spectrum the pipeline will sum.
+        radius = max(radius, field_radius_arcmin(
+            eyes_zernike_um, measured_pupil_mm, pupil_diameter_mm, cdp_D, scene.accommodation,
+            pair_acc, pair_depth, layout, make_spectrum(wl, options), wrap_tolerance, display,
+        ))
+        if 30.0 / (radius * margin) < df_guard:
+            df_guard = 30.0 / (radius * margin)
+            df_top = ladder_floor(min(df_guard, df_floor_samples))
+            reasons.append(f"field guard on the chosen {chosen:g} nm grid: blur reaches "
+                           f"{radius:.1f} arcmin → df ≤ {df_guard:.3g} cpd")
     else:
         errors["spectral"] = float("nan")
         if wl.size > 1 and np.any(np.diff(wl) > 20.0):
