@@ -1,25 +1,48 @@
-"""Warm time of one through-focus call: 2x2, eleven eyes (seed 0 + the average eye), 9 depths,
-0-5 D in 0.2 D steps within +-2 D, 10 nm, df 0.8409 cpd; grid only and with `local` peaks
-(best of 2 after a first call). Written against the public API of every commit since
-RESULTS 9, so that one sitting can time several commits, each from its own worktree:
+"""Warm time of one through-focus call, to compare commits in one sitting.
 
-    git worktree add /tmp/c COMMIT && (cd /tmp/c && PYTHONPATH=. python /path/to/this/script)
+Scene: 2×2 viewpoints, eleven eyes (seed 0 and the average eye), 9 rendered depths 0–4 D,
+accommodation 0–5 D in 0.2 D steps within ±2 D, 400–700 nm in 10 nm steps, df 0.8409 cpd.
+Prints the first call (compilation included) and the best of two later calls, grid only
+and with ``local`` continuous VSOTF peaks. Written against the public API of every commit
+since RESULTS §9, so that each commit can run it from its own worktree:
+
+    git worktree add /tmp/c COMMIT && (cd /tmp/c && PYTHONPATH=. python PATH/through_focus_timing.py)
 """
-import time, numpy as np, jax, lfjax
+
+from __future__ import annotations
+
+import time
+
+import jax
+import numpy as np
+
+import lfjax
 from lfjax.eyes import append_average_eye
-eyes = append_average_eye(lfjax.sample_eyes(0, 10))
-lay = lfjax.grid_layout(2, 3.0)
-depths = np.round(2.0 + np.arange(-2, 2.01, 0.5), 9)
-acc = np.round(np.arange(0, 5.001, 0.2), 9)
-spec = lfjax.make_spectrum(np.arange(400, 700.1, 10.0))
-s = lfjax.Sampling(0.8408964152537145)
-def run(**kw):
-    t = time.perf_counter()
-    from lfjax.through_focus import through_focus as _tf
-    tf = _tf(eyes, lay, depths, accommodation_D=acc, window_D=2.0, pupil_diameter_mm=3.0,
-                             cdp_D=2.0, spectrum=spec, sampling=s, **kw)
-    jax.block_until_ready(tf.vsotf); return time.perf_counter() - t
-t0 = time.perf_counter(); a = run(); b = min(run() for _ in range(2))
-c = run(continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False)
-d = min(run(continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False) for _ in range(2))
-print(f"grid: cold {a:.1f} warm {b:.2f} | local: cold {c:.1f} warm {d:.2f}")
+from lfjax.through_focus import through_focus
+
+EYES = append_average_eye(lfjax.sample_eyes(0, 10))
+LAYOUT = lfjax.grid_layout(2, 3.0)
+DEPTHS_D = np.round(2.0 + np.arange(-2, 2.01, 0.5), 9)
+ACCOMMODATION_D = np.round(np.arange(0, 5.001, 0.2), 9)
+SPECTRUM = lfjax.make_spectrum(np.arange(400, 700.1, 10.0))
+SAMPLING = lfjax.Sampling(0.8408964152537145)
+LOCAL = dict(continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False)
+
+
+def seconds(**peaks) -> float:
+    """Wall time (s) of one through_focus call, results ready."""
+    t0 = time.perf_counter()
+    tf = through_focus(EYES, LAYOUT, DEPTHS_D, accommodation_D=ACCOMMODATION_D, window_D=2.0,
+                       pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=SPECTRUM, sampling=SAMPLING,
+                       **peaks)
+    jax.block_until_ready(tf.vsotf)
+    return time.perf_counter() - t0
+
+
+if __name__ == "__main__":
+    grid_cold = seconds()
+    grid_warm = min(seconds() for _ in range(2))
+    local_cold = seconds(**LOCAL)
+    local_warm = min(seconds(**LOCAL) for _ in range(2))
+    print(f"grid: cold {grid_cold:.1f} warm {grid_warm:.2f} | "
+          f"local: cold {local_cold:.1f} warm {local_warm:.2f}")
