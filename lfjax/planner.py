@@ -359,11 +359,6 @@ class _Scene:
         d = np.minimum(np.asarray(self.layout.diameters_mm, float), self.pupil_mm)
         return float(d.min())
 
-    def peak_pairs(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per depth: the states within ±0.45 D of it (where the through-focus peak is)."""
-        near = np.abs(self.pair_acc - self.pair_depth) <= 0.45
-        return self.pair_acc[near], self.pair_depth[near]
-
 
 def _scene_pairs(depths, accommodation_D, window_D):
     depths = np.atleast_1d(np.asarray(depths, float))

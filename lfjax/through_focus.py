@@ -396,6 +396,19 @@ def _result(prepared: _Prepared, metrics, peaks) -> ThroughFocus:
     )
 
 
+def _each_variant(variants, fn) -> list:
+    """``fn(*variant)`` for each variant in order; an :class:`~lfjax.AliasingError` is
+    re-raised carrying ``variant``, the index of the variant that raised it."""
+    results = []
+    for i, variant in enumerate(variants):
+        try:
+            results.append(fn(*variant))
+        except AliasingError as err:
+            err.variant = i
+            raise
+    return results
+
+
 def through_focus_variants(
     eyes: Eyes,
     layout: Layout | None,
@@ -462,28 +475,16 @@ def through_focus_variants(
                          f"got {len(samplings)}")
     continuous_peaks = tuple(continuous_peaks)
     spectra = [make_spectrum(wavelengths_nm, o) for o in options]
+    variants = list(zip(options, spectra, samplings))
     if batch == "loop":
-        results = []
-        for i, (o, spectrum, sampling) in enumerate(zip(options, spectra, samplings)):
-            try:
-                results.append(through_focus(
-                    eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
-                    sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
-                    continuous_peaks, peak_method, refine_second_peaks, display))
-            except AliasingError as err:
-                err.variant = i
-                raise
-        return results
-    prepared = []
-    for i, (o, spectrum, sampling) in enumerate(zip(options, spectra, samplings)):
-        try:
-            prepared.append(_prepare(
-                eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
-                sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
-                continuous_peaks, peak_method, display))
-        except AliasingError as err:
-            err.variant = i
-            raise
+        return _each_variant(variants, lambda o, spectrum, sampling: through_focus(
+            eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
+            sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
+            continuous_peaks, peak_method, refine_second_peaks, display))
+    prepared = _each_variant(variants, lambda o, spectrum, sampling: _prepare(
+        eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
+        sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
+        continuous_peaks, peak_method, display))
     groups: dict[PipelineConfig, list[int]] = {}
     for i, p in enumerate(prepared):
         groups.setdefault(p.config, []).append(i)
