@@ -106,6 +106,31 @@ def test_estimate_counts_the_store_and_check_fits_names_the_numbers(tmp_path):
     assert "disk: the store may need up to" in text and "nothing was created" in text
 
 
+def test_the_time_estimate_counts_the_states_continuous_peaks_add():
+    """A ``local`` peak evaluates three states per (eye, depth) beyond the grid, each as
+    costly as a grid state: the estimate grows by exactly that share (it once counted the
+    grid alone and under-estimated the default sweep by half)."""
+    from lfjax.sweep import build_tasks, population
+
+    data = one_eye(display={"depth_offsets_D": [-0.5, 0.0, 0.5]})
+    times, refined = {}, {}
+    for method in ("vertex", "parabola", "local"):
+        config = config_from_dict(one_eye(**{**data, "metrics": {"peak_method": method}}))
+        eyes, _ = population(config)
+        est = estimate(config, build_tasks(config, eyes))
+        times[method] = est.seconds
+        (task,) = est.tasks
+        refined[method] = task.n_refined
+        assert task.n_depths == 3
+    assert refined == {"vertex": 0, "parabola": 3, "local": 9}
+    (task,) = estimate(config, build_tasks(config, eyes)).tasks
+    grid_share = times["vertex"]
+    # every state costs the same transforms, so time is linear in the states evaluated
+    per_state = (times["local"] - times["parabola"]) / 6
+    assert times["parabola"] - grid_share == pytest.approx(3 * per_state, rel=1e-6)
+    assert grid_share / per_state > task.n_states  # the grid's states plus its rendering
+
+
 def test_a_frequency_step_that_cannot_fit_is_refused_before_any_store(tmp_path, capsys):
     from lfjax.cli import main
 

@@ -39,9 +39,17 @@ block): FFT workspaces, the scan's carry and its update, and XLA temporaries."""
 
 SECONDS_PER_UNIT = 1.26e-9
 """Seconds per cost unit (one complex FFT point·log2 size, or one rendered view-pixel):
-the 1,000-eye benchmark sweep (benchmarks/sweep_1000/sweep.toml, 1.25e12 units) took
-26.2 min on 2 CPU cores (benchmarks/RESULTS.md §11). Other machines differ; the first
-chunks' eyes/s on the progress bar is the measured rate."""
+the 1,000-eye benchmark sweep (benchmarks/sweep_1000/sweep.toml, 1.25e12 units, ``vertex``
+peaks: no state beyond the grid) took 26.2 min on 2 CPU cores (benchmarks/RESULTS.md §11).
+Other machines differ; the first chunks' eyes/s on the progress bar is the measured rate."""
+
+REFINEMENT_STATES = {"local": 3, "parabola": 1, "vertex": 0, "grid": 0,
+                     "newton": 4 * 3, "golden": 31, "bfgs": 3 * 12}
+"""Accommodation states one continuous peak costs beyond the grid, per (eye, depth), by
+method: ``local`` evaluates its three-point stencil, ``parabola`` the vertex; the solvers'
+typical step counts (benchmarks/RESULTS.md §10: Newton 2.2 steps of value and two forward
+derivatives, golden section 31, BFGS 11.5 of value and gradient) rounded up. Each state
+transforms every view at every wavelength, as a grid state does."""
 
 
 class SweepTooLargeError(ValueError):
@@ -90,6 +98,7 @@ class TaskSize:
     bands: tuple  # ((start, stop, n_fft), ...) wavelength bands
     device_bytes_per_eye: float
     units_per_eye: float
+    n_refined: int = 0  # states the continuous peaks add per eye (all depths)
 
 
 @dataclass
@@ -141,7 +150,8 @@ class SweepEstimate:
         ]
         for t in self.tasks:
             lines.append(f"sampling    {t.pupil_mm:g} mm {t.layout}: df {t.freq_step_cpd:.4g} cpd, "
-                         f"FFT {t.n_fft}, {t.n_states} states x {t.n_subapertures} views")
+                         f"FFT {t.n_fft}, {t.n_states} states x {t.n_subapertures} views"
+                         + (f" + {t.n_refined} peak states" if t.n_refined else ""))
         if not self.tasks:
             lines.append("sampling    planned when the sweep starts")
         lines += [
@@ -206,12 +216,15 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
         elemental = n_states * n_sub * plane
         rendered = n_depth * n_k * plane
         device = DEVICE_ALLOWANCE * (elemental + 2 * rendered)
-        ffts = sum((b - a) * n_states * n_sub * size * size * math.log2(max(size, 2))
-                   for a, b, size in pc.bands)
-        render = n_sub * n_depth * n_k * n_fft * (n_fft // 2 + 1)
+        per_state = sum((b - a) * n_sub * size * size * math.log2(max(size, 2))
+                        for a, b, size in pc.bands)
+        refined = n_depth * refinement_states(config)
+        ffts = (n_states + refined) * per_state
+        render = n_sub * (n_depth * n_k + refined) * n_fft * (n_fft // 2 + 1)
         sizes.append(TaskSize(
             float(task.pupil_mm), task.layout_label, int(n_fft), float(pc.freq_step_cpd), n_sub,
-            n_depth, n_states, n_k, tuple(pc.bands), float(device), float(ffts + render)))
+            n_depth, n_states, n_k, tuple(pc.bands), float(device), float(ffts + render),
+            int(refined)))
     return SweepEstimate(
         n_eyes=n_eyes, n_chunks=config.n_chunks, chunk_size=int(config.chunk_size),
         pupils_mm=tuple(config.pupil_diameters_mm), layouts=tuple(config.layouts),
@@ -219,6 +232,18 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
         n_wavelengths=int(min(n_wl, 2**62)), store_bytes=float(store),
         host_setup_bytes=float(setup), host_chunk_bytes=float(chunk), tasks=sizes,
         n_devices=int(n_devices), complex_bytes=complex_bytes)
+
+
+def refinement_states(config: SweepConfig) -> int:
+    """Accommodation states the continuous peaks evaluate per (eye, depth) beyond the grid
+    (:data:`REFINEMENT_STATES` of ``config.peak_method`` for each metric refined)."""
+    total = 0
+    for metric in config.continuous_peaks:
+        method = config.peak_method
+        if method == "auto":
+            method = "newton" if metric == "vsotf" else "golden"
+        total += REFINEMENT_STATES[method]
+    return total
 
 
 def _display_wavelengths(config: SweepConfig):
@@ -306,6 +331,7 @@ __all__ = [
     "check_fits",
     "device_memory_bytes",
     "estimate",
+    "refinement_states",
     "free_disk_bytes",
     "host_memory_bytes",
 ]
