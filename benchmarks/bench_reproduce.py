@@ -9,7 +9,11 @@ summed PSF, for the main study and for the modelling alternatives (the reduced s
 per variant and for its baseline). Each band's cost is one chunk of 64 fields timed (best of
 9) and scaled to the study's count: read it to ±15 % (benchmarks/RESULTS.md §9).
 
-Run:  .venv/bin/python benchmarks/bench_reproduce.py [--keep-report REPORT.md | --floor-only]
+Run:  .venv/bin/python benchmarks/bench_reproduce.py [--keep-report REPORT.md | --floor-only [claims|vsotf]]
+
+The floor is taken on each layout's own spectrum (the ``claims`` plan by default), and
+counts the three states each continuous peak evaluates beyond the grid (``--floor-only``
+prints it with and without them).
 """
 
 from __future__ import annotations
@@ -68,42 +72,56 @@ def _band_floor(eyes_n: int, n_states: int, n_sub: int, bands, mft_samples=None)
     return total
 
 
-def _study_floor(config, label: str, repeat: int = 1) -> tuple[float, list[str]]:
-    """Floor of one study configuration (every layout, every state of each depth's window)."""
+PEAK_STATES = 3
+"""States each (eye, depth)'s continuous peak evaluates beyond the grid: ``lfjax reproduce``
+refines its VSOTF peaks with ``"local"`` (lfjax.peaks.LOCAL_OFFSETS_D)."""
+
+
+def _study_floor(config, label: str, repeat: int = 1, peaks: bool = True
+                 ) -> tuple[float, dict, list[str]]:
+    """Floor of one study configuration (every layout, every state of each depth's window
+    and, with ``peaks``, the peak states), on each layout's own spectrum (planned for the
+    claims, or fixed by the config). Returns (seconds, {layout: wavelength step nm}, lines)."""
     import lfjax
     from lfjax.reproduce.config import _planned_sampling, study_eyes
     from lfjax.sampling import wavelength_bands
 
     eyes, _ = study_eyes(config)
-    total, lines = 0.0, []
+    total, steps, lines = 0.0, {}, []
     for name, layout in lfjax.layouts.paper_layouts(config.pupil_diameter_mm).items():
         depths = (np.array([config.cdp_D]) if name == "natural"
                   else np.asarray(config.depths_D, float))
-        sampling = _planned_sampling(eyes, layout, depths, config, config.options)
+        sampling, wavelengths = _planned_sampling(eyes, layout, depths, config, config.options)
+        steps[name] = float(wavelengths[1] - wavelengths[0]) if wavelengths.size > 1 else 100.0
         mft = sampling.mft_pupil_samples if sampling.transform == "mft" else None
         grid = np.asarray(config.accommodation_D, float)
         used = np.any(np.abs(grid[None, :] - depths[:, None]) <= config.window_D + 1e-9, axis=0)
-        bands = wavelength_bands(config.wavelength_grid_nm, layout.window_diameter_mm,
+        n_states = int(used.sum()) + (PEAK_STATES * depths.size if peaks else 0)
+        bands = wavelength_bands(wavelengths, layout.window_diameter_mm,
                                  config.pupil_diameter_mm, sampling)
-        t = repeat * _band_floor(eyes.n_eyes, int(used.sum()), layout.n_subapertures, bands, mft)
-        lines.append(f"{label} {name}: df {sampling.freq_step_cpd:.4g} cpd, bands {bands}, "
+        t = repeat * _band_floor(eyes.n_eyes, n_states, layout.n_subapertures, bands, mft)
+        lines.append(f"{label} {name}: {wavelengths.size} wavelengths ({steps[name]:g} nm), "
+                     f"df {sampling.freq_step_cpd:.4g} cpd, bands {bands}, "
                      + (f"MFT {mft} pupil samples, " if mft else "")
-                     + f"{int(used.sum())} states, {layout.n_subapertures} views"
+                     + f"{int(used.sum())} grid states"
+                     + (f" + {PEAK_STATES * depths.size} peak states" if peaks else "")
+                     + f", {layout.n_subapertures} views"
                      + (f", x {repeat} runs" if repeat > 1 else "") + f": {t:.2f} s")
         total += t
-    return total, lines
+    return total, steps, lines
 
 
-def floor_seconds() -> tuple[float, float, list[str]]:
-    """FFT floor of the main study and of the modelling alternatives (the reduced study,
-    once for the baseline and once per alternative)."""
+def floor_seconds(accuracy: str = "claims", peaks: bool = True
+                  ) -> tuple[float, float, list[str]]:
+    """FFT floor of the main study and of the modelling alternatives (the reduced study on
+    the main study's wavelengths, once for the baseline and once per alternative)."""
     from lfjax.reproduce.alternatives import ALTERNATIVES
     from lfjax.reproduce.config import StudyConfig
 
-    config = StudyConfig()
-    main, lines = _study_floor(config, "main")
-    alternatives, more = _study_floor(config.reduced(), "alternatives",
-                                      repeat=1 + len(ALTERNATIVES))
+    config = StudyConfig(accuracy=accuracy)
+    main, steps, lines = _study_floor(config, "main", peaks=peaks)
+    alternatives, _, more = _study_floor(config.reduced(steps), "alternatives",
+                                         repeat=1 + len(ALTERNATIVES), peaks=peaks)
     return main, alternatives, lines + more
 
 
@@ -137,10 +155,17 @@ def main():
     keep = None
     if len(sys.argv) == 3 and sys.argv[1] == "--keep-report":
         keep = Path(sys.argv[2])  # the cold run's REPORT.md (to compare verdicts across machines)
-    if len(sys.argv) == 2 and sys.argv[1] == "--floor-only":
-        main_floor, alt_floor, lines = floor_seconds()
-        print("\n".join(lines))
-        print(f"FFT floor: main {main_floor:.1f} s + alternatives {alt_floor:.1f} s")
+    if len(sys.argv) >= 2 and sys.argv[1] == "--floor-only":
+        accuracy = sys.argv[2] if len(sys.argv) > 2 else "claims"
+        print(f"command: .venv/bin/python benchmarks/bench_reproduce.py --floor-only {accuracy}")
+        print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+              f"jax {jax.__version__}, {time.strftime('%Y-%m-%d %H:%M')}", flush=True)
+        for peaks in (False, True):
+            main_floor, alt_floor, lines = floor_seconds(accuracy, peaks)
+            print("\n".join(lines))
+            print(f"FFT floor ({accuracy} plan, {'with' if peaks else 'without'} peak states): "
+                  f"main {main_floor:.1f} s + alternatives {alt_floor:.1f} s "
+                  f"= {main_floor + alt_floor:.1f} s", flush=True)
         return
     print("command: .venv/bin/python benchmarks/bench_reproduce.py")
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "

@@ -25,6 +25,7 @@ import numpy as np
 
 from . import layout_opt as lo
 from . import layout_plots
+from ._plan_cache import enable_plan_cache
 from ._version import __version__
 from .design import DesignConstraints, fit_design, save_design
 from .display import DisplayOptics, display_optics_at
@@ -84,9 +85,15 @@ def compilation_cache_dir() -> Path:
     return Path(base) / "lfjax" / "jax"
 
 
+PLAN_FOLDER = "lfjax-plans"
+"""Sub-folder of the compilation cache where the planner's plans are kept
+(:mod:`lfjax._plan_cache`)."""
+
+
 def enable_compilation_cache(folder: Path | None = None) -> Path | None:
     """Turn on JAX's persistent compilation cache in ``folder`` (returns it, or None when
-    the folder cannot be created). A second run then skips most compilation."""
+    the folder cannot be created), and keep the planner's plans in its ``lfjax-plans``
+    sub-folder. A second run then skips most compilation and all planning."""
     folder = compilation_cache_dir() if folder is None else Path(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -97,6 +104,8 @@ def enable_compilation_cache(folder: Path | None = None) -> Path | None:
     jax.config.update("jax_compilation_cache_dir", str(folder))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    # the planner's sampling plans beside the programs: a warm run re-plans nothing
+    enable_plan_cache(folder / PLAN_FOLDER)
     return folder
 
 

@@ -48,6 +48,7 @@ LAYERS = {
     "lfjax.pipeline": 4,
     # host-side entry points
     "lfjax.psf": 5, "lfjax.through_focus": 5, "lfjax.peaks": 5, "lfjax.planner": 5,
+    "lfjax._plan_cache": 5,
     "lfjax.images": 5, "lfjax.panel": 5,
     # shared by applications
     "lfjax.claims": 6, "lfjax.layout_plots": 6,

@@ -364,3 +364,46 @@ def test_peak_and_cutoff_targets_choose_the_wavelength_step():
 def test_bad_targets_name_the_parameter(kwargs, match):
     with pytest.raises(ValueError, match=match):
         plan_sampling(depths_D=[2.0], wavelengths_nm=WAVELENGTHS, **kwargs)
+
+
+def test_plans_are_remembered_by_value_in_memory_and_on_disk(tmp_path, monkeypatch):
+    """``cached_plan_sampling`` answers a repeated plan without planning (in memory, then
+    from disk in a fresh process's place), plans again when any input changes by one value,
+    and re-plans a damaged file rather than trusting it."""
+    import pickle
+
+    from lfjax import _plan_cache
+
+    def same(a, b):  # field by field, NaN equal to NaN (a field-guard-only plan has NaN errors)
+        return pickle.dumps(a) == pickle.dumps(b)
+
+    calls = []
+
+    def counted(**kwargs):
+        calls.append(kwargs)
+        return plan_sampling(**kwargs)
+
+    monkeypatch.setattr(_plan_cache, "plan_sampling", counted)
+    _plan_cache.clear_memory()
+    assert _plan_cache.enable_plan_cache(tmp_path / "plans") == tmp_path / "plans"
+    try:
+        args = dict(layout=lfjax.grid_layout(2, pupil_diameter_mm=3.0), depths_D=np.array([1.0, 2.0]),
+                    wavelengths_nm=np.arange(450.0, 651.0, 50.0), estimate_accuracy=False)
+        first = _plan_cache.cached_plan_sampling(**args)
+        assert len(calls) == 1 and same(first, plan_sampling(**args))
+        assert _plan_cache.cached_plan_sampling(**args) is first and len(calls) == 1
+        _plan_cache.clear_memory()  # as a new process would start
+        again = _plan_cache.cached_plan_sampling(**args)
+        assert same(again, first) and again is not first and len(calls) == 1
+        (file,) = (tmp_path / "plans").glob("*.pkl")
+        moved = dict(args, depths_D=np.array([1.0, 2.5]))
+        _plan_cache.cached_plan_sampling(**moved)
+        assert len(calls) == 2 and calls[-1]["depths_D"][1] == 2.5  # planned, not looked up
+        assert _plan_cache.plan_key(**args) != _plan_cache.plan_key(
+            **dict(args, wavelengths_nm=np.array([450.0, 500.0, 550.0, 600.0, 649.0])))
+        file.write_bytes(b"not a plan")
+        _plan_cache.clear_memory()
+        assert same(_plan_cache.cached_plan_sampling(**args), first) and len(calls) == 3
+    finally:
+        _plan_cache.enable_plan_cache(None)
+        _plan_cache.clear_memory()

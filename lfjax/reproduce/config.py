@@ -23,7 +23,7 @@ from ..eyes import Eyes, append_average_eye, sample_eyes
 from ..layouts import LF_LAYOUTS as LF_LAYOUTS
 from ..layouts import PAPER_LAYOUTS
 from ..options import ModelOptions
-from ..planner import plan_sampling
+from .._plan_cache import cached_plan_sampling
 from ..sampling import Sampling
 
 METRICS = ("vsotf", "strehl")
@@ -249,8 +249,10 @@ def _planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, 
     guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7). The wavelengths
     are ``config.wavelength_grid_nm`` (``accuracy="vsotf"``), the step fixed in
     ``config.wavelength_steps_nm``, or the step the planner chooses for the peak and cut-off
-    targets (``accuracy="claims"``, 2–4 s on the host). The transform is the FFT, or the
-    MFT for the layouts in ``config.mft_pupil_samples``."""
+    targets (``accuracy="claims"``, 3–10 s of host work per layout the first time; the plan
+    is then remembered, in the process and, from the command line, on disk:
+    :mod:`lfjax._plan_cache`). The transform is the FFT, or the MFT for the layouts in
+    ``config.mft_pupil_samples``."""
     start, stop, _ = config.wavelengths_nm
     fixed_step = dict(config.wavelength_steps_nm).get(layout.name)
     spectrum = {"wavelengths_nm": config.wavelength_grid_nm}
@@ -261,7 +263,7 @@ def _planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, 
                     "peak_tolerance_D": config.peak_tolerance_D,
                     "cutoff_tolerance_cpd": config.cutoff_tolerance_cpd,
                     "cutoff_threshold": config.cutoff_threshold}
-    plan = plan_sampling(
+    plan = cached_plan_sampling(
         layout=layout, pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
         depths_D=np.asarray(depths, float), accommodation_D=config.accommodation_D,
         accommodation_window_D=config.window_D, eyes_zernike_um=np.asarray(eyes.zernike_um),

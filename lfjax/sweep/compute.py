@@ -33,7 +33,7 @@ from ..metrics import cutoff_frequency
 from ..optics import _field_check, _validate_coefficients
 from ..peaks import METRICS, peaks_from_grid
 from ..pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
-from ..planner import plan_sampling
+from .._plan_cache import cached_plan_sampling
 from ..sampling import AliasingError, Sampling, finer_step
 from ..spectral import Spectrum, make_spectrum
 from ..through_focus import _used_states, _windowed_grid
@@ -111,8 +111,9 @@ def planned_wavelength_step(config: SweepConfig) -> float:
     (pupil, layout) the planner's coarsest step whose proxy peaks stay within
     ``peak_tolerance_D`` and cut-offs within ``cutoff_tolerance_cpd``
     (:func:`lfjax.planner.plan_sampling`), and the finest of those. Eye-independent and
-    deterministic (a resumed sweep plans the same step); 2–4 s per (pupil, layout), once
-    per configuration in a process."""
+    deterministic (a resumed sweep plans the same step); 3–10 s per (pupil, layout) the
+    first time, then remembered (:mod:`lfjax._plan_cache`: in the process and, from the
+    command line, on disk)."""
     return _planned_step(config.to_json(), config)
 
 
@@ -125,7 +126,7 @@ def _planned_step(key: str, config: SweepConfig) -> float:
     for pupil in config.pupil_diameters_mm:
         for entry in config.layouts:
             layout = resolve_layout(config, entry, pupil)
-            plan = plan_sampling(
+            plan = cached_plan_sampling(
                 layout=layout, pupil_diameter_mm=pupil, cdp_D=config.cdp_D,
                 depths_D=cdp if entry == "natural" else all_depths,
                 accommodation_D=config.accommodation_D, accommodation_window_D=config.window_D,
@@ -155,7 +156,7 @@ def layout_name(entry: str) -> str:
 
 def _plan(config: SweepConfig, eyes: Eyes, layout: Layout, pupil_mm: float, depths, pairs,
           spectrum: Spectrum) -> Sampling:
-    plan = plan_sampling(
+    plan = cached_plan_sampling(
         layout=layout, pupil_diameter_mm=pupil_mm, cdp_D=config.cdp_D,
         depths_D=np.asarray(depths, float), accommodation_window_D=None,
         wavelengths_nm=np.asarray(spectrum.wavelengths_nm), eyes_zernike_um=np.asarray(eyes.zernike_um),

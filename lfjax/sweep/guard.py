@@ -37,11 +37,13 @@ DEVICE_ALLOWANCE = 3.0
 """Device working set / the pipeline's largest arrays (elemental OTFs and the rendered
 block): FFT workspaces, the scan's carry and its update, and XLA temporaries."""
 
-SECONDS_PER_UNIT = 1.26e-9
-"""Seconds per cost unit (one complex FFT point·log2 size, or one rendered view-pixel):
-the 1,000-eye benchmark sweep (benchmarks/sweep_1000/sweep.toml, 1.25e12 units, ``vertex``
-peaks: no state beyond the grid) took 26.2 min on 2 CPU cores (benchmarks/RESULTS.md §11).
-Other machines differ; the first chunks' eyes/s on the progress bar is the measured rate."""
+SECONDS_PER_UNIT = 2.2e-9
+"""Seconds per cost unit (one complex FFT point·log2 size, or one rendered view-pixel), on 2
+CPU cores: the default sweep (``lfjax sweep --template``: 25 nm, ``local`` peaks,
+1.78e9 units per eye) computed its chunks at 3.92 s per eye, warm, on 2026-11-26
+(benchmarks/RESULTS.md §19). The same machine has run 1.6x faster on other days (§11's
+1,000-eye sweep at 20 nm with ``vertex`` peaks: 1.26e-9 s per unit); the first chunks'
+eyes/s on the progress bar is the measured rate."""
 
 REFINEMENT_STATES = {"local": 3, "parabola": 1, "vertex": 0, "grid": 0,
                      "newton": 4 * 3, "golden": 31, "bfgs": 3 * 12}
