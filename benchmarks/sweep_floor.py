@@ -7,8 +7,9 @@ TOML given), on one chunk of eyes, warm (best of ``--repeat``):
   ``vertex`` (no state beyond the grid), side by side, so the refinement's share is a ratio
   measured in one sitting;
 * the floor: the bare transforms the grid cannot avoid — per (eye, state, view,
-  wavelength) an fft2 of the pupil field on its band's window and |.|², and an rfft2 of
-  it — batched in one jitted call per band, on the task's own bands;
+  wavelength) an fft2 of the pupil field on its band's window and |.|², summed over the
+  band, and one rfft2 of the band's PSF — in one jitted call per band, on the task's own
+  bands (the floor of ``bench_reproduce.py``);
 * the same floor for the peak states (``lfjax.sweep.guard.refinement_states`` per depth).
 
 Prints seconds per eye and the projection to 1,000 eyes.
@@ -44,14 +45,28 @@ def _best(fn, repeat: int) -> float:
 
 def transform_floor(n_fields: int, n_sub: int, bands, repeat: int) -> float:
     """Seconds of the bare transforms of ``n_fields`` (eye, state) pairs × ``n_sub`` views
-    on ``bands`` ((start, stop, n_fft), …): a complex fft2 and |.|², then an rfft2, per
-    wavelength, timed on one chunk of at most 64 fields and scaled."""
+    on ``bands`` ((start, stop, n_fft), …), as the kernel does them: per wavelength a
+    complex fft2 of the pupil field and |.|², summed over the band, then one rfft2 of the
+    band's PSF (benchmarks/bench_reproduce.py's floor); one chunk of at most 64 fields
+    timed and scaled."""
     total = 0.0
     for start, stop, n in bands:
-        fields = n_fields * n_sub * (stop - start)
+        fields = n_fields * n_sub
         chunk = min(fields, 64)
+        n_wl = stop - start
+
+        @jax.jit
+        def work(x):
+            def one(acc, i):
+                # the field depends on the wavelength index, or XLA hoists the transform
+                spec = jnp.fft.fft2(x * (1.0 + 1e-3 * i).astype(x.dtype))
+                return acc + jnp.real(spec) ** 2 + jnp.imag(spec) ** 2, None
+
+            psf, _ = jax.lax.scan(one, jnp.zeros(x.shape, jnp.float32),
+                                  jnp.arange(n_wl, dtype=jnp.float32))
+            return jnp.fft.rfft2(psf)
+
         x = (jax.random.normal(jax.random.PRNGKey(0), (chunk, n, n)) + 0j).astype(jnp.complex64)
-        work = jax.jit(lambda x: jnp.fft.rfft2(jnp.abs(jnp.fft.fft2(x)) ** 2))
         total += _best(lambda: work(x).block_until_ready(), repeat) * fields / chunk
     return total
 
