@@ -207,6 +207,14 @@ LOCAL_TRUST_D = 0.05
 STATE_COST = {"local": len(LOCAL_OFFSETS_D), "newton": 4, "golden": 1, "bfgs": 3, "parabola": 1}
 
 
+def resolved_method(metric: str, method: str) -> str:
+    """The refinement ``method`` runs for ``metric``: ``"auto"`` is Newton for VSOTF (smooth
+    in accommodation) and golden section for the Strehl ratio; any other name is itself."""
+    if method == "auto":
+        return "newton" if metric == "vsotf" else "golden"
+    return method
+
+
 def _pairs_per_batch(scene: Scene, config: PipelineConfig, method: str, n_candidates: int) -> int:
     """(eye, depth) pairs refined together: as many as the kernel's working memory holds
     (:func:`lfjax.optics.state_chunk`), counting each pair's states, their derivatives
@@ -433,8 +441,7 @@ def peaks_from_grid(
     ``values`` (n_eyes, n_depth, n_k); ``reference`` = the scene's
     :func:`lfjax.pipeline.reference_normalisers`."""
     _check_method(method)
-    if method == "auto":
-        method = "newton" if metric == "vsotf" else "golden"
+    method = resolved_method(metric, method)
     if grid.pair_index.shape[-1] < 2:
         raise ValueError(
             f"a peak needs a grid of >= 2 accommodation states per depth to bracket it, got "
@@ -542,4 +549,5 @@ __all__ = [
     "accommodation_peaks",
     "peaks_from_grid",
     "result_name",
+    "resolved_method",
 ]

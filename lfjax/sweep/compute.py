@@ -114,11 +114,6 @@ def planned_wavelength_step(config: SweepConfig) -> float:
     deterministic (a resumed sweep plans the same step); 3–10 s per (pupil, layout) the
     first time, then remembered (:mod:`lfjax._plan_cache`: in the process and, from the
     command line, on disk)."""
-    return _planned_step(config.to_json(), config)
-
-
-@functools.lru_cache(maxsize=8)
-def _planned_step(key: str, config: SweepConfig) -> float:
     start, stop = config.wavelengths_nm
     all_depths = config.depths_D
     cdp = all_depths[[int(np.argmin(np.abs(all_depths - config.cdp_D)))]]

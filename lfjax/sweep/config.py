@@ -96,7 +96,7 @@ class SweepConfig:
     wavelengths_nm : (start, stop, step), nm; or (start, stop): the step is planned
         (:func:`lfjax.sweep.compute.sweep_spectrum`): the coarsest whose proxy peaks stay
         within ``peak_tolerance_D`` and cut-offs within ``cutoff_tolerance_cpd`` in every
-        (pupil, layout) of the sweep (default; 20 nm for the paper's scene)
+        (pupil, layout) of the sweep (default; 25 nm for the paper's scene)
     display_spectrum : a built-in display's white (:data:`lfjax.display_spectra.DISPLAY_NAMES`)
         weighted by V(λ) on the wavelengths that carry it, instead of V(λ) white on
         ``wavelengths_nm`` (whose step then sets the cell width); None: V(λ) white

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import jax
 
-from ..peaks import METRICS
+from ..peaks import METRICS, STATE_COST, resolved_method
 from ..sampling import EYE_BLOCK
 from .compute import sweep_spectrum
 from .config import SweepConfig
@@ -45,13 +45,17 @@ CPU cores: the default sweep (``lfjax sweep --template``: 25 nm, ``local`` peaks
 1,000-eye sweep at 20 nm with ``vertex`` peaks: 1.26e-9 s per unit); the first chunks'
 eyes/s on the progress bar is the measured rate."""
 
-REFINEMENT_STATES = {"local": 3, "parabola": 1, "vertex": 0, "grid": 0,
-                     "newton": 4 * 3, "golden": 31, "bfgs": 3 * 12}
+TYPICAL_STEPS = {"newton": 3, "golden": 31, "bfgs": 12}
+"""Typical solver steps per continuous peak (benchmarks/RESULTS.md §10: Newton 2.2, golden
+section 31, BFGS 11.5), rounded up; the one-shot methods take one."""
+
+REFINEMENT_STATES = {method: STATE_COST[method] * TYPICAL_STEPS.get(method, 1)
+                     for method in STATE_COST} | {"vertex": 0, "grid": 0}
 """Accommodation states one continuous peak costs beyond the grid, per (eye, depth), by
-method: ``local`` evaluates its three-point stencil, ``parabola`` the vertex; the solvers'
-typical step counts (benchmarks/RESULTS.md §10: Newton 2.2 steps of value and two forward
-derivatives, golden section 31, BFGS 11.5 of value and gradient) rounded up. Each state
-transforms every view at every wavelength, as a grid state does."""
+method: each step's states (:data:`lfjax.peaks.STATE_COST`: ``local``'s three-point
+stencil, Newton's value and two forward derivatives, …) times its typical steps; ``vertex``
+and ``grid`` evaluate nothing beyond the grid. Each state transforms every view at every
+wavelength, as a grid state does."""
 
 
 class SweepTooLargeError(ValueError):
@@ -239,13 +243,8 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
 def refinement_states(config: SweepConfig) -> int:
     """Accommodation states the continuous peaks evaluate per (eye, depth) beyond the grid
     (:data:`REFINEMENT_STATES` of ``config.peak_method`` for each metric refined)."""
-    total = 0
-    for metric in config.continuous_peaks:
-        method = config.peak_method
-        if method == "auto":
-            method = "newton" if metric == "vsotf" else "golden"
-        total += REFINEMENT_STATES[method]
-    return total
+    return sum(REFINEMENT_STATES[resolved_method(metric, config.peak_method)]
+               for metric in config.continuous_peaks)
 
 
 def _display_wavelengths(config: SweepConfig):

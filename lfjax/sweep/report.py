@@ -505,6 +505,16 @@ def default_out_dir(store_path) -> Path:
     return store.with_name(f"{store.name.removesuffix('.zarr')}-report")
 
 
+def _wavelength_step(ds, config) -> float:
+    """The sweep's wavelength step (nm): the store's recorded wavelengths, else the config's."""
+    recorded = ds.attrs.get("wavelengths_nm")
+    if recorded is not None:
+        wl = json.loads(recorded)
+        if len(wl) > 1:
+            return float(wl[1] - wl[0])
+    return float(config.wavelengths_nm[2]) if len(config.wavelengths_nm) == 3 else float("nan")
+
+
 __all__ = [
     "FILES",
     "PERCENTILES",
@@ -519,12 +529,3 @@ __all__ = [
     "sweep_report",
 ]
 
-
-def _wavelength_step(ds, config) -> float:
-    """The sweep's wavelength step (nm): the store's recorded wavelengths, else the config's."""
-    recorded = ds.attrs.get("wavelengths_nm")
-    if recorded is not None:
-        wl = json.loads(recorded)
-        if len(wl) > 1:
-            return float(wl[1] - wl[0])
-    return float(config.wavelengths_nm[2]) if len(config.wavelengths_nm) == 3 else float("nan")
