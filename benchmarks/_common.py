@@ -156,7 +156,7 @@ def passing_freq_step(try_fn, start: float = 1.0, digits: int = 2) -> float:
 
     ``try_fn(df)`` must run the lfjax aliasing guard (e.g. a call that raises ValueError
     "... use freq_step_cpd <= X"). Follows the guard's own suggestion, so the step is the one
-    lfjax itself accepts (``lfjax.planner.plan_sampling`` is printed beside it for reference).
+    lfjax itself accepts (``lfjax.planner.plan.plan_sampling`` is printed beside it for reference).
     """
     df = start
     for _ in range(8):

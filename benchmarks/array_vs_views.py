@@ -9,7 +9,7 @@ eye, Fresnel numbers 32 → 0.021. For the Thibos average eye and the first two 
 of seed 0, points on the axis at 1, 2 and 3 D: the through-focus VSOTF (550 nm, 0–5 D in
 0.25 D steps, 0.5 cpd) of (a) the four idealised views — what the pipeline computes — and
 (b) every lenslet whose lit pixel's diffracted beam reaches the pupil
-(:func:`lfjax.array_views.array_vs_views`). Cases needing more than --max-views beams are
+(:func:`lfjax.studies.array_views.array_vs_views`). Cases needing more than --max-views beams are
 counted, not computed.
 
 Part 2 — the two peaks. The pipeline's curves at the smallest lenslets (495 mm, N = 0.021;
@@ -30,8 +30,8 @@ import numpy as np
 
 
 def _sweep_panel(distance_mm: float):
-    from lfjax.display import lenslets_for_layout
-    from lfjax.panel import Panel
+    from lfjax.display.lenslets import lenslets_for_layout
+    from lfjax.display.panel import Panel
 
     lenslets = lenslets_for_layout(2, 3.0, 2.0, distance_mm, f_number=5.0)
     pitch = float(lenslets.pitch_mm)
@@ -51,7 +51,7 @@ def _grid_peak(acc, values):
 
 
 def part1(eyes, names, distances, depths, acc, max_views):
-    from lfjax.array_views import array_views, array_vs_views
+    from lfjax.studies.array_views import array_views, array_vs_views
 
     rows, curves = [], {}
     for distance in distances:
@@ -94,8 +94,8 @@ def part1(eyes, names, distances, depths, acc, max_views):
 
 def part2(eyes, names, depths, acc):
     import lfjax
-    from lfjax.spectral import make_spectrum
-    from lfjax.through_focus import through_focus
+    from lfjax.model.spectral import make_spectrum
+    from lfjax.vision.focus import through_focus
 
     panel = _sweep_panel(495.0)
     variants = {"default": lfjax.ModelOptions(), "SCE off": lfjax.ModelOptions(sce="off"),
@@ -135,8 +135,8 @@ def main(argv=None) -> int:
     import matplotlib.pyplot as plt
     import pandas as pd
 
-    from lfjax.cli import enable_compilation_cache
-    from lfjax.eyes import append_average_eye, sample_eyes
+    from lfjax.cli.main import enable_compilation_cache
+    from lfjax.model.eyes import append_average_eye, sample_eyes
 
     enable_compilation_cache()
     out = Path(args.out)

@@ -11,7 +11,7 @@ Floors (the FFT work alone, one jitted batched call each; input fields made befo
   (L, L) result, summed over wavelength, L = the window of the shortest wavelength — the
   transforms of an implementation with one window for every wavelength.
 * ``floor, lfjax's windows``: the same, but each wavelength band on the window lfjax itself
-  uses for it (``lfjax.sampling.wavelength_bands`` where it exists: long wavelengths have a
+  uses for it (``lfjax.base.sampling.wavelength_bands`` where it exists: long wavelengths have a
   smaller OTF support and get a smaller window) — exactly the transforms lfjax performs.
 
 lfjax's time above the floor is the pupil-function evaluation (Zernike basis, SCE, edges,
@@ -34,7 +34,7 @@ def lfjax_bands(spectrum, window_mm, pupil_mm, sampling):
     """((start, stop, n_fft), …) as lfjax uses them, or one band when lfjax has no banding."""
     wl = np.asarray(spectrum.wavelengths_nm)
     try:
-        from lfjax.sampling import wavelength_bands
+        from lfjax.base.sampling import wavelength_bands
     except ImportError:
         return ((0, wl.size, sampling.window_size(window_mm, float(wl.min()), pupil_mm)),)
     return tuple(tuple(int(v) for v in b) for b in wavelength_bands(wl, window_mm, pupil_mm, sampling))
@@ -82,8 +82,8 @@ def main(argv=None):
     import jax.numpy as jnp
 
     import lfjax
-    from lfjax.optics import pupil_window_size
-    from lfjax.spectral import make_spectrum
+    from lfjax.kernel.optics import pupil_window_size
+    from lfjax.model.spectral import make_spectrum
 
     eye = lfjax.average_eye(3.0)
     acc = np.round(np.arange(0.0, 5.01, 0.2), 9)

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import lfjax
-from lfjax.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
+from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
 
 from _common import header, interleaved_min, timed_first, fmt_s, markdown_table
 
@@ -39,7 +39,7 @@ def main(argv=None):
     layout = lfjax.grid_layout(2, 3.0)
     depths = np.array([1.0, 3.0])
     acc = np.array([[1.0], [3.0]])
-    plan = lfjax.planner.plan_sampling(
+    plan = lfjax.planner.plan.plan_sampling(
         layout=layout, depths_D=depths, accommodation_D=acc.ravel(), accommodation_window_D=None,
         wavelengths_nm=spectrum.wavelengths_nm, eyes_zernike_um=np.asarray(eyes.zernike_um),
         estimate_accuracy=False, pairs=(acc.ravel(), depths))

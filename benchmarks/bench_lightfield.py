@@ -3,7 +3,7 @@
 Part ``curves`` (default; ~2.5 min): one through-focus curve — one eye (Thibos 2002 average eye,
 3 mm pupil, CDP 2 D), one rendered depth (3 D: 1 D in front of the CDP, so the views are
 displaced), 31 wavelengths × 26 accommodation states (0–5 D / 0.2 D) — for each of the
-paper's layouts (natural, 2×2, 3×3, 4×4), via ``lfjax.through_focus.through_focus``
+paper's layouts (natural, 2×2, 3×3, 4×4), via ``lfjax.vision.focus.through_focus``
 (VSOTF, Strehl, radial MTF and the reference OTF included). All layouts use ONE frequency
 step: the largest (rounded down to 0.01 cpd) that the aliasing guard accepts for every
 layout, found from the guard's own "use freq_step_cpd <= X" message; so n×n vs open is a
@@ -44,7 +44,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 def bands_for(layout, sampling, spectrum):
     wl = np.asarray(spectrum.wavelengths_nm)
     try:
-        from lfjax.sampling import wavelength_bands
+        from lfjax.base.sampling import wavelength_bands
     except ImportError:
         return ((0, wl.size, sampling.window_size(layout.window_diameter_mm, float(wl.min()), 3.0)),)
     return tuple(
@@ -61,7 +61,7 @@ def make_scan_floor(bands, n_batch, sampling):
     import jax
     import jax.numpy as jnp
 
-    from lfjax.optics import pupil_window_size
+    from lfjax.kernel.optics import pupil_window_size
 
     rng = np.random.default_rng(0)
     bases, scales = [], []
@@ -92,7 +92,7 @@ def eleven_eyes():
     import jax.numpy as jnp
 
     import lfjax
-    from lfjax.eyes import Eyes
+    from lfjax.model.eyes import Eyes
 
     avg = lfjax.average_eye(3.0)
     drawn = lfjax.sample_eyes(0, 10, 3.0)
@@ -109,9 +109,9 @@ def main(argv=None):
     header("bench_lightfield: through-focus per layout and the full grid (issue #3)")
 
     import lfjax
-    from lfjax.layouts import paper_layouts
-    from lfjax.spectral import make_spectrum
-    from lfjax.through_focus import through_focus
+    from lfjax.model.layouts import paper_layouts
+    from lfjax.model.spectral import make_spectrum
+    from lfjax.vision.focus import through_focus
 
     layouts = paper_layouts(3.0)
     spectrum = make_spectrum()
@@ -153,15 +153,15 @@ def main(argv=None):
           f"accepts for all layouts{' and the grid' if len(calls) > 1 else ''}; "
           f"probing + warm-up took {time.perf_counter() - t0:.0f} s")
     try:
-        from lfjax.planner import plan_sampling
+        from lfjax.planner.plan import plan_sampling
 
         for name in LAYOUT_ORDER:
             plan = plan_sampling(layouts[name], 3.0, 2.0, depths_D=GRID_DEPTHS,
                                  accommodation_window_D=1.0, eyes_zernike_um=np.asarray(eyes11.zernike_um))
-            print(f"  (lfjax.planner.plan_sampling for the grid, {name}: df = "
+            print(f"  (lfjax.planner.plan.plan_sampling for the grid, {name}: df = "
                   f"{plan.sampling.freq_step_cpd:g} cpd, bands {plan.bands})")
     except Exception as err:  # planner absent or changed: informational only
-        print(f"  (lfjax.planner.plan_sampling not used: {type(err).__name__}: {err})")
+        print(f"  (lfjax.planner.plan.plan_sampling not used: {type(err).__name__}: {err})")
     sampling = lfjax.Sampling(df)
     bands = {n: bands_for(layouts[n], sampling, spectrum) for n in LAYOUT_ORDER}
     results = {"df": df, "bands": bands}

@@ -108,11 +108,11 @@ def main(argv=None):
     from scipy.ndimage import map_coordinates
 
     import lfjax
-    from lfjax.layouts import grid_layout, paper_layouts
-    from lfjax.optics import sa_c40_um
-    from lfjax.spectral import make_spectrum
-    from lfjax.through_focus import through_focus
-    from lfjax.zernike import zernike_mode
+    from lfjax.model.layouts import grid_layout, paper_layouts
+    from lfjax.kernel.optics import sa_c40_um
+    from lfjax.model.spectral import make_spectrum
+    from lfjax.vision.focus import through_focus
+    from lfjax.base.zernike import zernike_mode
 
     # --- the same eye, layout, spectrum and sampling for both
     eye = lfjax.sample_eyes(0, 1, 3.0)
@@ -122,7 +122,7 @@ def main(argv=None):
     spec = make_spectrum(WAVELENGTHS)
     sampling = lfjax.Sampling(DF)
     try:
-        from lfjax.sampling import wavelength_bands
+        from lfjax.base.sampling import wavelength_bands
 
         n_common = max(b[2] for b in wavelength_bands(WAVELENGTHS, layout.window_diameter_mm, 3.0, sampling))
     except ImportError:
@@ -252,7 +252,7 @@ def main(argv=None):
     errs = {k: float(np.abs(v - vs_ref).max()) for k, (v, _) in results.items()}
     agree = {k: int(np.sum(np.isclose(p, pred_ref))) for k, (_, p) in results.items()}
     print(f"\n## reduced configuration, min of {args.repeats} interleaved repeats (machine: see load above)\n")
-    names = {"lfjax": "lfjax.through_focus (jit, float32)", "naive": "naive per-PSF numpy/scipy (float64)",
+    names = {"lfjax": "lfjax.vision.focus (jit, float32)", "naive": "naive per-PSF numpy/scipy (float64)",
              "def": "ISETBio-style, ISETBio defaults (float64)", "eq": "ISETBio-style, lfjax's accuracy (float64)",
              "eq32": "ISETBio-style, lfjax's accuracy, float32"}
     settings = {"lfjax": f"df = {DF} cpd, soft edges", "naive": f"pupil grid {n_grid}², spline resampling",
@@ -318,7 +318,7 @@ def main(argv=None):
     rows, total = [], 0.0
     for name, lay in layouts.items():
         try:
-            from lfjax.sampling import wavelength_bands
+            from lfjax.base.sampling import wavelength_bands
 
             L = max(b[2] for b in wavelength_bands(np.arange(400.0, 701, 10), lay.window_diameter_mm,
                                                    3.0, lfjax.Sampling(df_study)))
@@ -348,7 +348,7 @@ def main(argv=None):
     # accepts (start DF) against its own df/4, and the ISETBio-style pipeline at its defaults
     # and at the chosen N/P ratio scaled to the layout's smallest P, stepped in N
     # (×0.5 … ×2) until two consecutive sizes meet that layout's lfjax error.
-    from lfjax.sampling import next_fast_size
+    from lfjax.base.sampling import next_fast_size
 
     icounts = study_isetbio_counts(layouts, depths, acc_grid, 1.0, 11, 31)
     calib = {"2x2": {"lfjax_s": t_l, "lfjax_err": errs["lfjax"], "lfjax_df": DF,
@@ -516,11 +516,11 @@ def study_eye(args):
     once per layout, is eye-independent), so its study time is 11 × this eye's, less 10
     references — the only step here that is scaled rather than run."""
     import lfjax
-    from lfjax.layouts import paper_layouts
-    from lfjax.optics import sa_c40_um
-    from lfjax.sampling import wavelength_bands
-    from lfjax.spectral import make_spectrum
-    from lfjax.through_focus import through_focus
+    from lfjax.model.layouts import paper_layouts
+    from lfjax.kernel.optics import sa_c40_um
+    from lfjax.base.sampling import wavelength_bands
+    from lfjax.model.spectral import make_spectrum
+    from lfjax.vision.focus import through_focus
 
     depths = np.round(np.arange(0.0, 4.01, 0.5), 9)
     acc = np.round(np.arange(0.0, 5.01, 0.2), 9)

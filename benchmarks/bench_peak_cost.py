@@ -16,7 +16,7 @@ import jax
 import numpy as np
 
 import lfjax
-from lfjax.through_focus import through_focus
+from lfjax.vision.focus import through_focus
 
 from _common import header
 

@@ -55,7 +55,7 @@ def ansi_vector(coeffs=COEFFS):
 
 
 def ansi_nm(j):
-    from lfjax.zernike import nm_from_ansi
+    from lfjax.base.zernike import nm_from_ansi
 
     return nm_from_ansi(j)
 
@@ -70,7 +70,7 @@ def centroid(psf):
 def lfjax_w_um(c, x_mm, y_mm):
     import jax.numpy as jnp
 
-    from lfjax.zernike import wavefront_um
+    from lfjax.base.zernike import wavefront_um
 
     r = PUPIL_MM / 2
     return np.asarray(wavefront_um(jnp.asarray(c), jnp.asarray(x_mm / r), jnp.asarray(y_mm / r)))
@@ -149,7 +149,7 @@ def build_poppy():
         out = []
         for j in range(1, N_MODES + 1):
             n, m = noll_indices(j)
-            from lfjax.zernike import ansi_from_nm
+            from lfjax.base.zernike import ansi_from_nm
 
             out.append(c[ansi_from_nm(n, m)] * 1e-6)
         return out
@@ -179,7 +179,7 @@ def build_dlux():
     import equinox as eqx
     import jax.numpy as jnp
 
-    from lfjax.zernike import nm_from_ansi
+    from lfjax.base.zernike import nm_from_ansi
 
     def noll_from_nm(n, m):
         """Noll index of ANSI (n, m): Noll (1976) ordering, even j ↔ cos (m > 0), odd j ↔ sin."""

@@ -74,7 +74,7 @@ def _band_floor(eyes_n: int, n_states: int, n_sub: int, bands, mft_samples=None)
 
 PEAK_STATES = 3
 """States each (eye, depth)'s continuous peak evaluates beyond the grid: ``lfjax reproduce``
-refines its VSOTF peaks with ``"local"`` (lfjax.peaks.LOCAL_OFFSETS_D)."""
+refines its VSOTF peaks with ``"local"`` (lfjax.vision.peaks.LOCAL_OFFSETS_D)."""
 
 
 def _study_floor(config, label: str, repeat: int = 1, peaks: bool = True
@@ -84,11 +84,11 @@ def _study_floor(config, label: str, repeat: int = 1, peaks: bool = True
     claims, or fixed by the config). Returns (seconds, {layout: wavelength step nm}, lines)."""
     import lfjax
     from lfjax.reproduce.config import _planned_sampling, study_eyes
-    from lfjax.sampling import wavelength_bands
+    from lfjax.base.sampling import wavelength_bands
 
     eyes, _ = study_eyes(config)
     total, steps, lines = 0.0, {}, []
-    for name, layout in lfjax.layouts.paper_layouts(config.pupil_diameter_mm).items():
+    for name, layout in lfjax.model.layouts.paper_layouts(config.pupil_diameter_mm).items():
         depths = (np.array([config.cdp_D]) if name == "natural"
                   else np.asarray(config.depths_D, float))
         sampling, wavelengths = _planned_sampling(eyes, layout, depths, config, config.options)
@@ -138,7 +138,7 @@ def run_cli(cache_dir: Path, extra: list[str],
     out = Path(tempfile.mkdtemp()) / "study"
     env = dict(os.environ, LFJAX_CACHE_DIR=str(cache_dir))
     env.pop("XLA_FLAGS", None)
-    cmd = [sys.executable, "-m", "lfjax.cli", "reproduce", "--out", str(out), "--no-progress",
+    cmd = [sys.executable, "-m", "lfjax.cli.main", "reproduce", "--out", str(out), "--no-progress",
            *extra]
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)

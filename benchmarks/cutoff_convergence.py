@@ -28,11 +28,11 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     print("$", " ".join(["python", *sys.argv]))
 
-    from lfjax.layouts import paper_layouts
+    from lfjax.model.layouts import paper_layouts
     from lfjax.reproduce.config import StudyConfig, study_eyes
-    from lfjax.sampling import Sampling
-    from lfjax.spectral import make_spectrum
-    from lfjax.through_focus import through_focus
+    from lfjax.base.sampling import Sampling
+    from lfjax.model.spectral import make_spectrum
+    from lfjax.vision.focus import through_focus
 
     config = StudyConfig()
     eyes, labels = study_eyes(config)

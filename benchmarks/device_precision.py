@@ -21,7 +21,7 @@ import jax
 import numpy as np
 
 import lfjax
-from lfjax.through_focus import through_focus
+from lfjax.vision.focus import through_focus
 
 LAYOUTS = ("natural", "2x2", "4x4")
 
@@ -30,7 +30,7 @@ def compute() -> dict[str, np.ndarray]:
     eyes = lfjax.sample_eyes(0, 3)
     spectrum = lfjax.make_spectrum(np.arange(400.0, 701.0, 50.0))
     grid = np.round(np.arange(0, 26) * 0.2, 9)
-    layouts = lfjax.layouts.paper_layouts(3.0)
+    layouts = lfjax.model.layouts.paper_layouts(3.0)
     out = {"zernike_um": np.asarray(eyes.zernike_um)}
     for name in LAYOUTS:
         depths = [2.0] if name == "natural" else [0.5, 1.0, 2.0, 3.0, 3.5]

@@ -16,9 +16,9 @@ import sys
 import time
 from pathlib import Path
 
-from lfjax import display_effects as de
-from lfjax.cli import enable_compilation_cache
-from lfjax.eyes import append_average_eye, sample_eyes
+from lfjax.studies import display_effects as de
+from lfjax.cli.main import enable_compilation_cache
+from lfjax.model.eyes import append_average_eye, sample_eyes
 
 
 def main(argv=None) -> int:

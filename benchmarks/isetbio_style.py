@@ -60,7 +60,7 @@ What is computed once and reused:
 4. VSOTF = Σ NCSF·Re OTF / OTF(0) ÷ the same for the paper's reference (aberration-free,
    focused and rendered at the CDP, same layout, SA and LCA kept), on the OTF's own grid:
    true DFT frequencies k / (N · PSF sample) (ISETBio's 'otf support' is off by N/(N−1)
-   for odd N; docs/design.md#conventions), Watson–Ahumada NCSF from ``lfjax.metrics`` (numpy path).
+   for odd N; docs/design.md#conventions), Watson–Ahumada NCSF from ``lfjax.kernel.metrics`` (numpy path).
 
 Orientation: ISETBio negates y in the pupil, so its PSF rows run towards −θ_y; the y phase
 ramp carries the opposite sign (checked by ``tests/test_isetbio_style.py``: an aberration-
@@ -218,7 +218,7 @@ class IsetbioPipeline:
         self._kx = np.fft.rfftfreq(n, 1.0 / n)            # OTF column index (f_x = k/(N·pix))
         self._ky = np.fft.fftfreq(n, 1.0 / n)             # OTF row index
         self._pix_rad = pix_rad
-        from lfjax.metrics import ncsf_watson_ahumada_2005  # numpy in → numpy out
+        from lfjax.kernel.metrics import ncsf_watson_ahumada_2005  # numpy in → numpy out
 
         df = s.freq_step_cpd
         fx, fy = np.meshgrid(self._kx * df, self._ky * df)

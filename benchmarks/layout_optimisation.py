@@ -148,8 +148,8 @@ def fig_scan(scan):
 def run_fit(args, train, test, tag: str):
     import lfjax  # noqa: F401
     from lfjax import layout_opt as lo
-    from lfjax import layout_plots
-    from lfjax.eyes import Eyes
+    from lfjax.model import layout_plots
+    from lfjax.model.eyes import Eyes
 
     objective, non_overlap = RUNS[tag]
     constraints = lo.Constraints(3.0, max_diameter_mm=2.0, min_diameter_mm=0.5,
@@ -243,7 +243,7 @@ def summary_lines(scan, fits):
 def main(argv=None):
     args = parse(argv)
     import lfjax
-    from lfjax.cli import enable_compilation_cache
+    from lfjax.cli.main import enable_compilation_cache
 
     enable_compilation_cache()
     t_all = time.perf_counter()

@@ -29,8 +29,8 @@ import jax
 import numpy as np
 
 import lfjax.layout_opt as lo
-from lfjax import cli
-from lfjax.eyes import sample_eyes
+from lfjax.cli import main as cli
+from lfjax.model.eyes import sample_eyes
 
 
 def step_costs(n_eyes: int = 10) -> list[dict]:

@@ -7,8 +7,8 @@ Which way of finding the through-focus peak is accurate, robust and cheap? Metho
 * ``parabola``  vertex of the parabola through the 0.2 D grid maximum and its neighbours
 * ``golden``    optimistix golden section inside the grid bracket
 * ``newton``    optimistix Newton on dV/da inside the grid bracket (lfjax's default)
-* ``bfgs``      optimistix BFGS from the grid peak (as implemented in lfjax.peaks)
-* ``bfgs_cdp``  ``lfjax.peaks.refine_peak(method="bfgs")`` with no grid: bracket = the whole
+* ``bfgs``      optimistix BFGS from the grid peak (as implemented in lfjax.vision.peaks)
+* ``bfgs_cdp``  ``lfjax.vision.peaks.refine_peak(method="bfgs")`` with no grid: bracket = the whole
                 ±1 D window, start at the CDP (2 D)
 * ``bfgs_depth`` the same, started at the rendered depth
 * ``newton_depth`` (``--extra``) Newton with no grid: whole window, started at the depth
@@ -18,7 +18,7 @@ states within ±1 D of each depth allowed (the paper's grid), by default 7 wavel
 420–660 nm in 40 nm (``--wavelengths`` sets others; few, to stay affordable: the peaks are
 compared with a reference computed on the same spectrum and sampling, so the wavelength
 count does not enter the errors, only the curves' shapes through LCA), sampling
-from ``lfjax.planner.plan_sampling`` (guard only). Layouts: natural view (open 3 mm pupil),
+from ``lfjax.planner.plan.plan_sampling`` (guard only). Layouts: natural view (open 3 mm pupil),
 2×2, 3×3, 4×4 viewpoints. The natural view has one central view and so ignores the rendered
 depth (RESULTS "issues" 3); its cases here are a real point at each depth (``cdp_D = depth``),
 one call per depth, states from the same absolute 0.2 D grid inside the window.
@@ -104,13 +104,13 @@ def window_states(depth: float, step: float, n: int):
 def layout_setup(name: str, zernike_um: np.ndarray, dense: bool = True):
     """Everything static about one layout: groups of (scene, depth slots, grids)."""
     import lfjax
-    from lfjax.pipeline import Accommodation, PipelineConfig, Scene
+    from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene
 
     opts = lfjax.ModelOptions()
     spec = lfjax.make_spectrum(WAVELENGTHS_NM, opts)
 
     def plan(layout, cdp, depths):
-        return lfjax.planner.plan_sampling(
+        return lfjax.planner.plan.plan_sampling(
             layout=layout, pupil_diameter_mm=PUPIL_MM, cdp_D=cdp, depths_D=depths,
             accommodation_D=GRID_D, accommodation_window_D=WINDOW_D,
             wavelengths_nm=spec.wavelengths_nm, eyes_zernike_um=zernike_um,
@@ -171,7 +171,7 @@ def _stage1_groups(name: str, zernike_um: np.ndarray):
     """The scene groups of ``layout_setup`` with the reference's coarse float64 grid
     (``COARSE_REF_STEP_D`` over the whole ±1 D window) in place of the 0.01 D one."""
     import lfjax
-    from lfjax.pipeline import Accommodation
+    from lfjax.kernel.pipeline import Accommodation
 
     setup = layout_setup(name, zernike_um, dense=False)
     opts = lfjax.ModelOptions()
@@ -222,8 +222,8 @@ def run_reference(args):
     import jax.numpy as jnp
     import lfjax
     from _common import block
-    from lfjax.eyes import Eyes
-    from lfjax.pipeline import Accommodation, reference_normalisers, retinal_metrics
+    from lfjax.model.eyes import Eyes
+    from lfjax.kernel.pipeline import Accommodation, reference_normalisers, retinal_metrics
 
     @eqx.filter_jit
     def per_eye_states(zernike_um, pupil_mm, scene, spectrum, states_D, pair_index, sa, config,
@@ -238,7 +238,7 @@ def run_reference(args):
     z = np.load(CACHE / "eyes.npz")["zernike_um"].astype(np.float64)
     if args.reference_eyes:
         z = z[:args.reference_eyes]
-    eyes_all = lfjax.eyes.make_eyes(z, PUPIL_MM)
+    eyes_all = lfjax.model.eyes.make_eyes(z, PUPIL_MM)
     n_eyes = z.shape[0]
     n_fine = 2 * FINE_HALF + 1
     for name in args.layouts:
@@ -325,8 +325,8 @@ def _direct_fn():
     import equinox as eqx
     import jax
     import jax.numpy as jnp
-    from lfjax.peaks import refine_peak, single_state_metric
-    from lfjax.pipeline import _eye_coefficients, reference_normalisers
+    from lfjax.vision.peaks import refine_peak, single_state_metric
+    from lfjax.kernel.pipeline import _eye_coefficients, reference_normalisers
 
     @eqx.filter_jit
     def direct(eyes, scene, spectrum, acc, config, lower, upper, start, metric, method):
@@ -350,7 +350,7 @@ FIELDS = ("accommodation_D", "value", "success", "result", "n_steps", "second_ac
 
 def call_method(method, metric, setup, g, eyes, direct):
     """One compiled call of ``method`` on one group; returns a zero-argument callable."""
-    from lfjax.peaks import accommodation_peaks
+    from lfjax.vision.peaks import accommodation_peaks
 
     spec, cfg = setup["spectrum"], setup["config"]
     if method in ("grid0.2", "parabola", "golden", "newton", "bfgs", "grid0.01"):
@@ -388,7 +388,7 @@ def run_methods(args):
     from _common import CompileTimer, timed
 
     z = np.load(CACHE / "eyes.npz")["zernike_um"]
-    eyes_all = lfjax.eyes.make_eyes(z, PUPIL_MM)
+    eyes_all = lfjax.model.eyes.make_eyes(z, PUPIL_MM)
     direct = _direct_fn()
     methods = list(CHEAP) + list(SOLVERS) + (list(EXTRA) if args.extra else [])
     if args.methods:
@@ -453,7 +453,7 @@ def run_methods(args):
 
 
 def local_maxima(v, prominence=0.05):
-    """numpy twin of lfjax.peaks._local_maxima on one curve (−inf = not allowed): indices of
+    """numpy twin of lfjax.vision.peaks._local_maxima on one curve (−inf = not allowed): indices of
     the global maximum and of the highest other prominent local maximum (or −1)."""
     best = int(np.argmax(v))
     left = np.concatenate([[-np.inf], v[:-1]])
@@ -523,7 +523,7 @@ def pct(x, q):
 
 
 def load_all(args):
-    import lfjax.peaks as P
+    import lfjax.vision.peaks as P
 
     runs = []
     for name in args.layouts:
@@ -546,7 +546,7 @@ def load_all(args):
 
 
 def summarise(runs):
-    import lfjax.peaks as P
+    import lfjax.vision.peaks as P
 
     rows = []
     for metric in METRICS:
@@ -640,7 +640,7 @@ def describe(r, e, d, seed, n_eyes, zernike_um):
     on = allowed & np.isclose(np.round(s / 0.2) * 0.2, s, atol=1e-6)
     info["curve_0.2D_f64"] = {f"{x:.1f}": round(float(v), 5) for x, v in zip(s[on], r["curves"][e, d][on])}
     per = {}
-    import lfjax.peaks as P
+    import lfjax.vision.peaks as P
     for m in r["methods"]:
         npz = r["npz"]
         if e >= int(npz[f"{m}|n_eyes"]):
@@ -963,7 +963,7 @@ def analyse(args):
         scene=dict(pupil_mm=PUPIL_MM, cdp_D=CDP_D, natural_view="cdp_D = rendered depth",
                    window_D=WINDOW_D, grid_D=[0.0, 5.0, 0.2], wavelengths_nm=WAVELENGTHS_NM.tolist(),
                    options="lfjax.ModelOptions() defaults",
-                   sampling="lfjax.planner.plan_sampling(..., estimate_accuracy=False) per layout"),
+                   sampling="lfjax.planner.plan.plan_sampling(..., estimate_accuracy=False) per layout"),
         methods_note=dict(atol_D=ATOL_D, max_steps=MAX_STEPS, silent_threshold_D=SILENT_D),
         reference_seconds=ref_seconds,
         kinds=kinds)

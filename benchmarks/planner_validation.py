@@ -2,7 +2,7 @@
 
 For each scene (aberration-free eye, 450/550/650 nm, accommodation 0–4 D in 0.2 D steps
 within a window of each rendered depth) the planner's sampling and each rejected cheaper
-neighbour are run through lfjax.through_focus; the measured error is max |VSOTF − converged|
+neighbour are run through lfjax.vision.focus; the measured error is max |VSOTF − converged|
 where converged is Richardson-extrapolated from a quarter and an eighth of the plan's step; "wrap" is
 the pipeline's wrapped PSF / peak on the plan's field. tests/test_planner.py asserts the
 parts that hold; benchmarks/RESULTS.md §7 records a run.
@@ -17,10 +17,10 @@ import numpy as np
 from _common import header
 
 import lfjax
-from lfjax.planner import plan_sampling
-from lfjax.through_focus import through_focus
-from lfjax.optics import psf_from_otf
-from lfjax.psf import polychromatic_otf
+from lfjax.planner.plan import plan_sampling
+from lfjax.vision.focus import through_focus
+from lfjax.kernel.optics import psf_from_otf
+from lfjax.vision.psf import polychromatic_otf
 WL=[450.,550.,650.]
 sp=lfjax.make_spectrum(WL)
 
@@ -50,7 +50,7 @@ scenes = {
 tol=float(sys.argv[1]) if len(sys.argv)>1 else 2e-3
 header(f"planner_validation: plans for VSOTF error <= {tol:g} against the pipeline (issue #5)")
 for name,(lay,depths,pupil,win) in scenes.items():
-    eye = lfjax.eyes.aberration_free_eye(measured_pupil_mm=max(pupil,3.0))
+    eye = lfjax.model.eyes.aberration_free_eye(measured_pupil_mm=max(pupil,3.0))
     acc=np.round(np.arange(0,4.01,0.2),9)
     t=time.time()
     plan=plan_sampling(lay, pupil, 2.0, depths_D=depths, accommodation_D=acc, accommodation_window_D=win, wavelengths_nm=WL, vsotf_tolerance=tol, measured_pupil_mm=max(pupil,3.0))

@@ -2,7 +2,7 @@
 
 For three small scenes (aberration-free eye, 450/550/650 nm, accommodation 0–4 D / 0.2 D in
 a window around each depth) the planner is forced to the MFT path (``transform="mft"``);
-its plan and each rejected cheaper neighbour are run through lfjax.through_focus and
+its plan and each rejected cheaper neighbour are run through lfjax.vision.focus and
 measured against a converged run: Richardson (order 2) from the FFT plan's df/2 and df/4.
 
 Run:  .venv/bin/python benchmarks/planner_validation_mft.py [tolerance, default 1e-3]
@@ -14,8 +14,8 @@ import numpy as np
 from _common import header
 
 import lfjax
-from lfjax.planner import plan_sampling
-from lfjax.through_focus import through_focus
+from lfjax.planner.plan import plan_sampling
+from lfjax.vision.focus import through_focus
 
 WL = [450.0, 550.0, 650.0]
 SPECTRUM = lfjax.make_spectrum(WL)
@@ -37,7 +37,7 @@ def main():
     tol = float(sys.argv[1]) if len(sys.argv) > 1 else 1e-3
     header(f"planner_validation_mft: forced MFT plans for VSOTF error <= {tol:g} (issue #5)")
     for name, (layout, depths, pupil, window) in SCENES.items():
-        eye = lfjax.eyes.aberration_free_eye(measured_pupil_mm=3.0)
+        eye = lfjax.model.eyes.aberration_free_eye(measured_pupil_mm=3.0)
         kw = dict(depths_D=depths, accommodation_D=ACC, accommodation_window_D=window,
                   wavelengths_nm=WL, vsotf_tolerance=tol)
         plan = plan_sampling(layout, pupil, 2.0, transform="mft", **kw)

@@ -1,4 +1,4 @@
-"""Default sampling of lfjax.psf.monochromatic_psf (issue #10): measured error of the rule.
+"""Default sampling of lfjax.vision.psf.monochromatic_psf (issue #10): measured error of the rule.
 
 The error measure is max |PSF − converged PSF| / max(converged PSF) on the requested grid.
 The converged PSF is the same computation with M = min(4N, 8192) pupil samples,
@@ -34,8 +34,8 @@ import numpy as np  # noqa: E402
 from _common import header  # noqa: E402
 
 import lfjax  # noqa: E402
-from lfjax import psf as P  # noqa: E402
-from lfjax.units import ARCMIN_PER_RADIAN  # noqa: E402
+from lfjax.vision import psf as P
+from lfjax.base.units import ARCMIN_PER_RADIAN  # noqa: E402
 
 N_PIXELS = 201
 REF_MAX = 8192

@@ -4,8 +4,8 @@ and accommodation error against views per pupil, over a population of eyes.
 Run:  python benchmarks/spatio_angular_tradeoff.py [--eyes 100] [--panels near-eye phone]
           [--counts 1 2 3 4 5 6] [--wavelengths 550 550 10] [--work DIR] [--out DIR]
 
-For each panel class (lfjax.panel's presets: a 0.7-inch OLED microdisplay at 30 mm, a
-460 ppi phone panel at 350 mm) and each count n, lfjax.tradeoff.panel_for_views builds the
+For each panel class (lfjax.display.panel's presets: a 0.7-inch OLED microdisplay at 30 mm, a
+460 ppi phone panel at 350 mm) and each count n, lfjax.studies.tradeoff.panel_for_views builds the
 panel of the same pixels, distance, CDP and eye box with tangent n×n views, and the
 population sweep (lfjax.sweep.run_sweep) evaluates it on --eyes Thibos eyes (seed 0) at the
 CDP and ±1 D. Stores go to --work (resumable: an interrupted run continues where it
@@ -26,9 +26,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import header  # noqa: E402
 
-from lfjax import tradeoff as to  # noqa: E402
-from lfjax.cli import enable_compilation_cache  # noqa: E402
-from lfjax.panel import PRESETS  # noqa: E402
+from lfjax.studies import tradeoff as to
+from lfjax.cli.main import enable_compilation_cache  # noqa: E402
+from lfjax.display.panel import PRESETS  # noqa: E402
 from lfjax.sweep.store import completed_chunks, is_store  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -48,7 +48,7 @@ def main(argv=None) -> int:
     parser.add_argument("--report-only", action="store_true",
                         help="no computing: tables and figure from the finished chunks in --work")
     args = parser.parse_args(argv)
-    info = header("spatio-angular trade-off (lfjax.tradeoff)")
+    info = header("spatio-angular trade-off (lfjax.studies.tradeoff)")
     enable_compilation_cache()
     config = to.TradeoffConfig(counts=tuple(args.counts), n_eyes=args.eyes,
                                wavelengths_nm=tuple(args.wavelengths), chunk_size=args.chunk_size)

@@ -24,8 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import lfjax
-from lfjax.spectral import luminous_efficiency, make_spectrum
-from lfjax.through_focus import _cutoff_at_index, through_focus
+from lfjax.model.spectral import luminous_efficiency, make_spectrum
+from lfjax.vision.focus import _cutoff_at_index, through_focus
 
 UNIFORM_STEPS_NM = (25.0, 30.0)
 GAUSS_NODES = (5, 6, 7, 8, 9)

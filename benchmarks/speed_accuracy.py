@@ -31,15 +31,15 @@ def run_case(df: float, wl_step: float, x64: bool, edge: float, check: bool = Tr
 
     jax.config.update("jax_enable_x64", x64)
     import lfjax
-    from lfjax.through_focus import through_focus
+    from lfjax.vision.focus import through_focus
 
     eyes = lfjax.sample_eyes(1, 2)
-    eyes = lfjax.eyes.make_eyes(
+    eyes = lfjax.model.eyes.make_eyes(
         np.concatenate([np.asarray(eyes.zernike_um), np.asarray(lfjax.average_eye().zernike_um)]),
         3.0,
     )
     n_keep = (max_order + 1) * (max_order + 2) // 2
-    eyes = lfjax.eyes.make_eyes(np.asarray(eyes.zernike_um)[:, :n_keep], 3.0)
+    eyes = lfjax.model.eyes.make_eyes(np.asarray(eyes.zernike_um)[:, :n_keep], 3.0)
     layout = lfjax.grid_layout(2, 3.0)
     depths = [1.0, 2.0, 3.0]
     acc = np.round(np.arange(0.0, 4.01, 0.2), 9)
@@ -75,7 +75,7 @@ def child(args):
 
 def main():
     import lfjax
-    from lfjax.planner import plan_sampling
+    from lfjax.planner.plan import plan_sampling
 
     eyes = lfjax.sample_eyes(1, 2)
     zernike = np.concatenate([np.asarray(eyes.zernike_um), np.asarray(lfjax.average_eye().zernike_um)])

@@ -17,8 +17,8 @@ import jax
 import numpy as np
 
 import lfjax
-from lfjax.eyes import append_average_eye
-from lfjax.through_focus import through_focus
+from lfjax.model.eyes import append_average_eye
+from lfjax.vision.focus import through_focus
 
 EYES = append_average_eye(lfjax.sample_eyes(0, 10))
 LAYOUT = lfjax.grid_layout(2, 3.0)

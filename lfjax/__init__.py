@@ -2,49 +2,47 @@
 
 Wave-optics model (Miyanishi, Sahin & Gotchev) of an ideal integral-imaging light-field
 display viewed by a population of aberrated eyes, as pure, jitted, vmapped and
-differentiable JAX functions. Stage modules: :mod:`lfjax.zernike`, :mod:`lfjax.eyes`,
-:mod:`lfjax.spectral`, :mod:`lfjax.layouts`, :mod:`lfjax.apertures`, :mod:`lfjax.scene`,
-:mod:`lfjax.optics` (the elemental optics kernel), :mod:`lfjax.metrics`,
-:mod:`lfjax.pipeline` (the pure core), :mod:`lfjax.psf`, :mod:`lfjax.through_focus`,
-:mod:`lfjax.images`, :mod:`lfjax.planner`, :mod:`lfjax.peaks`, :mod:`lfjax.layout_opt`;
-beyond the paper's ideal display: :mod:`lfjax.display` (lenslet diffraction, pixels),
-:mod:`lfjax.display_spectra` (display spectra), :mod:`lfjax.display_effects` (the study),
-:mod:`lfjax.panel` (a display as built) and :mod:`lfjax.design` (fitting one to eyes);
-:mod:`lfjax.reproduce` and :mod:`lfjax.cli` run the paper's study. The layers they form,
-bottom-up, are in docs/design.md#layers.
+differentiable JAX functions.
+
+The folders are the layers, bottom-up (docs/design.md#layers): :mod:`lfjax.base`
+(conventions and maths) → :mod:`lfjax.model` (eyes, options, spectra, layouts) →
+:mod:`lfjax.display` (lenslets, panel, display spectra) → :mod:`lfjax.kernel` (the optics
+kernel and the pure pipeline) → :mod:`lfjax.planner` → :mod:`lfjax.vision` (through-focus,
+peaks, PSFs, images, resolution) → the applications, reached by name
+(:mod:`lfjax.layout_opt`, :mod:`lfjax.sweep`, :mod:`lfjax.studies`, :mod:`lfjax.design`,
+:mod:`lfjax.reproduce`) → :mod:`lfjax.cli`.
+
+This face offers the calls a user starts with.
 """
 
-from . import display as display
-from . import display_spectra as display_spectra
-from . import eyes as eyes
-from . import layout_opt as layout_opt
-from . import layouts as layouts
-from . import metrics as metrics
-from . import optics as optics
-from . import panel as panel
-from . import peaks as peaks
-from . import pipeline as pipeline
-from . import planner as planner
-from . import psf as psf
-from . import spectral as spectral
-from . import through_focus as through_focus
-from . import units as units
-from . import zernike as zernike
-from ._version import __version__ as __version__
-from .display import DisplayOptics as DisplayOptics
-from .display import LensletArray as LensletArray
-from .eyes import Eyes as Eyes
-from .eyes import average_eye as average_eye
-from .eyes import sample_eyes as sample_eyes
-from .layouts import grid_layout as grid_layout
-from .layouts import hex_layout as hex_layout
-from .layouts import make_layout as make_layout
-from .layouts import open_pupil as open_pupil
-from .options import ModelOptions as ModelOptions
-from .options import ModelParameters as ModelParameters
-from .panel import Panel as Panel
-from .psf import monochromatic_psf as monochromatic_psf
-from .psf import polychromatic_otf as polychromatic_otf
-from .sampling import AliasingError as AliasingError
-from .sampling import Sampling as Sampling
-from .spectral import make_spectrum as make_spectrum
+from lfjax._version import __version__ as __version__
+from lfjax.base.sampling import AliasingError as AliasingError
+from lfjax.base.sampling import Sampling as Sampling
+from lfjax.display.lenslets import DisplayOptics as DisplayOptics
+from lfjax.display.lenslets import LensletArray as LensletArray
+from lfjax.display.panel import Panel as Panel
+from lfjax.display.spectra import display_primaries as display_primaries
+from lfjax.display.spectra import display_spectrum as display_spectrum
+from lfjax.model.eyes import Eyes as Eyes
+from lfjax.model.eyes import average_eye as average_eye
+from lfjax.model.eyes import make_eyes as make_eyes
+from lfjax.model.eyes import sample_eyes as sample_eyes
+from lfjax.model.layouts import Layout as Layout
+from lfjax.model.layouts import grid_layout as grid_layout
+from lfjax.model.layouts import hex_layout as hex_layout
+from lfjax.model.layouts import make_layout as make_layout
+from lfjax.model.layouts import open_pupil as open_pupil
+from lfjax.model.options import ModelOptions as ModelOptions
+from lfjax.model.options import ModelParameters as ModelParameters
+from lfjax.model.spectral import Spectrum as Spectrum
+from lfjax.model.spectral import make_spectrum as make_spectrum
+from lfjax.planner.plan import Plan as Plan
+from lfjax.planner.plan import plan_sampling as plan_sampling
+from lfjax.vision.focus import ThroughFocus as ThroughFocus
+from lfjax.vision.focus import metrics_at as metrics_at
+from lfjax.vision.focus import through_focus as through_focus
+from lfjax.vision.focus import through_focus_variants as through_focus_variants
+from lfjax.vision.peaks import Peaks as Peaks
+from lfjax.vision.peaks import accommodation_peaks as accommodation_peaks
+from lfjax.vision.psf import monochromatic_psf as monochromatic_psf
+from lfjax.vision.psf import polychromatic_otf as polychromatic_otf

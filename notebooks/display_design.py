@@ -11,8 +11,8 @@
 #
 # A display maker does not choose "a subaperture layout". They choose a panel (pixel pitch
 # and count), a lenslet array (pitch, fill, focal length), the gap between them and a
-# viewing distance. This notebook walks through one design with `lfjax.panel` and
-# `lfjax.design`: the quantities a panel implies for the eye, what more views per pupil
+# viewing distance. This notebook walks through one design with `lfjax.display.panel` and
+# `lfjax.design.fit`: the quantities a panel implies for the eye, what more views per pupil
 # cost in resolution, a fit of the lenslet array to a few eyes, the buildable
 # specification it writes and its drawing.
 #
@@ -35,11 +35,11 @@ import numpy as np
 from IPython.display import Image, display
 
 import lfjax
-from lfjax.design import DesignConstraints, fit_design, panel_specification, save_design
-from lfjax.eyes import sample_eyes
-from lfjax.panel import near_eye_microdisplay, sampling_limit_cpd
-from lfjax.sampling import Sampling
-from lfjax.tradeoff import panel_for_views
+from lfjax.design.fit import DesignConstraints, fit_design, panel_specification, save_design
+from lfjax.model.eyes import sample_eyes
+from lfjax.display.panel import near_eye_microdisplay, sampling_limit_cpd
+from lfjax.base.sampling import Sampling
+from lfjax.studies.tradeoff import panel_for_views
 
 SIZE = os.environ.get("LFJAX_NOTEBOOK_SIZE", "small")
 panel = near_eye_microdisplay()
@@ -58,7 +58,7 @@ print(SIZE, lfjax.__version__)
 # The preset is a 0.7-inch 1920×1080 OLED microdisplay (8.1 µm pixels) behind 1 mm
 # lenslets of 3.3 mm focal length, 30 mm from the eye, with the gap set for a central depth
 # plane (CDP) at 1.5 D. Everything below follows from those numbers by thin-lens geometry
-# (`lfjax.panel`'s module documentation derives each one):
+# (`lfjax.display.panel`'s module documentation derives each one):
 #
 # * the magnification M = 1 + z_m·V from the lenslet plane to the pupil, so the views are
 #   M·Δu apart in the pupil and M·a wide — a 3 mm pupil holds D/(M·Δu) of them across;
@@ -94,7 +94,7 @@ for d, c in zip(depths, limit):
 # ## More views per pupil, coarser pixels
 #
 # Keep the panel's pixels, distance, CDP and eye box, and put n×n tangent views in the
-# pupil (`lfjax.tradeoff.panel_for_views`): the lenslets shrink as 1/n, and so does the gap
+# pupil (`lfjax.studies.tradeoff.panel_for_views`): the lenslets shrink as 1/n, and so does the gap
 # that keeps the eye box, so each pixel subtends an angle n times wider while the lenslet
 # sampling gets n times finer. On the CDP the pixels decide; off it, the lenslets. How the
 # eyes fare — accommodation error and perceivable resolution over a population — is the

@@ -12,7 +12,7 @@
 # The paper models an ideal light-field display: every view fills a geometric subaperture
 # of the pupil, every emitter is a point, and the light is V(λ)-weighted white. Its own
 # limitations section calls display diffraction the most important thing left out. This
-# notebook switches the three effects on one by one with `lfjax.display_effects` and asks
+# notebook switches the three effects on one by one with `lfjax.studies.display_effects` and asks
 # how the predicted accommodation and the MTF cut-off change, and whether lenslet
 # diffraction changes the paper's 2×2 conclusion (2×2 views already drive accommodation to
 # the rendered depth).
@@ -33,9 +33,9 @@ import numpy as np
 from IPython.display import Image, Markdown, display
 
 import lfjax
-from lfjax import display_effects as de
-from lfjax.display import lenslets_for_layout
-from lfjax.display_spectra import display_spectrum
+from lfjax.studies import display_effects as de
+from lfjax.display.lenslets import lenslets_for_layout
+from lfjax.display.spectra import display_spectrum
 
 SIZE = os.environ.get("LFJAX_NOTEBOOK_SIZE", "small")
 if SIZE == "tiny":

@@ -26,8 +26,8 @@ from IPython.display import Image, display
 
 import lfjax
 from lfjax import reproduce
-from lfjax.cli import enable_compilation_cache
-from lfjax.images import retinal_image, snellen_e
+from lfjax.cli.main import enable_compilation_cache
+from lfjax.vision.images import retinal_image, snellen_e
 
 # Optional: keep JAX compilations on disk (as the command line does), so a second session
 # starts faster.
@@ -48,7 +48,7 @@ def show(fig, dpi=80):
 # %% [markdown]
 # ## The study
 #
-# `run_study` makes one `lfjax.through_focus.through_focus` call per layout with every eye
+# `run_study` makes one `lfjax.vision.focus.through_focus` call per layout with every eye
 # (the virtual eyes and the average eye in one batch). The result is a labelled
 # `xarray.Dataset`: VSOTF and Strehl ratio through focus, radial MTFs, predicted
 # accommodation and cut-off frequencies, with units and the model options in its attributes.
@@ -101,7 +101,7 @@ for key, fig in figures.items():
 # 10 arcmin Snellen E convolved with each.
 
 # %%
-layout = lfjax.layouts.grid_layout(3, config.pupil_diameter_mm)
+layout = lfjax.model.layouts.grid_layout(3, config.pupil_diameter_mm)
 depth = config.cdp_D + 1.0
 stack = lfjax.polychromatic_otf(
     lfjax.average_eye(), accommodation_D=[depth, config.cdp_D], layout=layout,

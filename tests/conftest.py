@@ -9,7 +9,7 @@
   faster and changes no result beyond round-off. Set ``XLA_FLAGS`` yourself to override.
 * Shapes in the types are checked (``LFJAX_SHAPE_CHECKS=1``, before lfjax is imported): the
   public numerical entry points check their jaxtyping annotations with beartype at every
-  call (``lfjax._types.shape_checked``).
+  call (``lfjax.base.types.shape_checked``).
 * Expensive results shared by several test files are session fixtures here (each costs
   one XLA compile); cheap module-level inputs live in ``helpers.py``.
 """
@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import lfjax  # noqa: E402
-from lfjax.through_focus import through_focus  # noqa: E402
+from lfjax.vision.focus import through_focus  # noqa: E402
 
 import helpers as H  # noqa: E402
 
@@ -85,7 +85,7 @@ def _physics_tf(n):
     options = lfjax.ModelOptions()
     grid = np.round(np.arange(0, 22) * 0.2, 9)
     return through_focus(
-        lfjax.eyes.aberration_free_eye(), lfjax.grid_layout(n, 3.0), [0.0, 2.0, 4.0],
+        lfjax.model.eyes.aberration_free_eye(), lfjax.grid_layout(n, 3.0), [0.0, 2.0, 4.0],
         accommodation_D=grid, window_D=2.2, pupil_diameter_mm=3.0, cdp_D=2.0,
         spectrum=lfjax.make_spectrum([550.0], options), sampling=lfjax.Sampling(1.25),
         options=options,

@@ -12,7 +12,7 @@ import numpy as np
 
 import lfjax
 import reference as R
-from lfjax.layouts import Layout
+from lfjax.model.layouts import Layout
 
 DEG = 180.0 / math.pi
 RAD_TO_ARCMIN = 180.0 * 60.0 / math.pi
@@ -29,7 +29,7 @@ def spectrum_550_plain():
 
 
 def dl_eye(n_modes: int = 15):
-    return lfjax.eyes.aberration_free_eye(3.0, n_modes)
+    return lfjax.model.eyes.aberration_free_eye(3.0, n_modes)
 
 
 def marechal_rows():
@@ -43,7 +43,7 @@ def marechal_eyes():
     z = np.zeros((1 + len(rows), 15))
     for i, (j, sigma) in enumerate(rows, start=1):
         z[i, j] = sigma
-    return lfjax.eyes.make_eyes(z, 3.0)
+    return lfjax.model.eyes.make_eyes(z, 3.0)
 
 
 def defocus_eyes():
@@ -51,7 +51,7 @@ def defocus_eyes():
     z = np.zeros((3, 15))
     z[1, 4] = +C20_PER_D_3MM
     z[2, 4] = -C20_PER_D_3MM
-    return lfjax.eyes.make_eyes(z, 3.0)
+    return lfjax.model.eyes.make_eyes(z, 3.0)
 
 
 # ----------------------------------------------------------------------------- grids

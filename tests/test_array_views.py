@@ -1,4 +1,4 @@
-"""lfjax.array_views: the whole lenslet array rendering a point."""
+"""lfjax.studies.array_views: the whole lenslet array rendering a point."""
 
 from __future__ import annotations
 
@@ -8,13 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from lfjax.array_views import array_through_focus, array_views, idealisation_gap
-from lfjax.eyes import average_eye
-from lfjax.layouts import subaperture_pitch_mm
-from lfjax.panel import Panel, near_eye_microdisplay, perceivable_cutoff_at_peak, phone_panel
-from lfjax.sampling import Sampling
-from lfjax.spectral import make_spectrum
-from lfjax.through_focus import through_focus
+from lfjax.studies.array_views import array_through_focus, array_views, idealisation_gap
+from lfjax.model.eyes import average_eye
+from lfjax.model.layouts import subaperture_pitch_mm
+from lfjax.display.panel import Panel, near_eye_microdisplay, phone_panel
+from lfjax.vision.resolution import perceivable_cutoff_at_peak
+from lfjax.base.sampling import Sampling
+from lfjax.model.spectral import make_spectrum
+from lfjax.vision.focus import through_focus
 
 
 def _fine_pixels(panel: Panel, pitch_mm: float = 1e-9) -> Panel:
@@ -25,7 +26,7 @@ def _fine_pixels(panel: Panel, pitch_mm: float = 1e-9) -> Panel:
 def test_ideal_beams_follow_the_papers_equation_1(depth):
     """With vanishing pixels the lit beams are the ideal chief rays: neighbouring lenslets'
     beams are Δu·z_r/(z_r − z_m) apart in the pupil (the paper's Eq. 1, implemented
-    independently in lfjax.layouts), parallel (Δu apart) for a point at infinity, and they
+    independently in lfjax.model.layouts), parallel (Δu apart) for a point at infinity, and they
     carry no tilt."""
     panel = _fine_pixels(near_eye_microdisplay())
     views = array_views(panel, depth)
@@ -187,7 +188,7 @@ def test_near_eye_pixels_quantise_the_rendered_depth():
 def _sweep_panel(distance_mm: float) -> Panel:
     """The display study's 2×2 lenslet array (3 mm pupil, CDP 2 D, f/5) at ``distance_mm``,
     with vanishing pixels (an ideal renderer)."""
-    from lfjax.display import lenslets_for_layout
+    from lfjax.display.lenslets import lenslets_for_layout
 
     lenslets = lenslets_for_layout(2, 3.0, 2.0, distance_mm, f_number=5.0)
     pitch = float(lenslets.pitch_mm)
@@ -200,7 +201,7 @@ def test_disc_fresnel_field_matches_the_on_axis_closed_form(fresnel_number):
     """On the axis the disc's Fresnel field is 1 − exp(iπN) (N = ρ₀²/(λz)); far off the
     axis (N even: 0, the bright ring's dark centre); inside a large-N disc, away from the
     axis, it is ≈ 1 with Fresnel ripple."""
-    from lfjax.array_views import disc_fresnel_field
+    from lfjax.studies.array_views import disc_fresnel_field
 
     radius, wavelength = 0.5, 550.0
     distance = radius**2 / (wavelength * 1e-6 * fresnel_number)
@@ -212,12 +213,12 @@ def test_disc_fresnel_field_matches_the_on_axis_closed_form(fresnel_number):
 
 
 def test_disc_fresnel_field_agrees_with_the_pipelines_propagator():
-    """The quadrature and lfjax.apertures.fresnel_propagate (a padded FFT convolution of a
+    """The quadrature and lfjax.base.apertures.fresnel_propagate (a padded FFT convolution of a
     sampled, soft-edged disc) give the same field across and beyond the disc."""
     import jax.numpy as jnp
 
-    from lfjax.apertures import fresnel_propagate
-    from lfjax.array_views import disc_fresnel_field
+    from lfjax.base.apertures import fresnel_propagate
+    from lfjax.studies.array_views import disc_fresnel_field
 
     radius, wavelength, distance, dx, n = 0.4, 550.0, 300.0, 0.01, 256
     x = (np.arange(n) - n // 2) * dx
@@ -236,7 +237,7 @@ def test_the_independent_views_computation_reproduces_the_pipelines_idealised_cu
     pipeline's through_focus with the same panel's optics at 550 nm: the VSOTF curves agree
     to < 1 % of their peak (measured 0.26 %); the whole array at 1 D off the CDP brings
     more lenslets' beams into the pupil than the four views."""
-    from lfjax.array_views import array_vs_views
+    from lfjax.studies.array_views import array_vs_views
 
     panel = _sweep_panel(300.0)
     eye = average_eye()

@@ -1,4 +1,4 @@
-"""The paper's claims (lfjax.claims.evaluate_claims) on synthetic study Datasets
+"""The paper's claims (lfjax.vision.claims.evaluate_claims) on synthetic study Datasets
 built just inside and just outside each criterion, and the ten-eye version
 (lfjax.sweep.ten_eyes) on a synthetic population whose answer per sample is known.
 
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from lfjax.claims import evaluate_claims
+from lfjax.vision.claims import evaluate_claims
 from lfjax.sweep import ten_eyes as te
 
 CDP = 2.0

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lfjax import cli
+from lfjax.cli import main as cli
 from lfjax import reproduce as rep
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -19,7 +19,7 @@ NOTEBOOK_TWIN = ROOT / "notebooks" / "reproduce_paper.py"
 def run_cli(*args, cwd=None, timeout=600):
     """Run the command line in a fresh interpreter (as the console script does)."""
     return subprocess.run(
-        [sys.executable, "-m", "lfjax.cli", *args], capture_output=True, text=True,
+        [sys.executable, "-m", "lfjax.cli.main", *args], capture_output=True, text=True,
         cwd=cwd, timeout=timeout, env={**os.environ, "PYTHONWARNINGS": "ignore"},
     )
 
@@ -250,7 +250,7 @@ def test_accuracy_plans_the_wavelength_step_per_layout():
     """``accuracy="claims"`` asks the planner for each layout's wavelength step (the
     peak and cut-off targets), ``"vsotf"`` keeps the fixed grid, and a step fixed in
     ``wavelength_steps_nm`` is used as given."""
-    from lfjax.layouts import paper_layouts
+    from lfjax.model.layouts import paper_layouts
     from lfjax.reproduce.config import _planned_sampling, study_eyes
 
     config = rep.StudyConfig(n_eyes=1, depth_offsets_D=(-1.0, 0.0, 1.0))
@@ -342,7 +342,7 @@ def test_notebook_executes(tmp_path):
 def test_an_unforeseen_error_is_one_line_and_lfjax_debug_shows_it(monkeypatch, tmp_path, capsys):
     """An exception no check foresaw ends the command with one line on stderr (type and
     message, whitespace folded) and status 1; LFJAX_DEBUG=1 lets it through."""
-    from lfjax import cli
+    from lfjax.cli import main as cli
 
     def broken(*args, **kwargs):
         raise RuntimeError("the\n  unexpected")

@@ -5,7 +5,7 @@ planner's VSOTF target is 1e-3; before the shared rule they differed by 1.7e-3).
 import numpy as np
 
 import lfjax
-from lfjax.through_focus import metrics_at, through_focus
+from lfjax.vision.focus import metrics_at, through_focus
 
 
 def test_metrics_at_and_through_focus_agree_at_one_point():
@@ -27,7 +27,7 @@ def test_aliasing_error_carries_the_safe_step():
     number (callers retry with it; nobody parses the message), and that step passes."""
     import pytest
 
-    from lfjax.optics import _field_check
+    from lfjax.kernel.optics import _field_check
 
     eyes = lfjax.sample_eyes(0, 1)
     layout = lfjax.grid_layout(2, 3.0)

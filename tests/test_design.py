@@ -1,4 +1,4 @@
-"""lfjax.design and ``lfjax design``: fitting a buildable panel to eyes."""
+"""lfjax.design.fit and ``lfjax design``: fitting a buildable panel to eyes."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import helpers as H
-from lfjax import cli
-from lfjax.design import (
+from lfjax.cli import main as cli
+from lfjax.design.fit import (
     DesignConstraints,
     design_loss,
     design_notes,
@@ -24,10 +24,10 @@ from lfjax.design import (
     panel_specification,
     start_box,
 )
-from lfjax.display import lenslets_for_layout
-from lfjax.eyes import sample_eyes
-from lfjax.panel import Panel, near_eye_microdisplay, phone_panel, sampling_limit_cpd
-from lfjax.sampling import Sampling
+from lfjax.display.lenslets import lenslets_for_layout
+from lfjax.model.eyes import sample_eyes
+from lfjax.display.panel import Panel, near_eye_microdisplay, phone_panel, sampling_limit_cpd
+from lfjax.base.sampling import Sampling
 
 
 @pytest.mark.parametrize("make", [near_eye_microdisplay, phone_panel])

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import lfjax
-from lfjax.layouts import Layout
-from lfjax.through_focus import metrics_at, through_focus
+from lfjax.model.layouts import Layout
+from lfjax.vision.focus import metrics_at, through_focus
 
 WAVELENGTHS = [500.0, 600.0]
 SAMPLING = lfjax.Sampling(2.0)

@@ -1,4 +1,4 @@
-"""Display effects (lfjax.display): lenslet diffraction and finite pixels against their limits,
+"""Display effects (lfjax.display.lenslets): lenslet diffraction and finite pixels against their limits,
 analytic Fresnel diffraction, finite-difference gradients and bad input."""
 
 from __future__ import annotations
@@ -14,17 +14,17 @@ import scipy.special
 
 import helpers as H
 import lfjax
-from lfjax import planner
-from lfjax.display import DisplayOptics, LensletArray, fresnel_propagate, lenslets_for_layout
-from lfjax.psf import polychromatic_otf
-from lfjax.through_focus import metrics_at, through_focus
+from lfjax.planner import plan as planner
+from lfjax.display.lenslets import DisplayOptics, LensletArray, fresnel_propagate, lenslets_for_layout
+from lfjax.vision.psf import polychromatic_otf
+from lfjax.vision.focus import metrics_at, through_focus
 
 WL = [550.0]
 OPTIONS = lfjax.ModelOptions()
 
 
 def _soft_disc(n, dx, radius, edge):
-    from lfjax.optics import soft_disk
+    from lfjax.kernel.optics import soft_disk
 
     k = (np.arange(n) - n // 2) * dx
     xx, yy = np.meshgrid(k, k)
@@ -225,7 +225,7 @@ def test_proxy_vsotf_equals_the_pipeline_with_display_effects(display):
     depths, states = [1.0, 3.0], np.array([0.6, 1.0, 2.6, 3.0])
     spectrum = lfjax.make_spectrum([500.0, 600.0])
     df = 1.3
-    tf = through_focus(lfjax.eyes.aberration_free_eye(), layout, depths, states, 3.0,
+    tf = through_focus(lfjax.model.eyes.aberration_free_eye(), layout, depths, states, 3.0,
                        spectrum=spectrum, sampling=lfjax.Sampling(df), check_aliasing=False,
                        display=display)
     acc, dep = np.meshgrid(states, depths)
@@ -280,7 +280,7 @@ def test_notebook_matches_its_script_twin():
 
 def test_notebook_executes(tmp_path):
     """notebooks/display_effects.ipynb runs top to bottom at its tiny size (the study, the
-    lenslet sweep, the report section and the figures of lfjax.display_effects)."""
+    lenslet sweep, the report section and the figures of lfjax.studies.display_effects)."""
     _, images, text = H.execute_notebook_tiny(NOTEBOOK, tmp_path)
     assert len(images) >= 3
     assert "+diffraction" in text and "+spectrum" in text
@@ -288,7 +288,7 @@ def test_notebook_executes(tmp_path):
 
 
 def test_display_study_config_rejects_what_it_cannot_model():
-    from lfjax.display_effects import DisplayStudyConfig
+    from lfjax.studies.display_effects import DisplayStudyConfig
 
     with pytest.raises(ValueError, match="display_distance_mm must be in"):
         DisplayStudyConfig(display_distance_mm=600.0)
@@ -299,7 +299,7 @@ def test_display_study_config_rejects_what_it_cannot_model():
 
 
 def test_reproduce_display_eyes_beyond_the_study_is_refused(capsys, tmp_path):
-    from lfjax import cli
+    from lfjax.cli import main as cli
 
     out = tmp_path / "never"
     code = cli.main(["reproduce", "--quick", "--display-effects", "--display-eyes", "5",
@@ -311,7 +311,7 @@ def test_reproduce_display_eyes_beyond_the_study_is_refused(capsys, tmp_path):
 
 def test_display_optics_at_is_the_arrays_optics_for_every_lenslet_size():
     """The Fresnel distance of an array depends on its distance and CDP only."""
-    from lfjax.display import display_optics_at
+    from lfjax.display.lenslets import display_optics_at
 
     for n in (2, 3, 4):
         array = lenslets_for_layout(n, 3.0, 2.0, 300.0)
@@ -326,7 +326,7 @@ def test_accommodative_gain_and_the_two_by_two_verdict():
     the verdict names the largest lenslet at which the gain drops below 0.8."""
     import xarray as xr
 
-    from lfjax.display_effects import accommodative_gain, two_by_two_verdict
+    from lfjax.studies.display_effects import accommodative_gain, two_by_two_verdict
 
     depths = np.array([0.0, 1.0, 2.0, 3.0])
     assert accommodative_gain(depths, depths + 0.2) == pytest.approx(1.0)
@@ -387,7 +387,7 @@ def _synthetic_display_results():
     depths, 2 distances) with made-up values: for the code that reads them."""
     import xarray as xr
 
-    from lfjax.display_effects import STEPS, DisplayStudyConfig
+    from lfjax.studies.display_effects import STEPS, DisplayStudyConfig
 
     config = DisplayStudyConfig(layouts=("2x2", "3x3"), depth_offsets_D=(-1.0, 0.0, 1.0),
                                 sweep_distances_mm=(100.0, 400.0))
@@ -431,7 +431,7 @@ def test_reproduce_writes_the_display_tables_figures_and_report_section(tmp_path
     section with its tables."""
     import pandas as pd
 
-    from lfjax.display_effects import display_effects_markdown
+    from lfjax.studies.display_effects import display_effects_markdown
     from lfjax.reproduce import DISPLAY_SWEEP_TABLE, DISPLAY_TABLE, write_display_outputs
 
     study, sweep = _synthetic_display_results()
@@ -449,8 +449,8 @@ def test_reproduce_writes_the_display_tables_figures_and_report_section(tmp_path
 def test_display_study_names_each_scene_as_it_starts(monkeypatch):
     """The display-effects stages run minutes each: every scene is announced (on_scene)
     before it is computed, with its position among all of them."""
-    from lfjax import display_effects as de
-    from lfjax.eyes import sample_eyes
+    from lfjax.studies import display_effects as de
+    from lfjax.model.eyes import sample_eyes
 
     config = de.DisplayStudyConfig(layouts=("2x2", "3x3"), depth_offsets_D=(0.0, 1.0),
                                    sweep_distances_mm=(100.0, 400.0))

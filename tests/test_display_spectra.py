@@ -1,4 +1,4 @@
-"""Display spectra (lfjax.display_spectra): emission × V(λ) on the fewest wavelengths that
+"""Display spectra (lfjax.display.spectra): emission × V(λ) on the fewest wavelengths that
 carry it (the reduced spectrum's VSOTF against the full one's), white balance, and bad
 input."""
 
@@ -9,9 +9,9 @@ import warnings
 import numpy as np
 import pytest
 
-from lfjax import display_spectra as ds
-from lfjax import spectral
-from lfjax.options import ModelOptions
+from lfjax.display import spectra as ds
+from lfjax.model import spectral
+from lfjax.model.options import ModelOptions
 
 def _spectrum(name, channel, **kwargs):
     with warnings.catch_warnings():
@@ -40,7 +40,7 @@ def test_reduced_spectrum_gives_the_full_spectrums_vsotf():
     import jax.numpy as jnp
 
     import lfjax
-    from lfjax.through_focus import metrics_at
+    from lfjax.vision.focus import metrics_at
 
     full, reduced = _full_spectrum("lcd", "white"), _spectrum("lcd", "white")
     assert reduced.n_wavelengths < full.n_wavelengths / 2
@@ -139,10 +139,10 @@ def test_the_planner_plans_for_a_display_spectrum_as_weighted():
     # violet + green in equal parts: V(λ) would weigh 400 nm at 0.25 % and leave it out
     kwargs = dict(depths_D=[1.0, 3.0], wavelengths_nm=[400.0, 560.0], estimate_accuracy=False,
                   wrap_tolerance=0.01)
-    plan = lfjax.planner.plan_sampling(layout, spectral_weights=[0.5, 0.5], **kwargs)
+    plan = lfjax.planner.plan.plan_sampling(layout, spectral_weights=[0.5, 0.5], **kwargs)
     np.testing.assert_allclose(np.asarray(plan.spectrum().weights), [0.5, 0.5])
-    as_v = lfjax.planner.plan_sampling(layout, **kwargs)
+    as_v = lfjax.planner.plan.plan_sampling(layout, **kwargs)
     assert plan.blur_radius_arcmin > as_v.blur_radius_arcmin  # 400 nm's LCA blur is guarded
     assert plan.sampling.freq_step_cpd < as_v.sampling.freq_step_cpd
     with pytest.raises(ValueError, match="spectral_weights needs wavelengths_nm"):
-        lfjax.planner.plan_sampling(layout, spectral_weights=[1.0], estimate_accuracy=False)
+        lfjax.planner.plan.plan_sampling(layout, spectral_weights=[1.0], estimate_accuracy=False)

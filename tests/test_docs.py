@@ -54,7 +54,7 @@ def test_site_builds_strict(tmp_path):
     notebook = (site / "notebooks" / "display_effects" / "index.html").read_text(encoding="utf-8")
     assert "data:image/png;base64" in notebook  # committed outputs rendered
     api = (site / "api" / "through_focus" / "index.html").read_text(encoding="utf-8")
-    assert 'id="lfjax.through_focus.through_focus"' in api
+    assert 'id="lfjax.vision.focus.through_focus"' in api
 
 
 def _public_modules() -> list[str]:

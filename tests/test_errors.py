@@ -7,8 +7,9 @@ import pytest
 
 import helpers as H
 import lfjax
-from lfjax import layouts, zernike
-from lfjax.through_focus import metrics_at, through_focus
+from lfjax.model import layouts
+from lfjax.base import zernike
+from lfjax.vision.focus import metrics_at, through_focus
 
 SPEC = H.spectrum_550_plain
 SAMPLING = lfjax.Sampling(2.0)
@@ -62,7 +63,7 @@ def test_pupil_larger_than_measured():
     with pytest.raises(ValueError, match="exceeds"):
         lfjax.monochromatic_psf(np.zeros(6), 3.0, 3.2, 550.0, 0.1, 16)
     # equal to the measured pupil is fine (validated on the host, nothing compiled)
-    lfjax.optics.validate_pupil(3.0, 3.0)
+    lfjax.kernel.optics.validate_pupil(3.0, 3.0)
 
 
 # ----------------------------------------------------------------------------- wavelengths
@@ -99,7 +100,7 @@ def test_non_finite_coefficients(bad):
     z = np.zeros((1, 6))
     z[0, 4] = bad
     with pytest.raises(ValueError, match="non-finite"):
-        lfjax.eyes.make_eyes(z, 3.0)
+        lfjax.model.eyes.make_eyes(z, 3.0)
     eyes = lfjax.Eyes(jnp.asarray(z), 3.0)  # bypasses make_eyes
     with pytest.raises(ValueError, match="zernike_um contains non-finite"):
         _otf(eyes=eyes)

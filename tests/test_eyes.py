@@ -1,4 +1,4 @@
-"""Virtual eyes (lfjax.eyes): Thibos et al. (2002) statistics, seeded sampling, mirroring."""
+"""Virtual eyes (lfjax.model.eyes): Thibos et al. (2002) statistics, seeded sampling, mirroring."""
 
 import jax
 import jax.numpy as jnp
@@ -8,8 +8,8 @@ from scipy import stats
 
 import lfjax
 import reference as R
-from lfjax import eyes as E
-from lfjax import zernike
+from lfjax.model import eyes as E
+from lfjax.base import zernike
 
 N_DRAWS = 20000
 N_SMALL = 6  # every small draw has this size: eager jax recompiles for each new shape

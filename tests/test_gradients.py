@@ -1,6 +1,6 @@
 """Gradients of VSOTF and Strehl (float64) against central finite differences.
 
-``lfjax.through_focus.metrics_at`` is the differentiable public entry point (through_focus
+``lfjax.vision.focus.metrics_at`` is the differentiable public entry point (through_focus
 builds its grids on the host; polychromatic_otf needs a concrete pupil diameter to size
 its windows). One reverse-mode gradient of J = VSOTF + 0.7·Strehl w.r.t. every physical
 input at once — Zernike coefficients, accommodation, rendered depth, pupil diameter,
@@ -18,8 +18,8 @@ import pytest
 
 import helpers as H
 import lfjax
-from lfjax import sampling
-from lfjax.through_focus import metrics_at
+from lfjax.base import sampling
+from lfjax.vision.focus import metrics_at
 
 CDP = 1.0
 WINDOW_MM = 1.6
@@ -75,7 +75,7 @@ def test_base_point_is_valid_and_nontrivial():
     p = _base_params()
     lfjax.make_layout(np.asarray(p["centres"]), np.asarray(p["diameters"]), 3.0,
                       window_diameter_mm=WINDOW_MM)
-    # the aliasing guard of the pipeline, from its public pieces (lfjax.sampling)
+    # the aliasing guard of the pipeline, from its public pieces (lfjax.base.sampling)
     z = np.asarray(p["z"])
     slope = sampling.eye_slope_rad(z, 3.0, 3.0)
     defocus = 0.0 - CDP + np.asarray(SPECTRUM.lca_D)  # a − CDP + LCA(λ)

@@ -1,4 +1,4 @@
-"""Retinal images (lfjax.images): optotype geometry, exact PSF resampling, convolution."""
+"""Retinal images (lfjax.vision.images): optotype geometry, exact PSF resampling, convolution."""
 
 import math
 
@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from lfjax import images
+from lfjax.vision import images
 
 # ------------------------------------------------------------------ helpers
 

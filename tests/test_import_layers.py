@@ -3,14 +3,15 @@
 Every module of ``lfjax/`` is parsed with ``ast`` (nothing is imported or run) and its
 imports, those inside functions included, are checked against the layer table below:
 
-* a module imports only modules of its own or a lower layer;
+* a module imports only its own folder or folders of a lower rank (peers do not import
+  each other);
 * the import graph has no circle (within a layer too);
 * an application never imports a private name (or a private module) of another application:
   what two of them share lives below both;
 * an import inside a function body is allowed only for the heavy optional dependencies in
   ``DEFERRED_OK``, each with its reason.
 
-The graph is also what ``docs/import_graph.py`` draws into ``docs/img/import-graph.svg``.
+The graph is also what ``docs/_tools/import_graph.py`` draws into ``docs/img/import-graph.svg``.
 """
 
 from __future__ import annotations
@@ -21,47 +22,33 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 LFJAX = ROOT / "lfjax"
 
-LAYER_NAMES = (
-    "conventions and data",
-    "apertures, Fourier grids, the display and the scene",
-    "the elemental optics kernel",
-    "metrics of an OTF",
-    "the pure pipeline",
-    "host-side entry points",
-    "shared by applications",
-    "applications",
-    "the command line and the package's face",
-)
-
 LAYERS = {
-    # conventions and data
-    "lfjax._types": 0, "lfjax._version": 0, "lfjax._files": 0, "lfjax._tables": 0,
-    "lfjax.units": 0, "lfjax.zernike": 0, "lfjax.options": 0, "lfjax.eyes": 0,
-    "lfjax.spectral": 0, "lfjax.display_spectra": 0, "lfjax.layouts": 0,
-    "lfjax.layout_files": 0,
-    # apertures and Fourier grids; the display's parameters and the scene pytrees that the
-    # kernel takes whole
-    "lfjax.sampling": 1, "lfjax.apertures": 1, "lfjax.display": 1, "lfjax.scene": 1,
-    # the kernel
-    "lfjax.optics": 2,
-    "lfjax.metrics": 3,
-    "lfjax.pipeline": 4,
-    # host-side entry points
-    "lfjax.psf": 5, "lfjax.through_focus": 5, "lfjax.peaks": 5, "lfjax.planner": 5,
-    "lfjax._plan_cache": 5,
-    "lfjax.images": 5, "lfjax.panel": 5,
-    # shared by applications
-    "lfjax.claims": 6, "lfjax.layout_plots": 6,
-    # applications (every module of these packages)
-    "lfjax.reproduce": 7, "lfjax.sweep": 7, "lfjax.layout_opt": 7, "lfjax.display_effects": 7,
-    "lfjax.array_views": 7, "lfjax.design": 7, "lfjax.tradeoff": 7,
-    # the top
-    "lfjax.cli": 8, "lfjax": 8,
+    "lfjax.base": 0, "lfjax._version": 0,
+    "lfjax.model": 1,
+    "lfjax.display": 2,
+    "lfjax.kernel": 3,
+    "lfjax.planner": 4,
+    "lfjax.vision": 5,
+    "lfjax.layout_opt": 6, "lfjax.sweep": 6,
+    "lfjax.studies": 7, "lfjax.design": 7,
+    "lfjax.reproduce": 8,
+    "lfjax.cli": 9,
+    "lfjax": 10,
 }
-"""Layer of each module, or of every module of a package (its longest listed prefix)."""
+"""Rank of each folder of ``lfjax/`` (every module in it has its folder's rank): a module
+imports only folders of a lower rank, or its own folder. Folders of one rank are peers and
+import neither each other nor anything above."""
 
-APPLICATIONS = ("lfjax.reproduce", "lfjax.sweep", "lfjax.layout_opt", "lfjax.display_effects",
-                "lfjax.array_views", "lfjax.design", "lfjax.tradeoff")
+LAYER_NAMES = {
+    0: "conventions and maths", 1: "the model's data", 2: "the display",
+    3: "the optics kernel and the pure pipeline", 4: "the planner",
+    5: "vision entry points", 6: "applications (layout optimiser, sweep)",
+    7: "applications built on those (display studies, design)",
+    8: "the paper's study", 9: "the command line", 10: "the package's face",
+}
+
+APPLICATIONS = ("lfjax.layout_opt", "lfjax.sweep", "lfjax.studies", "lfjax.design",
+                "lfjax.reproduce")
 
 DEFERRED_OK = {
     "matplotlib": "plotting is optional and slow to import; only figure-writing calls pay",
@@ -88,13 +75,14 @@ def modules() -> dict[str, Path]:
     return {module_name(p): p for p in sorted(LFJAX.rglob("*.py"))}
 
 
-def layer_of(name: str) -> int:
+def folder_of(name: str) -> str:
+    """The folder (``lfjax.<folder>``) a module belongs to; ``lfjax`` for the face."""
     parts = name.split(".")
-    for k in range(len(parts), 0, -1):
-        prefix = ".".join(parts[:k])
-        if prefix in LAYERS:
-            return LAYERS[prefix]
-    raise KeyError(name)
+    return ".".join(parts[:2])
+
+
+def layer_of(name: str) -> int:
+    return LAYERS[folder_of(name)]
 
 
 def application_of(name: str) -> str | None:
@@ -157,13 +145,14 @@ def _has_layer(name: str) -> bool:
     return True
 
 
-def test_no_module_imports_a_higher_layer():
+def test_a_folder_imports_only_folders_below_it():
     wrong = [
         f"{m} (layer {layer_of(m)}: {LAYER_NAMES[layer_of(m)]}) imports {d} "
         f"(layer {layer_of(d)}: {LAYER_NAMES[layer_of(d)]})"
-        for m, deps in graph().items() for d in sorted(deps) if layer_of(d) > layer_of(m)
-        # a package's __init__ imports its own parts (the package's face)
-        and not d.startswith(m + ".")
+        for m, deps in graph().items() for d in sorted(deps)
+        if folder_of(d) != folder_of(m) and layer_of(d) >= layer_of(m)
+        # the package's face imports the folders it offers
+        and m != "lfjax"
     ]
     assert not wrong, "\n".join(wrong)
 
@@ -258,4 +247,16 @@ def test_the_checks_see_what_they_must(tmp_path):
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": set()}) is None
     assert layer_of("lfjax.sweep.store") == LAYERS["lfjax.sweep"]
+    assert folder_of("lfjax.kernel.optics") == "lfjax.kernel"
     assert application_of("lfjax.layout_opt._solver") == "lfjax.layout_opt"
+
+
+def test_the_folders_are_the_layers():
+    """``ls lfjax`` is the architecture: every entry is a folder of the table (or the
+    package's version and data), and the table names no folder that is not there."""
+    entries = {p.name for p in LFJAX.iterdir() if not p.name.startswith("__")}
+    folders = {f"lfjax.{n}" for n in entries if (LFJAX / n / "__init__.py").exists()}
+    assert folders == {f for f in LAYERS if f.count(".") == 1} - {"lfjax._version"}
+    loose = {n for n in entries - {"data", "_version.py", "py.typed"}
+             if not (LFJAX / n / "__init__.py").exists()}
+    assert not loose, f"modules outside a layer folder: {sorted(loose)}"

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import lfjax
-from lfjax import cli
+from lfjax.cli import main as cli
 from lfjax import layout_opt as lo
 from lfjax.layout_opt import _feasible as feasible_maps
 
@@ -39,7 +39,7 @@ def tiny_problem(eyes, objective="depth_of_field", constraints=CONSTRAINTS):
 
 @pytest.fixture(scope="module")
 def dl_problem():
-    return tiny_problem(lfjax.eyes.aberration_free_eye())
+    return tiny_problem(lfjax.model.eyes.aberration_free_eye())
 
 
 def perturbed_tangent_2x2():
@@ -195,7 +195,7 @@ def test_bad_input_raises_naming_the_parameter(make, match):
 
 
 def test_problem_refuses_the_paper_reference_and_bad_depths():
-    eye = lfjax.eyes.aberration_free_eye()
+    eye = lfjax.model.eyes.aberration_free_eye()
     with pytest.raises(ValueError, match="open_pupil"):
         lo.make_problem(eye, DEPTHS, CONSTRAINTS, options=lfjax.ModelOptions(), sampling=SAMPLING)
     for depths in ([], [-0.5, 1.0], [1.0, float("nan")]):
@@ -244,10 +244,10 @@ def test_layout_fits_a_real_lenslet_array_and_display_spectrum():
     2-arcmin pixels) and a display's spectrum (laser lines): the objective sees them (it
     differs from the ideal display's), its gradient is finite, and a fit improves on the
     perturbed tangent grid inside the pupil."""
-    from lfjax.display import display_optics_at
-    from lfjax.display_spectra import display_spectrum
+    from lfjax.display.lenslets import display_optics_at
+    from lfjax.display.spectra import display_spectrum
 
-    eye = lfjax.eyes.aberration_free_eye()
+    eye = lfjax.model.eyes.aberration_free_eye()
     options = lfjax.ModelOptions(vsotf_reference="open_pupil")
     real = lo.make_problem(eye, DEPTHS, CONSTRAINTS, "depth_of_field", sampling=lfjax.Sampling(1.5),
                            spectrum=display_spectrum("laser", "green", options),
@@ -270,7 +270,7 @@ def test_bfgs_free_fit_without_overlap_beats_its_start():
     bounds: BFGS in unconstrained coordinates improves (with the exact nearest-neighbour
     minimum it rejected every step: a kink where two neighbours tie) and nothing overlaps."""
     constraints = lo.Constraints(3.0, max_diameter_mm=2.0, min_diameter_mm=0.5, non_overlap=True)
-    problem = tiny_problem(lfjax.eyes.aberration_free_eye(), constraints=constraints)
+    problem = tiny_problem(lfjax.model.eyes.aberration_free_eye(), constraints=constraints)
     lattice = lo.tangent_lattice("square", 4)
     start = lo.feasible_start(lo.free_params(lattice.centres_mm, lattice.diameters_mm),
                               constraints, margin=0.02)
@@ -368,7 +368,7 @@ def test_collapsed_pinhole_is_reported_as_through_focus_sees_it(seeded_problem):
     """The pinhole's peaks are the global maxima through_focus finds on a finer grid over a
     window holding the CDP (every depth's peak near the CDP), not a peak capped near the
     rendered depth: accommodation RMSE above 1 D, gain near 0, and a warning."""
-    from lfjax.through_focus import through_focus
+    from lfjax.vision.focus import through_focus
 
     problem = seeded_problem
     ev = lo.evaluate_layout(pinhole(), problem)
@@ -430,7 +430,7 @@ def test_front_and_references_on_a_tiny_case(seeded_problem, tmp_path):
     """Two tolerances, two steps each, scored at the fit's setting: a front of fitted
     points, the tangent grid and natural viewing (whose display error is 0 by definition:
     each depth is its own focal plane), drawn into a PNG."""
-    from lfjax import layout_plots
+    from lfjax.model import layout_plots
 
     problem = seeded_problem.with_objective(lo.DEFAULT_OBJECTIVE)
     front = lo.trade_off_front(lo.tangent_lattice("square", 4), problem, [0.1, 1.0], max_steps=2,

@@ -1,4 +1,4 @@
-"""Layout geometry (lfjax.layouts): hex_layout against an independent construction of the
+"""Layout geometry (lfjax.model.layouts): hex_layout against an independent construction of the
 hexagonal lattice."""
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ import pytest
 import helpers as H
 import lfjax
 import reference as R
-from lfjax.through_focus import relative_accommodation_grid, through_focus
+from lfjax.vision.focus import relative_accommodation_grid, through_focus
 
 CDP = 2.0
 
@@ -297,7 +297,7 @@ def _lf_comparison(name):
     options = lfjax.ModelOptions()
     spectrum = lfjax.make_spectrum([450.0, 650.0], options)
     z = np.asarray(lfjax.sample_eyes(3, 2).zernike_um)
-    eyes = lfjax.eyes.make_eyes(np.concatenate([z, np.zeros((1, z.shape[1]))]), 3.0)
+    eyes = lfjax.model.eyes.make_eyes(np.concatenate([z, np.zeros((1, z.shape[1]))]), 3.0)
     layout = _ref_layout(name)
     fast = np.asarray(lfjax.polychromatic_otf(eyes, REF_ACC, 3.0, CDP, spectrum, REF_SAMPLING,
                                               options, layout=layout, depths_D=REF_DEPTHS)

@@ -1,4 +1,4 @@
-"""Image-quality metrics (lfjax.metrics): NCSF models, VSOTF, Strehl, radial MTF, cut-off."""
+"""Image-quality metrics (lfjax.kernel.metrics): NCSF models, VSOTF, Strehl, radial MTF, cut-off."""
 
 import math
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import helpers as H
-from lfjax import metrics
+from lfjax.kernel import metrics
 
 # Jitted entry points: eager jax compiles every primitive separately (slow on 2 cores).
 _ncsf = jax.jit(metrics.ncsf, static_argnums=2)

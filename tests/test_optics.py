@@ -1,4 +1,4 @@
-"""Wave optics of the eye (lfjax.optics) against analytic limits and the float64 reference.
+"""Wave optics of the eye (lfjax.kernel.optics) against analytic limits and the float64 reference.
 
 Numbers pinned here were measured on the current implementation (float64 unless stated);
 each tolerance says where it comes from.
@@ -14,8 +14,8 @@ import pytest
 import helpers as H
 import lfjax
 import reference as R
-from lfjax import metrics
-from lfjax.optics import full_plane, psf_from_otf
+from lfjax.kernel import metrics
+from lfjax.kernel.optics import full_plane, psf_from_otf
 
 # ----------------------------------------------------------------------------- fixtures
 
@@ -45,7 +45,7 @@ def random_eyes_vs_reference():
     spectrum = lfjax.make_spectrum(RANDOM_WAVELENGTHS, options)
     z = np.asarray(lfjax.sample_eyes(3, 3).zernike_um)
     # a fourth, aberration-free eye in the same batch: the control variate
-    eyes = lfjax.eyes.make_eyes(np.concatenate([z, np.zeros((1, z.shape[1]))]), 3.0)
+    eyes = lfjax.model.eyes.make_eyes(np.concatenate([z, np.zeros((1, z.shape[1]))]), 3.0)
     fast = np.asarray(lfjax.polychromatic_otf(
         eyes, RANDOM_ACC, 3.0, 2.0, spectrum, RANDOM_SAMPLING, options).full_plane())
     n = fast.shape[-1]
@@ -319,7 +319,7 @@ def test_float32_accuracy(random_eyes_vs_reference):
     with jax.enable_x64(False):
         options = lfjax.ModelOptions()
         spectrum = lfjax.make_spectrum(RANDOM_WAVELENGTHS, options)
-        eyes = lfjax.eyes.make_eyes(z, 3.0)
+        eyes = lfjax.model.eyes.make_eyes(z, 3.0)
         stack = lfjax.polychromatic_otf(eyes, RANDOM_ACC, 3.0, 2.0, spectrum, RANDOM_SAMPLING,
                                         options)
         assert stack.otf.dtype == jnp.complex64
@@ -340,7 +340,7 @@ SMALL_SAMPLING = lfjax.Sampling(4.0)
 
 def _small_eyes():
     z = np.asarray(lfjax.sample_eyes(3, 3).zernike_um)[:, :6]
-    return lfjax.eyes.make_eyes(z, 3.0)
+    return lfjax.model.eyes.make_eyes(z, 3.0)
 
 
 def test_eye_batches_vmap_and_chunks_equal_loop():
@@ -369,10 +369,10 @@ def _kernel_inputs(n_states: int = 3):
     """The kernel's own inputs for one eye, a 2×2 layout and ``n_states`` states at 550 nm
     (called outside any jit: a changed workspace budget is traced afresh, with no compiled
     program to clear)."""
-    from lfjax.pipeline import Accommodation, PipelineConfig, Scene
+    from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene
 
     spec = H.spectrum_550_plain()
-    layout = lfjax.layouts.grid_layout(2, 3.0)
+    layout = lfjax.model.layouts.grid_layout(2, 3.0)
     cfg = PipelineConfig.build(spec.wavelengths_nm, layout.window_diameter_mm, 3.0, SMALL_SAMPLING,
                                H.PLAIN)
     scene = Scene.from_layout(layout, [2.0], 2.0, 3.0)
@@ -388,7 +388,7 @@ def test_states_in_chunks_equal_states_together(monkeypatch, budget_states):
     """A kernel workspace that holds one (or two) of three accommodation states sends them
     through in chunks (lax.map, the last chunk padded), with the OTFs — and their gradient
     with respect to an eye coefficient — of all states at once."""
-    from lfjax import optics
+    from lfjax.kernel import optics
 
     z, scene, spec, acc, cfg = _kernel_inputs()
 
@@ -414,7 +414,7 @@ def test_states_in_chunks_equal_states_together(monkeypatch, budget_states):
 
 def test_state_chunk_counts():
     """Equal chunks, the fewest that fit; never fewer than one state."""
-    from lfjax.optics import state_chunk
+    from lfjax.kernel.optics import state_chunk
 
     per_state = 40 * 16 * 512 * 512  # bytes of one state of 16 views at L = 512
     assert state_chunk(31, 16, 512, workspace_bytes=31 * per_state) == 31
@@ -505,7 +505,7 @@ def test_accommodation_sa_readings_match_the_reference(random_eyes_vs_reference,
     d = random_eyes_vs_reference
     options = lfjax.ModelOptions(accommodation_sa=form)
     spectrum = lfjax.make_spectrum(RANDOM_WAVELENGTHS, options)
-    eyes = lfjax.eyes.make_eyes(np.concatenate([d["eyes"], np.zeros((1, 15))]), 3.0)
+    eyes = lfjax.model.eyes.make_eyes(np.concatenate([d["eyes"], np.zeros((1, 15))]), 3.0)
     fast = np.asarray(lfjax.polychromatic_otf(eyes, RANDOM_ACC, 3.0, 2.0, spectrum,
                                               RANDOM_SAMPLING, options).full_plane())[:, 0]
     pairs, free = fast[np.arange(3), np.arange(3)], fast[3]
@@ -543,7 +543,7 @@ def test_a_workspace_of_one_state_bounds_the_compiled_programs_memory(monkeypatc
     states transformed together need several times what one state at a time needs — the
     bound the workspace budget exists for (RESULTS §13: a display scene's program fell from
     3.5 to 0.8 GiB)."""
-    from lfjax import optics
+    from lfjax.kernel import optics
 
     z, scene, spec, acc, cfg = _kernel_inputs(8)
 

@@ -1,4 +1,4 @@
-"""lfjax.panel: the display as built, its derived geometry and the perceivable resolution."""
+"""lfjax.display.panel: the display as built, its derived geometry and the perceivable resolution."""
 
 from __future__ import annotations
 
@@ -9,15 +9,15 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from lfjax.metrics import cutoff_frequency, diffraction_limited_mtf
-from lfjax.panel import (
+from lfjax.kernel.metrics import cutoff_frequency, diffraction_limited_mtf
+from lfjax.display.panel import (
     Panel,
     gap_for_cdp_mm,
     near_eye_microdisplay,
-    perceivable_cutoff_cpd,
     phone_panel,
     sampling_limit_cpd,
 )
+from lfjax.vision.resolution import perceivable_cutoff_cpd
 
 ARCMIN = 180.0 * 60.0 / math.pi
 

@@ -1,4 +1,4 @@
-"""Physical parameters are data (lfjax.options.ModelParameters): the numeric face of every
+"""Physical parameters are data (lfjax.model.options.ModelParameters): the numeric face of every
 modelling choice reproduces the string options exactly, the predicted accommodation is
 differentiable in the accommodation-SA slope and the LCA constant A (checked against
 central differences of re-solved peaks, float64), a numeric change reuses the compiled
@@ -13,18 +13,18 @@ import numpy as np
 import pytest
 
 import lfjax
-from lfjax.options import (
+from lfjax.model.options import (
     STATIC_CHOICES,
     ModelOptions,
     ModelParameters,
     stack_parameters,
 )
-from lfjax.peaks import accommodation_peaks
-from lfjax.pipeline import Accommodation, PipelineConfig, Scene
+from lfjax.vision.peaks import accommodation_peaks
+from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene
 from lfjax.reproduce.alternatives import ALTERNATIVES
-from lfjax.scene import sa_parameters
-from lfjax.spectral import make_spectrum
-from lfjax.through_focus import through_focus, through_focus_variants
+from lfjax.kernel.scene import sa_parameters
+from lfjax.model.spectral import make_spectrum
+from lfjax.vision.focus import through_focus, through_focus_variants
 
 VARIANTS = [ModelOptions()] + [ModelOptions().replace(**c) for c in ALTERNATIVES.values()] + [
     ModelOptions(sce="off"), ModelOptions(accommodation_sa="off"),

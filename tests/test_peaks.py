@@ -1,4 +1,4 @@
-"""Continuous accommodation peaks (lfjax.peaks): analytic curves, implicit gradients, the
+"""Continuous accommodation peaks (lfjax.vision.peaks): analytic curves, implicit gradients, the
 two-peaked Strehl curve, the hyperopic limit and the grid's far end, bad input, and the
 golden method on brackets away from zero (its workaround of an optimistix 0.1.0 bug)."""
 
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import lfjax
-from lfjax.peaks import accommodation_peaks, refine_peak
-from lfjax.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
+from lfjax.vision.peaks import accommodation_peaks, refine_peak
+from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
 
 import helpers as H
 
@@ -154,7 +154,7 @@ def test_two_peaked_strehl_returns_global_maximum_and_reports_the_second():
     index = np.arange(GRID.size)[None]
     allowed = np.abs(GRID[None] - 4.0) <= 2.6 + 1e-9
     grid = Accommodation.shared(GRID, index, options, 3.0)
-    eyes = lfjax.eyes.aberration_free_eye()
+    eyes = lfjax.model.eyes.aberration_free_eye()
     peaks = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "strehl", "auto", allowed)
     main, second = float(peaks.accommodation_D[0, 0]), float(peaks.second_accommodation_D[0, 0])
     fine = np.round(np.arange(140, 501) * 0.01, 9)
@@ -318,7 +318,7 @@ def test_peak_narrower_than_the_grid_step_is_missed_by_the_bracketing_grid():
     maximum (no second peak is reported) and golden section converges on the broad peak
     with success. Pinned so that a change in this behaviour is seen; a grid finer than the
     peak finds the global maximum."""
-    from lfjax.peaks import _local_maxima
+    from lfjax.vision.peaks import _local_maxima
 
     def two_peaks(a, args=None):  # broad peak 1.0 at 1.0 D; narrow 1.05 at 2.1 D
         return (jnp.exp(-0.5 * ((a - 1.0) / 0.5) ** 2)
@@ -345,9 +345,9 @@ def test_pairs_refined_in_batches_equal_pairs_refined_together(monkeypatch, meth
     the pairs one batch after another (lax.map): the same peaks as all pairs at once (to
     float64 rounding: the batched program sums in another order).
     (peaks_from_grid is called outside any jit, so the changed budget is traced afresh.)"""
-    from lfjax import optics
-    from lfjax.peaks import peaks_from_grid
-    from lfjax.pipeline import reference_normalisers
+    from lfjax.kernel import optics
+    from lfjax.vision.peaks import peaks_from_grid
+    from lfjax.kernel.pipeline import reference_normalisers
 
     layout = lfjax.open_pupil(3.0)
     cfg, scene, grid, allowed = _pipeline(layout, [2.0, 2.5], cdp_D=2.5)
@@ -362,7 +362,7 @@ def test_pairs_refined_in_batches_equal_pairs_refined_together(monkeypatch, meth
 
     together = peaks()
     monkeypatch.setattr(optics, "KERNEL_WORKSPACE_BYTES", optics.KERNEL_BYTES_PER_SAMPLE * cfg.n_fft**2)
-    assert lfjax.peaks._pairs_per_batch(scene, cfg, method, 2) == 1
+    assert lfjax.vision.peaks._pairs_per_batch(scene, cfg, method, 2) == 1
     batched = peaks()
     np.testing.assert_array_equal(batched[2], together[2])
     for a, b in zip(batched[:2], together[:2]):  # float64 rounding of another program only

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 import lfjax
-from lfjax import planner
-from lfjax.optics import psf_from_otf
-from lfjax.psf import polychromatic_otf
-from lfjax.planner import plan_sampling
-from lfjax.through_focus import through_focus
+from lfjax.planner import plan as planner
+from lfjax.kernel.optics import psf_from_otf
+from lfjax.vision.psf import polychromatic_otf
+from lfjax.planner.plan import plan_sampling
+from lfjax.vision.focus import through_focus
 
 WAVELENGTHS = [450.0, 550.0, 650.0]
 ACCOMMODATION = np.round(np.arange(0.0, 4.01, 0.2), 9)
@@ -33,7 +33,7 @@ SCENES = {
 
 def _vsotf(scene, sampling, check=False):
     layout, depths, pupil, window = scene
-    eye = lfjax.eyes.aberration_free_eye(measured_pupil_mm=max(pupil, 3.0))
+    eye = lfjax.model.eyes.aberration_free_eye(measured_pupil_mm=max(pupil, 3.0))
     tf = through_focus(eye, layout, depths, ACCOMMODATION, window_D=window, pupil_diameter_mm=pupil,
                        spectrum=lfjax.make_spectrum(WAVELENGTHS), sampling=sampling,
                        check_aliasing=check)
@@ -63,7 +63,7 @@ def _measured_wrap(scene, df):
     """Largest PSF intensity a field of 60/df arcmin wraps back, relative to the PSF peak,
     from the pipeline's PSFs on twice that field (aberration-free eye)."""
     layout, depths, pupil, window = scene
-    eye = lfjax.eyes.aberration_free_eye(measured_pupil_mm=max(pupil, 3.0))
+    eye = lfjax.model.eyes.aberration_free_eye(measured_pupil_mm=max(pupil, 3.0))
     worst = 0.0
     for depth in depths:
         acc = [a for a in ACCOMMODATION if abs(a - depth) <= window + 1e-9]
@@ -134,7 +134,7 @@ def test_plan_passes_guard_and_aliasing_is_detected():
     depths = [1.0, 2.0, 3.0]
     plan = plan_sampling(layout, depths_D=depths, accommodation_D=ACCOMMODATION,
                          accommodation_window_D=1.0, wavelengths_nm=WAVELENGTHS)
-    eye = lfjax.eyes.aberration_free_eye()
+    eye = lfjax.model.eyes.aberration_free_eye()
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
     through_focus(eye, layout, depths, ACCOMMODATION, window_D=1.0, spectrum=spectrum,
                   sampling=plan.sampling)
@@ -214,8 +214,8 @@ def test_bad_input_names_the_parameter(kwargs, match):
 def test_proxy_aperture_is_area_exact_and_matches_the_pipeline():
     """The planner's numpy aperture transmits π r² (the area-exact edge) like the pipeline,
     and its in-focus OTF agrees with the pipeline's to float32 round-off."""
-    from lfjax.planner import _aperture_otfs
-    from lfjax.units import DEGREES_PER_RADIAN
+    from lfjax.planner.plan import _aperture_otfs
+    from lfjax.base.units import DEGREES_PER_RADIAN
 
     df = 1.5
     dx = 550e-6 * df * DEGREES_PER_RADIAN
@@ -223,7 +223,7 @@ def test_proxy_aperture_is_area_exact_and_matches_the_pipeline():
     assert otf[0, 0, 0].real == pytest.approx(math.pi * 1.5**2, rel=5e-4)
     options = lfjax.ModelOptions(sce="off", accommodation_sa="off")
     spectrum = lfjax.make_spectrum([550.0], options)
-    stack = polychromatic_otf(lfjax.eyes.aberration_free_eye(), [2.0 - float(spectrum.lca_D[0])],
+    stack = polychromatic_otf(lfjax.model.eyes.aberration_free_eye(), [2.0 - float(spectrum.lca_D[0])],
                               3.0, 2.0, spectrum, lfjax.Sampling(df, n_fft=160), options,
                               check_aliasing=False)
     ours = otf[0] / otf[0, 0, 0]
@@ -241,7 +241,7 @@ def test_proxy_vsotf_equals_the_pipeline(layout, pupil):
     states < 1e-6 and is tested at it (measured 4.9e-8 for 4×4, 1.5e-8 for hex)."""
     depths, states = [1.0, 3.0], np.array([0.6, 1.0, 1.4, 2.6, 3.0, 3.4])
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
-    eye = lfjax.eyes.aberration_free_eye(measured_pupil_mm=pupil)
+    eye = lfjax.model.eyes.aberration_free_eye(measured_pupil_mm=pupil)
     df = 1.3  # coarse on purpose: sampling errors must be the same ones, not just small
     tf = through_focus(eye, layout, depths, states, pupil_diameter_mm=pupil, spectrum=spectrum,
                        sampling=lfjax.Sampling(df), check_aliasing=False)
@@ -262,7 +262,7 @@ def test_proxy_mft_equals_the_pipeline_mft():
     depths, states = [1.0, 3.0], np.array([0.6, 1.4, 2.6, 3.4])
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
     sampling = lfjax.Sampling(df, transform="mft", mft_pupil_samples=samples)
-    tf = through_focus(lfjax.eyes.aberration_free_eye(), layout, depths, states,
+    tf = through_focus(lfjax.model.eyes.aberration_free_eye(), layout, depths, states,
                        pupil_diameter_mm=3.0, spectrum=spectrum, sampling=sampling,
                        check_aliasing=False)
     acc, dep = np.meshgrid(states, depths)
@@ -297,7 +297,7 @@ def test_vertex_shift_is_the_error_slope_over_the_curvature():
 def test_first_crossing_is_the_pipelines_cutoff_rule():
     import jax.numpy as jnp
 
-    from lfjax.metrics import cutoff_frequency
+    from lfjax.kernel.metrics import cutoff_frequency
 
     rng = np.random.default_rng(3)
     freqs = np.arange(40) * 0.8
@@ -314,12 +314,12 @@ def test_first_crossing_is_the_pipelines_cutoff_rule():
 def test_proxy_cutoffs_equal_the_pipeline():
     """For the aberration-free eye the proxy's cut-offs (its views' PSFs assembled by
     symmetry, ring-averaged MTF, first crossing) are the pipeline's."""
-    from lfjax.metrics import cutoff_frequency
+    from lfjax.kernel.metrics import cutoff_frequency
 
     layout, df = lfjax.grid_layout(3, 3.0), 1.3
     depths, states = [1.0, 3.0], np.array([0.6, 1.0, 2.6, 3.0, 3.4])
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
-    tf = through_focus(lfjax.eyes.aberration_free_eye(), layout, depths, states,
+    tf = through_focus(lfjax.model.eyes.aberration_free_eye(), layout, depths, states,
                        pupil_diameter_mm=3.0, spectrum=spectrum, sampling=lfjax.Sampling(df),
                        check_aliasing=False)
     expected = np.asarray(cutoff_frequency(tf.radial_mtf[0], tf.radial_freq_cpd, 0.05)).ravel()
@@ -372,7 +372,7 @@ def test_plans_are_remembered_by_value_in_memory_and_on_disk(tmp_path, monkeypat
     and re-plans a damaged file rather than trusting it."""
     import pickle
 
-    from lfjax import _plan_cache
+    from lfjax.planner import cache as _plan_cache
 
     def same(a, b):  # field by field, NaN equal to NaN (a field-guard-only plan has NaN errors)
         return pickle.dumps(a) == pickle.dumps(b)

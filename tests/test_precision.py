@@ -16,10 +16,10 @@ import numpy as np
 from jax.extend import core as jcore
 
 import lfjax
-from lfjax.images import psf_on_grid
-from lfjax.metrics import radial_mtf
-from lfjax.peaks import accommodation_peaks
-from lfjax.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
+from lfjax.vision.images import psf_on_grid
+from lfjax.kernel.metrics import radial_mtf
+from lfjax.vision.peaks import accommodation_peaks
+from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
 
 HIGHEST = (jax.lax.Precision.HIGHEST, jax.lax.Precision.HIGHEST)
 

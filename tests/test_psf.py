@@ -1,4 +1,4 @@
-"""lfjax.psf.monochromatic_psf: transformations from outside (jit, vmap, grad), the default
+"""lfjax.vision.psf.monochromatic_psf: transformations from outside (jit, vmap, grad), the default
 sampling's accuracy, bad input (eager ValueError, traced eqx.error_if), row order."""
 
 import jax
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import helpers as H
-from lfjax import psf as P
-from lfjax.zernike import zernike_mode
+from lfjax.vision import psf as P
+from lfjax.base.zernike import zernike_mode
 
 # explicit sampling wherever results are compared exactly: the default depends on values
 # (and on bounds for traced ones), see test_default_sampling_under_transformations

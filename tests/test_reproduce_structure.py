@@ -108,7 +108,7 @@ def test_the_check_sees_a_cycle(tmp_path):
     module.write_text("def f():\n    from . import report\n    from .study import x\n")
     names = _imported_modules(module, "lfjax.reproduce")
     assert {"lfjax.reproduce.report", "lfjax.reproduce.study"} <= names
-    assert "lfjax.eyes" in _imported_modules(PACKAGE / "config.py", "lfjax.reproduce")
+    assert "lfjax.model.eyes" in _imported_modules(PACKAGE / "config.py", "lfjax.reproduce")
 
 
 SWEEP = LFJAX / "sweep"
@@ -131,7 +131,7 @@ def test_sweep_parts_import_only_lower_layers():
 
 def test_the_sweep_never_imports_the_reproduction():
     """lfjax.reproduce reads sweep stores (--population); the sweep reads the paper's claims
-    from lfjax.claims, below both, and never imports lfjax.reproduce (a circle)."""
+    from lfjax.vision.claims, below both, and never imports lfjax.reproduce (a circle)."""
     for path in SWEEP.glob("*.py"):
         names = _imported_modules(path, "lfjax.sweep")
         assert not any(n.startswith("lfjax.reproduce") for n in names), path

@@ -8,7 +8,10 @@ import pytest
 from jaxtyping import Array, Float, TypeCheckError
 
 import lfjax
-from lfjax import _types, peaks, psf, through_focus
+from lfjax.base import types as _types
+from lfjax.vision import peaks
+from lfjax.vision import psf
+from lfjax.vision import focus as through_focus
 
 ENTRY_POINTS = (
     through_focus.through_focus,

@@ -1,12 +1,12 @@
-"""Spectral model (lfjax.spectral) and model options (lfjax.options)."""
+"""Spectral model (lfjax.model.spectral) and model options (lfjax.model.options)."""
 
 import numpy as np
 import pytest
 
 import lfjax
 import reference as R
-from lfjax import spectral
-from lfjax.options import ModelOptions
+from lfjax.model import spectral
+from lfjax.model.options import ModelOptions
 
 
 def test_lef_table_values():

@@ -74,7 +74,7 @@ def subprocess_env(**extra) -> dict:
 def persistent_compilation_cache():
     """The command line's compilation cache, here too: the subprocesses below compile the
     same programs as this process, and load them from it instead."""
-    from lfjax.cli import enable_compilation_cache
+    from lfjax.cli.main import enable_compilation_cache
 
     enable_compilation_cache()
 
@@ -195,9 +195,9 @@ def test_store_metadata_round_trips(reference):
 
 
 def test_store_equals_through_focus_on_the_same_eyes_and_sampling(reference):
-    """Each chunk's compiled function computes what lfjax.through_focus computes for the
+    """Each chunk's compiled function computes what lfjax.vision.focus computes for the
     whole population at once (grid curves, grid and continuous peaks, cut-off)."""
-    from lfjax.through_focus import through_focus
+    from lfjax.vision.focus import through_focus
 
     config, path, _ = reference
     ds = open_store(path)
@@ -239,7 +239,7 @@ def test_one_compilation_per_pupil_and_layout_for_all_chunks(reference):
 
 
 def test_study_view_feeds_the_paper_claims(reference):
-    from lfjax.claims import evaluate_claims
+    from lfjax.vision.claims import evaluate_claims
 
     _, path, _ = reference
     view = study_view(open_store(path))
@@ -292,7 +292,7 @@ def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_
     log = tmp_path / "killed.log"
     with open(log, "w") as log_file:
         proc = subprocess.run(
-            [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out", str(store),
+            [sys.executable, "-m", "lfjax.cli.main", "sweep", str(toml), "--out", str(store),
              "--no-progress"],
             env=subprocess_env(LFJAX_TEST_ABORT_AFTER_CHUNK="0",
                                LFJAX_TEST_ABORT_SIGNAL=signal.Signals(sig).name[3:]),
@@ -313,7 +313,7 @@ def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_
 
 
 def test_cli_max_chunks_then_resume(reference, tmp_path, capsys):
-    from lfjax.cli import main
+    from lfjax.cli.main import main
 
     config, ref_path, _ = reference
     toml = write_toml(tmp_path / "tiny.toml", config)
@@ -356,7 +356,7 @@ def test_store_opens_consolidated_and_records_its_provenance(reference):
 
 
 def test_a_second_writer_is_refused_and_a_stale_lock_taken_over(reference, tmp_path, capsys):
-    from lfjax.cli import main
+    from lfjax.cli.main import main
 
     config, ref_path, _ = reference
     store = tmp_path / "locked.zarr"
@@ -389,7 +389,7 @@ def test_a_second_writer_is_refused_and_a_stale_lock_taken_over(reference, tmp_p
 
 def test_verify_finds_missing_and_truncated_chunks_and_resume_recomputes_them(
         reference, tmp_path, capsys):
-    from lfjax.cli import main
+    from lfjax.cli.main import main
 
     config, ref_path, _ = reference
     store = tmp_path / "damaged.zarr"
@@ -499,7 +499,7 @@ def test_readme_two_process_distributed_command_writes_the_one_process_store(ref
     store = tmp_path / "two_processes.zarr"
     port = _free_port()
     procs = [subprocess.Popen(
-        [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out", str(store),
+        [sys.executable, "-m", "lfjax.cli.main", "sweep", str(toml), "--out", str(store),
          "--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2",
          "--process-id", str(pid), "--no-progress"],
         env=subprocess_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -540,7 +540,7 @@ def test_guide_config_lists_every_key_with_its_default():
 def test_a_real_display_sweeps_as_through_focus_computes_it(tmp_path):
     """Lenslet diffraction, pixels and an OLED spectrum from the config reach every chunk:
     the store equals through_focus with the same display and spectrum."""
-    from lfjax.through_focus import through_focus
+    from lfjax.vision.focus import through_focus
 
     config = tiny_config(population={"n_eyes": 1}, display={
         "layouts": ["2x2"], "depth_offsets_D": [0.0, 1.0], "lenslet_distance_mm": 300.0,
@@ -569,7 +569,7 @@ def test_a_full_disk_keeps_the_finished_chunks_and_says_how_to_resume(reference,
                                                                        capsys, monkeypatch):
     import errno
 
-    from lfjax.cli import main
+    from lfjax.cli.main import main
     from lfjax.sweep import run as sweep_run
 
     config, ref_path, _ = reference

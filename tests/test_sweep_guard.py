@@ -73,9 +73,9 @@ def test_empty_config_file_and_a_folder_are_refused(tmp_path):
 
 def test_eyes_inputs_are_checked():
     import lfjax
-    from lfjax.eyes import Eyes
-    from lfjax.layouts import paper_layouts
-    from lfjax.through_focus import through_focus
+    from lfjax.model.eyes import Eyes
+    from lfjax.model.layouts import paper_layouts
+    from lfjax.vision.focus import through_focus
 
     for seed in (-1, 2**32):
         with pytest.raises(ValueError, match=r"seed \(key\) must be in \[0, 2\*\*32\)"):
@@ -132,7 +132,7 @@ def test_the_time_estimate_counts_the_states_continuous_peaks_add():
 
 
 def test_a_frequency_step_that_cannot_fit_is_refused_before_any_store(tmp_path, capsys):
-    from lfjax.cli import main
+    from lfjax.cli.main import main
 
     toml = tmp_path / "fine.toml"
     toml.write_text(toml_text(one_eye(sampling={"freq_step_cpd": 1e-4})))
@@ -161,7 +161,7 @@ def test_a_failed_start_leaves_no_store(tmp_path, monkeypatch):
 
 
 def test_dry_run_prints_the_plan_and_writes_nothing(tmp_path, capsys):
-    from lfjax.cli import main
+    from lfjax.cli.main import main
 
     toml = tmp_path / "plan.toml"
     toml.write_text(toml_text(one_eye()))
@@ -175,7 +175,7 @@ def test_dry_run_prints_the_plan_and_writes_nothing(tmp_path, capsys):
 
 
 def test_template_writes_every_key_with_its_default(tmp_path, capsys):
-    from lfjax.cli import main
+    from lfjax.cli.main import main
     from lfjax.sweep.config import _SCHEMA
 
     text = config_template()
@@ -198,7 +198,7 @@ def test_a_killed_reproduce_leaves_no_hidden_folder_after_the_next_run(tmp_path,
     import subprocess
     import sys
 
-    from lfjax import cli
+    from lfjax.cli import main as cli
     from lfjax import reproduce as rep
 
     gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
@@ -227,7 +227,7 @@ def test_radial_mtf_bins_in_memory_of_the_plane_not_its_cube():
     is O(L³): 5.8 GiB at L = 1458) and equals the dense matrix's average."""
     import jax.numpy as jnp
 
-    from lfjax import metrics
+    from lfjax.kernel import metrics
 
     index, weights, _ = metrics._radial_bins(1458)
     assert index.nbytes + weights.nbytes < 64 * 2**20
@@ -253,7 +253,8 @@ def test_host_guards_hold_a_block_of_eyes_not_the_population(monkeypatch):
     per eye: 9 GB for 100,000 eyes)."""
     import tracemalloc
 
-    from lfjax import planner, sampling
+    from lfjax.planner import plan as planner
+    from lfjax.base import sampling
 
     z = np.asarray(__import__("lfjax").sample_eyes(0, 5000, 6.0).zernike_um)
     tracemalloc.start()

@@ -14,8 +14,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from lfjax import cli
-from lfjax.claims import evaluate_claims
+from lfjax.cli import main as cli
+from lfjax.vision.claims import evaluate_claims
 from lfjax.sweep import config_from_dict, open_store, run_sweep, study_view
 from lfjax.sweep import report as sr
 from lfjax.sweep import ten_eyes as te
@@ -187,7 +187,7 @@ def test_stored_config_rebuilds_json_layouts(tmp_path):
     """A layout JSON named by a relative path is rebuilt from the copy the store recorded
     (the file itself may be gone, and its folder is unknown to the store)."""
     from lfjax.layout_opt import save_layout_json
-    from lfjax.layouts import make_layout
+    from lfjax.model.layouts import make_layout
     from lfjax.sweep.compute import resolve_layout
     from lfjax.sweep.config import config_to_toml
 
@@ -292,7 +292,7 @@ def test_interval_brackets_the_fraction_and_shrinks(ds):
 
 
 def test_ten_eye_markdown(ds):
-    from lfjax.claims import Claim
+    from lfjax.vision.claims import Claim
 
     result = te.ten_eye_claims(ds, n_draws=10, seed=0)
     mine = [Claim(str(i), "f", "c", "r", i % 2 == 0) for i in range(1, 8)]
@@ -408,7 +408,7 @@ def test_claims_the_data_cannot_judge_are_na(ds):
     """Claim 2 is "for every density" and claim 3's exception is about 2x2 beyond +-1 D: a
     store without 4x4, or without such depths, cannot confirm them (n/a), though data that
     refute them still make them fail."""
-    from lfjax.claims import evaluate_claims
+    from lfjax.vision.claims import evaluate_claims
     from lfjax.sweep import study_view
 
     view = study_view(ds)
@@ -448,7 +448,7 @@ def _texts_outside(fig) -> list[str]:
 
 
 def test_report_figures_keep_their_titles_and_labels_inside(ds):
-    from lfjax.layouts import paper_layouts
+    from lfjax.model.layouts import paper_layouts
 
     table = sr.percentile_table(ds)
     layouts = {(p, n): paper_layouts(p)[n] for p in (3.0, 6.0)
@@ -460,7 +460,7 @@ def test_report_figures_keep_their_titles_and_labels_inside(ds):
 
 
 def test_tables_print_zero_not_roundoff():
-    from lfjax._tables import printable
+    from lfjax.base.tables import printable
 
     table = pd.DataFrame({"p50": [2.2 - 2.0 - 0.2, 0.25, np.nan], "n": [1, 2, 3],
                           "layout": ["a", "b", "c"]})

@@ -1,4 +1,4 @@
-"""lfjax.tradeoff: a panel's views per pupil against perceivable resolution and
+"""lfjax.studies.tradeoff: a panel's views per pupil against perceivable resolution and
 accommodation error, through the population sweep."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from lfjax import tradeoff as to
-from lfjax.layout_files import load_layout_json
-from lfjax.panel import near_eye_microdisplay, phone_panel, sampling_limit_cpd
+from lfjax.studies import tradeoff as to
+from lfjax.model.layout_files import load_layout_json
+from lfjax.display.panel import near_eye_microdisplay, phone_panel, sampling_limit_cpd
 
 ARCMIN = 180.0 * 60.0 / math.pi
 

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 import lfjax
-from lfjax import metrics as M
-from lfjax.pipeline import Accommodation, PipelineConfig, Scene, otf_stack, retinal_metrics
-from lfjax.through_focus import metrics_at
+from lfjax.kernel import metrics as M
+from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, otf_stack, retinal_metrics
+from lfjax.vision.focus import metrics_at
 
 import helpers as H
 
@@ -99,7 +99,7 @@ def _bump(a, centre):
 
 def peak_vs_centre(centre):
     """refine_peak (the peak finder's solver, Newton) against the curve's centre, D."""
-    from lfjax.peaks import refine_peak
+    from lfjax.vision.peaks import refine_peak
 
     return refine_peak(_bump, 1.0, 1.4, 1.2, centre).accommodation_D
 
@@ -107,8 +107,8 @@ def peak_vs_centre(centre):
 def fresnel_vs_distance(z_mm):
     """fresnel_propagate (lenslet diffraction) of a soft disc against the distance, mm: both
     kernel samplings (near field at 40 mm, far field at 400 mm on this grid)."""
-    from lfjax.display import fresnel_propagate
-    from lfjax.optics import soft_disk
+    from lfjax.display.lenslets import fresnel_propagate
+    from lfjax.kernel.optics import soft_disk
 
     k = (jnp.arange(32) - 16) * 0.05
     aperture = soft_disk(k[None, :] ** 2 + k[:, None] ** 2, 0.5, 0.0125)
@@ -118,7 +118,7 @@ def fresnel_vs_distance(z_mm):
 
 def pixels_vs_width(width_arcmin):
     """pixel_transfer (finite emitters) against the emitter's angular width, arcmin."""
-    from lfjax.display import DisplayOptics, pixel_transfer
+    from lfjax.display.lenslets import DisplayOptics, pixel_transfer
 
     f = jnp.linspace(0.0, 3000.0, 5)  # cycles/rad
     return pixel_transfer(f, f, DisplayOptics(pixel_width_arcmin=width_arcmin)).ravel()
@@ -126,7 +126,7 @@ def pixels_vs_width(width_arcmin):
 
 def core_vs_fresnel_distance(z_mm):
     """retinal_metrics with lenslet diffraction and pixels against the Fresnel distance, mm."""
-    from lfjax.display import DisplayOptics
+    from lfjax.display.lenslets import DisplayOptics
 
     display = DisplayOptics("fresnel", "circle", z_mm, 1.0)
     scene = Scene.from_layout(LAYOUT, [2.4], 2.0, 3.0, display)
@@ -224,10 +224,10 @@ def test_array_likes_are_converted_on_construction_and_default_sampling_is_plann
     """Eyes, Layout and Spectrum built from NumPy arrays work in the pipeline (they used to
     fail deep inside with "'numpy.ndarray' object has no attribute 'at'"); with no sampling
     given, through_focus plans one with the field guard and reports it."""
-    from lfjax.layouts import Layout
-    from lfjax.optics import _field_check
-    from lfjax.spectral import Spectrum
-    from lfjax.through_focus import through_focus
+    from lfjax.model.layouts import Layout
+    from lfjax.kernel.optics import _field_check
+    from lfjax.model.spectral import Spectrum
+    from lfjax.vision.focus import through_focus
 
     eyes = lfjax.Eyes(np.zeros((1, 15)), 3.0)
     assert isinstance(eyes.zernike_um, jax.Array)

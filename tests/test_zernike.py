@@ -1,4 +1,4 @@
-"""OSA/ANSI Zernike polynomials (lfjax.zernike) and the defocus conversion (lfjax.units)."""
+"""OSA/ANSI Zernike polynomials (lfjax.base.zernike) and the defocus conversion (lfjax.base.units)."""
 
 import math
 from functools import partial
@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import reference as R
-from lfjax import units, zernike
+from lfjax.base import units
+from lfjax.base import zernike
 
 
 N_POINTS = 768  # every basis evaluation below uses this many points: one compile
@@ -180,7 +181,7 @@ def test_pipeline_wavefront_separable_and_high_order_paths_agree_with_the_polyno
     """The pipeline's per-state wavefront on each view's window (monomial form moved to the
     window's centre up to order 10, the polynomials themselves beyond) equals eye +
     c20·Z(2,0) + c40·Z(4,0) evaluated mode by mode at the samples, float32."""
-    from lfjax.optics import SEPARABLE_MAX_ORDER, _state_wavefronts_um
+    from lfjax.kernel.optics import SEPARABLE_MAX_ORDER, _state_wavefronts_um
 
     offsets = jnp.asarray(np.linspace(-1.5, 1.5, 31), jnp.float32)
     centres = jnp.asarray([[0.25, -0.4], [-0.6, 0.1]], jnp.float32)  # two views' windows

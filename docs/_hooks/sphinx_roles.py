@@ -9,7 +9,7 @@ lfjax's docstrings are numpydoc-like with two habits that a strict numpydoc pars
   given a ``Notes`` header instead of being read as more parameters.
 
 Objects are named with Sphinx roles (``:func:`through_focus```,
-``:class:`~lfjax.peaks.Peaks```). Markdown has no roles, so each becomes a cross-reference
+``:class:`~lfjax.vision.peaks.Peaks```). Markdown has no roles, so each becomes a cross-reference
 when the name resolves to a public lfjax object (relative names are resolved in the
 docstring's own scope, as Python would), and a code span otherwise (``xarray.Dataset``,
 ``jax.jit``). A reference that resolves but is missing from the reference pages fails the

@@ -3,7 +3,7 @@
 A light-field display samples the eye's pupil with subapertures (views). Their layout sets
 the depth of field, the accommodation the display drives and the resolution the eye sees.
 This module fits a layout to a population of virtual eyes with the pure, differentiable
-pipeline (:func:`lfjax.pipeline.retinal_metrics`) and reports it on a held-out population.
+pipeline (:func:`lfjax.kernel.pipeline.retinal_metrics`) and reports it on a held-out population.
 
 Parametrisations
 ----------------
@@ -15,7 +15,7 @@ Parametrisations
     free centres (n_views, 2) and diameters (n_views,), mm.
 
 Both expose ``centres_mm`` and ``diameters_mm``, differentiable in their leaves, and so does
-:class:`lfjax.layouts.Layout`; every objective accepts any of the three.
+:class:`lfjax.model.layouts.Layout`; every objective accepts any of the three.
 
 Constraints (:class:`Constraints`)
 ----------------------------------
@@ -116,71 +116,71 @@ public face: ``_params`` (parametrisations), ``_feasible`` (constraints and the 
 coordinates a solver moves in), ``_problem`` (the objective and the problem set-up),
 ``_objectives`` (what a layout is scored on, and the loss), ``_evaluation`` (scoring on
 held-out eyes, curves, scans), ``_solver`` (the fit and the trade-off front) and ``_files``
-(JSON). Reading a layout file lives below every application, in :mod:`lfjax.layout_files`.
+(JSON). Reading a layout file lives below every application, in :mod:`lfjax.model.layout_files`.
 """
 
 from __future__ import annotations
 
-from ..layout_files import load_layout_json as load_layout_json
-from ._evaluation import accommodation_gain as accommodation_gain
-from ._evaluation import diameter_scan as diameter_scan
-from ._evaluation import evaluate_layout as evaluate_layout
-from ._evaluation import natural_evaluation as natural_evaluation
-from ._evaluation import parallax_warning as parallax_warning
-from ._evaluation import tangent_grid_evaluations as tangent_grid_evaluations
-from ._evaluation import through_focus_curves as through_focus_curves
-from ._feasible import Constraints as Constraints
-from ._feasible import feasible_start as feasible_start
-from ._feasible import from_box as from_box
-from ._feasible import from_unconstrained as from_unconstrained
-from ._feasible import initial_lattice as initial_lattice
-from ._feasible import to_box as to_box
-from ._feasible import to_layout as to_layout
-from ._feasible import to_unconstrained as to_unconstrained
-from ._files import params_from_dict as params_from_dict
-from ._files import params_to_dict as params_to_dict
-from ._files import save_layout_json as save_layout_json
-from ._objectives import accommodation_mse as accommodation_mse
-from ._objectives import accommodation_penalty as accommodation_penalty
-from ._objectives import combine as combine
-from ._objectives import correct_focus_metrics as correct_focus_metrics
-from ._objectives import depth_of_field as depth_of_field
-from ._objectives import layout_loss as layout_loss
-from ._objectives import objective_terms as objective_terms
-from ._objectives import predicted_accommodation_D as predicted_accommodation_D
-from ._objectives import predicted_peaks as predicted_peaks
-from ._objectives import resolution as resolution
-from ._objectives import soft_cutoff_cpd as soft_cutoff_cpd
-from ._params import CONTAINMENTS as CONTAINMENTS
-from ._params import LATTICES as LATTICES
-from ._params import FreeParams as FreeParams
-from ._params import LatticeParams as LatticeParams
-from ._params import as_free as as_free
-from ._params import default_max_diameter_mm as default_max_diameter_mm
-from ._params import describe_params as describe_params
-from ._params import free_params as free_params
-from ._params import hex_sites_in_pupil as hex_sites_in_pupil
-from ._params import lattice_params as lattice_params
-from ._params import lattice_sites as lattice_sites
-from ._params import tangent_lattice as tangent_lattice
-from ._problem import ACCURACIES as ACCURACIES
-from ._problem import DEFAULT_OBJECTIVE as DEFAULT_OBJECTIVE
-from ._problem import FULL_WAVELENGTHS_NM as FULL_WAVELENGTHS_NM
-from ._problem import OBJECTIVES as OBJECTIVES
-from ._problem import LayoutProblem as LayoutProblem
-from ._problem import Objective as Objective
-from ._problem import depth_grid as depth_grid
-from ._problem import envelope_layout as envelope_layout
-from ._problem import guard_sampling as guard_sampling
-from ._problem import make_problem as make_problem
-from ._problem import peak_window as peak_window
-from ._solver import METHODS as METHODS
-from ._solver import Front as Front
-from ._solver import LayoutFit as LayoutFit
-from ._solver import LayoutWarning as LayoutWarning
-from ._solver import layout_value_and_grad as layout_value_and_grad
-from ._solver import optimise_layout as optimise_layout
-from ._solver import trade_off_front as trade_off_front
+from lfjax.model.layout_files import load_layout_json as load_layout_json
+from lfjax.layout_opt._evaluation import accommodation_gain as accommodation_gain
+from lfjax.layout_opt._evaluation import diameter_scan as diameter_scan
+from lfjax.layout_opt._evaluation import evaluate_layout as evaluate_layout
+from lfjax.layout_opt._evaluation import natural_evaluation as natural_evaluation
+from lfjax.layout_opt._evaluation import parallax_warning as parallax_warning
+from lfjax.layout_opt._evaluation import tangent_grid_evaluations as tangent_grid_evaluations
+from lfjax.layout_opt._evaluation import through_focus_curves as through_focus_curves
+from lfjax.layout_opt._feasible import Constraints as Constraints
+from lfjax.layout_opt._feasible import feasible_start as feasible_start
+from lfjax.layout_opt._feasible import from_box as from_box
+from lfjax.layout_opt._feasible import from_unconstrained as from_unconstrained
+from lfjax.layout_opt._feasible import initial_lattice as initial_lattice
+from lfjax.layout_opt._feasible import to_box as to_box
+from lfjax.layout_opt._feasible import to_layout as to_layout
+from lfjax.layout_opt._feasible import to_unconstrained as to_unconstrained
+from lfjax.layout_opt._files import params_from_dict as params_from_dict
+from lfjax.layout_opt._files import params_to_dict as params_to_dict
+from lfjax.layout_opt._files import save_layout_json as save_layout_json
+from lfjax.layout_opt._objectives import accommodation_mse as accommodation_mse
+from lfjax.layout_opt._objectives import accommodation_penalty as accommodation_penalty
+from lfjax.layout_opt._objectives import combine as combine
+from lfjax.layout_opt._objectives import correct_focus_metrics as correct_focus_metrics
+from lfjax.layout_opt._objectives import depth_of_field as depth_of_field
+from lfjax.layout_opt._objectives import layout_loss as layout_loss
+from lfjax.layout_opt._objectives import objective_terms as objective_terms
+from lfjax.layout_opt._objectives import predicted_accommodation_D as predicted_accommodation_D
+from lfjax.layout_opt._objectives import predicted_peaks as predicted_peaks
+from lfjax.layout_opt._objectives import resolution as resolution
+from lfjax.layout_opt._objectives import soft_cutoff_cpd as soft_cutoff_cpd
+from lfjax.layout_opt._params import CONTAINMENTS as CONTAINMENTS
+from lfjax.layout_opt._params import LATTICES as LATTICES
+from lfjax.layout_opt._params import FreeParams as FreeParams
+from lfjax.layout_opt._params import LatticeParams as LatticeParams
+from lfjax.layout_opt._params import as_free as as_free
+from lfjax.layout_opt._params import default_max_diameter_mm as default_max_diameter_mm
+from lfjax.layout_opt._params import describe_params as describe_params
+from lfjax.layout_opt._params import free_params as free_params
+from lfjax.layout_opt._params import hex_sites_in_pupil as hex_sites_in_pupil
+from lfjax.layout_opt._params import lattice_params as lattice_params
+from lfjax.layout_opt._params import lattice_sites as lattice_sites
+from lfjax.layout_opt._params import tangent_lattice as tangent_lattice
+from lfjax.layout_opt._problem import ACCURACIES as ACCURACIES
+from lfjax.layout_opt._problem import DEFAULT_OBJECTIVE as DEFAULT_OBJECTIVE
+from lfjax.layout_opt._problem import FULL_WAVELENGTHS_NM as FULL_WAVELENGTHS_NM
+from lfjax.layout_opt._problem import OBJECTIVES as OBJECTIVES
+from lfjax.layout_opt._problem import LayoutProblem as LayoutProblem
+from lfjax.layout_opt._problem import Objective as Objective
+from lfjax.layout_opt._problem import depth_grid as depth_grid
+from lfjax.layout_opt._problem import envelope_layout as envelope_layout
+from lfjax.layout_opt._problem import guard_sampling as guard_sampling
+from lfjax.layout_opt._problem import make_problem as make_problem
+from lfjax.layout_opt._problem import peak_window as peak_window
+from lfjax.layout_opt._solver import METHODS as METHODS
+from lfjax.layout_opt._solver import Front as Front
+from lfjax.layout_opt._solver import LayoutFit as LayoutFit
+from lfjax.layout_opt._solver import LayoutWarning as LayoutWarning
+from lfjax.layout_opt._solver import layout_value_and_grad as layout_value_and_grad
+from lfjax.layout_opt._solver import optimise_layout as optimise_layout
+from lfjax.layout_opt._solver import trade_off_front as trade_off_front
 
 __all__ = [
     "OBJECTIVES",

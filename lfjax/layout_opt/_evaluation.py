@@ -10,29 +10,29 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ..eyes import Eyes
-from ..layouts import make_layout
-from ..options import ModelOptions
-from ..peaks import peaks_from_grid
-from ..pipeline import (
+from lfjax.model.eyes import Eyes
+from lfjax.model.layouts import make_layout
+from lfjax.model.options import ModelOptions
+from lfjax.vision.peaks import peaks_from_grid
+from lfjax.kernel.pipeline import (
     Accommodation,
     PipelineConfig,
     Scene,
     retinal_metrics,
 )
-from ..planner import plan_sampling
-from ..sampling import Sampling
-from ..spectral import make_spectrum
-from ._feasible import Constraints, to_layout
-from ._objectives import (
+from lfjax.planner.plan import plan_sampling
+from lfjax.base.sampling import Sampling
+from lfjax.model.spectral import make_spectrum
+from lfjax.layout_opt._feasible import Constraints, to_layout
+from lfjax.layout_opt._objectives import (
     accommodation_penalty,
     combine,
     correct_focus_metrics,
     predicted_peaks,
     soft_cutoff_cpd,
 )
-from ._params import as_free, free_params, lattice_sites, tangent_lattice
-from ._problem import (
+from lfjax.layout_opt._params import as_free, free_params, lattice_sites, tangent_lattice
+from lfjax.layout_opt._problem import (
     DEFAULT_WAVELENGTHS_NM,
     FULL_WAVELENGTHS_NM,
     LayoutProblem,

@@ -11,9 +11,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._types import finite_scalar
-from ..layouts import Layout, make_layout
-from ._params import (
+from lfjax.base.types import finite_scalar
+from lfjax.model.layouts import Layout, make_layout
+from lfjax.layout_opt._params import (
     _EPS,
     _ROTATION_RANGE,
     CONTAINMENTS,
@@ -405,7 +405,7 @@ def from_unconstrained(u, template, constraints: Constraints):
 
 
 def to_layout(params, constraints: Constraints, name: str = "optimised") -> Layout:
-    """A checked :class:`lfjax.layouts.Layout` of parameters (window = the diameter cap)."""
+    """A checked :class:`lfjax.model.layouts.Layout` of parameters (window = the diameter cap)."""
     c = np.asarray(params.centres_mm, float)
     d = np.asarray(params.diameters_mm, float)
     if not (np.all(np.isfinite(c)) and np.all(np.isfinite(d))):

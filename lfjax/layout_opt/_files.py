@@ -1,4 +1,4 @@
-"""Layout parameters as JSON, and layout files with their parameters and objective (reading: :mod:`lfjax.layout_files`).
+"""Layout parameters as JSON, and layout files with their parameters and objective (reading: :mod:`lfjax.model.layout_files`).
 
 Part of :mod:`lfjax.layout_opt` (its public names are re-exported there)."""
 
@@ -10,12 +10,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .._types import finite_scalar
-from .._version import __version__
-from ..layout_files import LAYOUT_FORMAT, jsonable
-from ..layouts import Layout, make_layout
-from ._params import LatticeParams, free_params
-from ._problem import Objective
+from lfjax.base.types import finite_scalar
+from lfjax._version import __version__
+from lfjax.model.layout_files import LAYOUT_FORMAT, jsonable
+from lfjax.model.layouts import Layout, make_layout
+from lfjax.layout_opt._params import LatticeParams, free_params
+from lfjax.layout_opt._problem import Objective
 
 
 def params_to_dict(params) -> dict:

@@ -8,14 +8,14 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ..peaks import Peaks, peaks_from_grid
-from ..pipeline import (
+from lfjax.vision.peaks import Peaks, peaks_from_grid
+from lfjax.kernel.pipeline import (
     RetinalMetrics,
     Scene,
     retinal_metrics,
 )
-from ._params import _safe_sqrt
-from ._problem import MAXIMISED, LayoutProblem, Objective
+from lfjax.layout_opt._params import _safe_sqrt
+from lfjax.layout_opt._problem import MAXIMISED, LayoutProblem, Objective
 
 
 def correct_focus_metrics(layout, problem: LayoutProblem) -> RetinalMetrics:
@@ -54,7 +54,7 @@ def resolution(metrics: RetinalMetrics, problem: LayoutProblem):
 
 def predicted_peaks(layout, problem: LayoutProblem) -> Peaks:
     """Each (eye, depth)'s predicted accommodation, found as the project's peak finder does
-    (:func:`lfjax.peaks.peaks_from_grid`): the global maximum of the through-focus VSOTF
+    (:func:`lfjax.vision.peaks.peaks_from_grid`): the global maximum of the through-focus VSOTF
     on the problem's peak grid (:func:`peak_window`: the rendered depth and the CDP both
     inside), refined by ``problem.peak_method``. Never a search capped around the rendered
     depth. Differentiable in the layout (through the refinement's values; the grid

@@ -11,8 +11,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._types import as_real_array as _real
-from .._types import finite_scalar
+from lfjax.base.types import as_real_array as _real
+from lfjax.base.types import finite_scalar
 
 LATTICES = ("square", "hex")
 
@@ -40,7 +40,7 @@ def lattice_sites(kind: str, n_views: int) -> np.ndarray:
     """Lattice sites in units of the pitch, (n_views, 2), host array.
 
     ``"square"``: ``n_views`` must be n² — the n×n grid centred on the pupil (row-major,
-    as :func:`lfjax.layouts.grid_layout`). ``"hex"``: the ``n_views`` sites of the unit
+    as :func:`lfjax.model.layouts.grid_layout`). ``"hex"``: the ``n_views`` sites of the unit
     triangular lattice nearest the pupil centre (one site at the centre; ties broken by
     angle, so 1, 7, 19, 37 views give whole rings).
     """
@@ -144,7 +144,7 @@ def lattice_params(kind: str, n_views: int | None, pitch_mm: float, diameter_mm:
 
 def tangent_lattice(kind: str, n_views: int, pupil_diameter_mm: float = 3.0) -> LatticeParams:
     """Tangent discs (pitch = diameter) filling the pupil as the paper's grids do: square
-    n×n with pitch = pupil/n (:func:`lfjax.layouts.grid_layout`); hex with pitch =
+    n×n with pitch = pupil/n (:func:`lfjax.model.layouts.grid_layout`); hex with pitch =
     pupil/(2ρ + 1), ρ the outermost site's radius in pitches (one pitch for 7 views)."""
     sites = lattice_sites(kind, n_views)
     if kind == "square":

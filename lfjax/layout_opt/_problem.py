@@ -13,22 +13,22 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._types import finite_scalar
-from ..display import DisplayOptics
-from ..eyes import Eyes
-from ..layouts import Layout, make_layout
-from ..options import ModelOptions
-from ..peaks import PEAK_METHODS
-from ..pipeline import (
+from lfjax.base.types import finite_scalar
+from lfjax.display.lenslets import DisplayOptics
+from lfjax.model.eyes import Eyes
+from lfjax.model.layouts import Layout, make_layout
+from lfjax.model.options import ModelOptions
+from lfjax.vision.peaks import PEAK_METHODS
+from lfjax.kernel.pipeline import (
     Accommodation,
     PipelineConfig,
     Scene,
     reference_normalisers,
 )
-from ..planner import plan_sampling
-from ..sampling import Sampling
-from ..spectral import Spectrum, make_spectrum
-from ._feasible import Constraints
+from lfjax.planner.plan import plan_sampling
+from lfjax.base.sampling import Sampling
+from lfjax.model.spectral import Spectrum, make_spectrum
+from lfjax.layout_opt._feasible import Constraints
 
 OBJECTIVES = ("image_at_peak", "depth_of_field", "accommodation", "resolution")
 
@@ -178,7 +178,7 @@ class LayoutProblem(eqx.Module):
     reference : open-pupil VSOTF/Strehl normalisers (independent of the layout)
     config, objective, constraints, options : static
     accuracy : static, ``"fit"`` (the cheap training setting) or ``"full"`` (the report's)
-    peak_method : static, refinement of the grid peak (:mod:`lfjax.peaks`)
+    peak_method : static, refinement of the grid peak (:mod:`lfjax.vision.peaks`)
     peak_step_D, peak_margin_D : static, the peak grid's step and margin, D
     window_D : static, accommodation offsets (± D) drawn by :func:`through_focus_curves`
     spectrum_given : static, whether the spectrum was the caller's (a display's) rather
@@ -399,9 +399,9 @@ def make_problem(
         grid and the correct focus), for ``planning_eyes`` (default ``eyes``)
     window_D : accommodation offsets (± D) drawn by :func:`through_focus_curves`
     eye_chunk : eyes evaluated together inside the pipeline's map (None: one at a time)
-    spectrum : a :class:`~lfjax.spectral.Spectrum` instead of ``wavelengths_nm`` (e.g. a
-        display's, :func:`lfjax.display_spectra.display_spectrum`); kept by both settings
-    display : :class:`~lfjax.display.DisplayOptics` of a real display (lenslet diffraction,
+    spectrum : a :class:`~lfjax.model.spectral.Spectrum` instead of ``wavelengths_nm`` (e.g. a
+        display's, :func:`lfjax.display.spectra.display_spectrum`); kept by both settings
+    display : :class:`~lfjax.display.lenslets.DisplayOptics` of a real display (lenslet diffraction,
         pixels; e.g. ``LensletArray.optics()``) the layout is optimised for; default the
         paper's ideal display. The reference stays the ideal open pupil.
     accuracy : ``"fit"`` (default) — what a fit needs: the given wavelengths (550 nm by
@@ -425,7 +425,7 @@ def make_problem(
         raise ValueError(f"peak_method must be one of {tuple(m for m in PEAK_METHODS if m != 'auto')}, "
                          f"got {setting['peak_method']!r}")
     if display is not None and not isinstance(display, DisplayOptics):
-        raise ValueError(f"display must be lfjax.display.DisplayOptics or None, got {type(display).__name__}")
+        raise ValueError(f"display must be lfjax.display.lenslets.DisplayOptics or None, got {type(display).__name__}")
     if options.vsotf_reference != "open_pupil":
         raise ValueError(
             "layout objectives need ModelOptions(vsotf_reference='open_pupil'): the paper's "

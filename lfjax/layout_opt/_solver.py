@@ -14,16 +14,16 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .._types import FULL, finite_scalar
-from ..eyes import Eyes
-from ..layouts import Layout
-from ._evaluation import (
+from lfjax.base.types import FULL, finite_scalar
+from lfjax.model.eyes import Eyes
+from lfjax.model.layouts import Layout
+from lfjax.layout_opt._evaluation import (
     evaluate_layout,
     natural_evaluation,
     parallax_warning,
     tangent_grid_evaluations,
 )
-from ._feasible import (
+from lfjax.layout_opt._feasible import (
     Constraints,
     _check_finite_params,
     from_box,
@@ -32,9 +32,9 @@ from ._feasible import (
     to_layout,
     to_unconstrained,
 )
-from ._objectives import layout_loss
-from ._params import as_free, describe_params, free_params
-from ._problem import LayoutProblem, Objective
+from lfjax.layout_opt._objectives import layout_loss
+from lfjax.layout_opt._params import as_free, describe_params, free_params
+from lfjax.layout_opt._problem import LayoutProblem, Objective
 
 METHODS = ("lbfgsb", "bfgs")
 
@@ -138,7 +138,7 @@ class LayoutFit:
 
     Attributes
     ----------
-    layout, initial_layout : fitted and starting :class:`lfjax.layouts.Layout`
+    layout, initial_layout : fitted and starting :class:`lfjax.model.layouts.Layout`
     params, initial_params : fitted and starting parameters (LatticeParams or FreeParams)
     history : loss (the problem's weighted objective) at the accepted iterate after each
         solver step, starting with the initial layout's

@@ -14,18 +14,18 @@ The parts, each importing only those listed before it:
   (``ALTERNATIVES``) and the claims under each (:func:`run_alternatives`);
 * :mod:`~lfjax.reproduce.report` — CSV tables and ``REPORT.md``;
 * :mod:`~lfjax.reproduce.figures` — Figs. 3–11;
-* :mod:`lfjax.claims` (below this package, since the sweep's ten-eye check uses it too) —
+* :mod:`lfjax.vision.claims` (below this package, since the sweep's ten-eye check uses it too) —
   :func:`evaluate_claims` turns the Dataset into the paper's findings as checkable claims
   (:class:`Claim`);
 * this module — :func:`reproduce` writes results file, CSV tables, figures and ``REPORT.md``
   into a folder (through a temporary folder moved into place at the end), and re-exports
-  the public names of the parts. ``lfjax reproduce`` is its command line (:mod:`lfjax.cli`).
+  the public names of the parts. ``lfjax reproduce`` is its command line (:mod:`lfjax.cli.main`).
   Given a population sweep store (``--population``), the report adds "What ten eyes cannot
-  tell" (:mod:`lfjax.sweep.ten_eyes`; the sweep reads the claims from :mod:`lfjax.claims`,
+  tell" (:mod:`lfjax.sweep.ten_eyes`; the sweep reads the claims from :mod:`lfjax.vision.claims`,
   never from this package, so the two import in one direction).
 
-Host-side orchestration (numpy, xarray, files); the numerics are :mod:`lfjax.through_focus`
-and :mod:`lfjax.optics`.
+Host-side orchestration (numpy, xarray, files); the numerics are :mod:`lfjax.vision.focus`
+and :mod:`lfjax.kernel.optics`.
 """
 
 from __future__ import annotations
@@ -40,10 +40,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import owned_temp_dir, remove_orphans
-from .._tables import printable
-from ..claims import Claim, dof_D, evaluate_claims
-from ..display_effects import (
+from lfjax.base.files import owned_temp_dir, remove_orphans
+from lfjax.base.tables import printable
+from lfjax.vision.claims import Claim, dof_D, evaluate_claims
+from lfjax.studies.display_effects import (
     DisplayStudyConfig,
     display_effects_markdown,
     effects_table,
@@ -52,14 +52,14 @@ from ..display_effects import (
     save_display_figures,
     sweep_table,
 )
-from ..eyes import Eyes
-from ..options import ModelOptions
-from ..sweep.store import open_store
-from ..sweep.ten_eyes import check_population_store, ten_eye_claims, ten_eye_markdown, ten_eye_table
-from .alternatives import ALTERNATIVES, run_alternatives
-from .config import LF_LAYOUTS, METRICS, StudyConfig, study_eyes
-from .figures import FIGURES, all_figures, save_figures
-from .report import (
+from lfjax.model.eyes import Eyes
+from lfjax.model.options import ModelOptions
+from lfjax.sweep.store import open_store
+from lfjax.sweep.ten_eyes import check_population_store, ten_eye_claims, ten_eye_markdown, ten_eye_table
+from lfjax.reproduce.alternatives import ALTERNATIVES, run_alternatives
+from lfjax.reproduce.config import LF_LAYOUTS, METRICS, StudyConfig, study_eyes
+from lfjax.reproduce.figures import FIGURES, all_figures, save_figures
+from lfjax.reproduce.report import (
     TABLES,
     alternatives_table,
     claims_table,
@@ -68,7 +68,7 @@ from .report import (
     summary_table,
     write_report,
 )
-from .study import (
+from lfjax.reproduce.study import (
     compute_examples,
     layout_through_focus,
     run_study,
@@ -238,7 +238,7 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
     "What ten eyes cannot tell" (:func:`population_section`, ``population_draws`` samples)
     and ``ten_eyes.csv``. The store is checked before any computation.
 
-    ``display_effects_eyes``: add "Beyond the ideal display" (:mod:`lfjax.display_effects`:
+    ``display_effects_eyes``: add "Beyond the ideal display" (:mod:`lfjax.studies.display_effects`:
     lenslet diffraction, pixels and an OLED-like spectrum one by one, and the 2×2
     lenslet-size sweep) on the average eye and the first ``display_effects_eyes`` eyes;
     None leaves it out.

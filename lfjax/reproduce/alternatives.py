@@ -4,19 +4,19 @@
 :func:`run_alternatives` reruns the study on :meth:`StudyConfig.reduced
 <lfjax.reproduce.config.StudyConfig.reduced>` under each of them (and a baseline on the
 same reduced set) and evaluates the claims. Every alternative changes only numbers of the
-model (:class:`~lfjax.options.ModelParameters`), so each layout's baseline and
+model (:class:`~lfjax.model.options.ModelParameters`), so each layout's baseline and
 alternatives run as one compiled program over their stacked parameters
 (:func:`~lfjax.reproduce.study.run_study_variants`).
 
 Imports :mod:`~lfjax.reproduce.config` and :mod:`~lfjax.reproduce.study` from the package,
-and the claims from :mod:`lfjax.claims`.
+and the claims from :mod:`lfjax.vision.claims`.
 """
 
 from __future__ import annotations
 
-from ..claims import evaluate_claims
-from .config import StudyConfig
-from .study import run_study_variants
+from lfjax.vision.claims import evaluate_claims
+from lfjax.reproduce.config import StudyConfig
+from lfjax.reproduce.study import run_study_variants
 
 ALTERNATIVES: dict[str, dict] = {
     "sce=intensity": {"sce": "intensity"},

@@ -3,7 +3,7 @@
 :class:`StudyConfig` holds the settings (defaults: the paper's experiment;
 :meth:`~StudyConfig.quick` for tests, :meth:`~StudyConfig.reduced` for the modelling
 alternatives). :func:`study_eyes` draws the virtual eyes plus the average eye.
-``_planned_sampling`` asks :func:`lfjax.planner.plan_sampling` for the frequency step of one
+``_planned_sampling`` asks :func:`lfjax.planner.plan.plan_sampling` for the frequency step of one
 layout's scene. ``METRICS`` and ``LF_LAYOUTS`` name the metrics and the light-field layouts
 the study reads.
 
@@ -19,12 +19,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..eyes import Eyes, append_average_eye, sample_eyes
-from ..layouts import LF_LAYOUTS as LF_LAYOUTS
-from ..layouts import PAPER_LAYOUTS
-from ..options import ModelOptions
-from .._plan_cache import cached_plan_sampling
-from ..sampling import Sampling
+from lfjax.model.eyes import Eyes, append_average_eye, sample_eyes
+from lfjax.model.layouts import LF_LAYOUTS as LF_LAYOUTS
+from lfjax.model.layouts import PAPER_LAYOUTS
+from lfjax.model.options import ModelOptions
+from lfjax.planner.cache import cached_plan_sampling
+from lfjax.base.sampling import Sampling
 
 METRICS = ("vsotf", "strehl")
 
@@ -64,7 +64,7 @@ class StudyConfig:
         (and ≥ 0 D, the hyperopic limit). ±2 D keeps the CDP inside the range for every
         depth, which the Strehl-ratio finding for 2×2 viewpoints needs.
     wavelengths_nm : (start, stop, step), nm
-    layouts : names from ``lfjax.layouts.PAPER_LAYOUTS``
+    layouts : names from ``lfjax.model.layouts.PAPER_LAYOUTS``
     options : ModelOptions
     cutoff_threshold : float
         MTF value defining the cut-off frequency (paper: 0.05).
@@ -77,7 +77,7 @@ class StudyConfig:
         Run the modelling-choice alternatives (on a reduced set, see :meth:`reduced`).
     accuracy : ``"claims"`` or ``"vsotf"`` (:data:`ACCURACY_PLANS`)
         ``"claims"`` (default): each layout's wavelength step is planned
-        (:func:`lfjax.planner.plan_sampling` over ``wavelengths_nm``' range) so that no
+        (:func:`lfjax.planner.plan.plan_sampling` over ``wavelengths_nm``' range) so that no
         through-focus peak moves by more than ``peak_tolerance_D`` and no cut-off by more
         than ``cutoff_tolerance_cpd``; ``"vsotf"``: the fixed ``wavelengths_nm`` grid.
         Either way the frequency step is the field guard's.
@@ -242,7 +242,7 @@ def study_eyes(config: StudyConfig) -> tuple[Eyes, list[str]]:
 def _planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, np.ndarray]:
     """(Sampling, wavelengths in nm) of one layout's scene.
 
-    The frequency step is :func:`lfjax.planner.plan_sampling`'s field guard (the largest
+    The frequency step is :func:`lfjax.planner.plan.plan_sampling`'s field guard (the largest
     ladder step whose PSF field holds the blur). The accuracy proxy for the frequency step
     is skipped: it takes 9–27 s per layout on the paper's grid, and for a 1e-3 VSOTF target
     it asks the 3×3/4×4 layouts for about half the guard's step (~4× the compute); at the
@@ -251,7 +251,7 @@ def _planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, 
     ``config.wavelength_steps_nm``, or the step the planner chooses for the peak and cut-off
     targets (``accuracy="claims"``, 3–10 s of host work per layout the first time; the plan
     is then remembered, in the process and, from the command line, on disk:
-    :mod:`lfjax._plan_cache`). The transform is the FFT, or the MFT for the layouts in
+    :mod:`lfjax.planner.cache`). The transform is the FFT, or the MFT for the layouts in
     ``config.mft_pupil_samples``."""
     start, stop, _ = config.wavelengths_nm
     fixed_step = dict(config.wavelength_steps_nm).get(layout.name)

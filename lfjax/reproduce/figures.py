@@ -20,10 +20,10 @@ import numpy as np
 from matplotlib.colors import hsv_to_rgb
 from matplotlib.figure import Figure
 
-from ..claims import aberrated, average
-from ..eyes import sample_eyes, thibos_statistics
-from ..metrics import diffraction_limited_mtf, ncsf
-from ..zernike import nm_from_ansi
+from lfjax.vision.claims import aberrated, average
+from lfjax.model.eyes import sample_eyes, thibos_statistics
+from lfjax.kernel.metrics import diffraction_limited_mtf, ncsf
+from lfjax.base.zernike import nm_from_ansi
 
 FIGURES = {
     "fig03": "fig03_zernike_coefficients.png",

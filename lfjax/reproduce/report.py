@@ -5,7 +5,7 @@
 pandas DataFrames; :func:`write_report` writes the markdown report.
 
 Imports :mod:`~lfjax.reproduce.config` and :mod:`~lfjax.reproduce.study` from the package,
-and the claims from :mod:`lfjax.claims`.
+and the claims from :mod:`lfjax.vision.claims`.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..claims import Claim, aberrated, average
-from .config import METRICS, StudyConfig
+from lfjax.vision.claims import Claim, aberrated, average
+from lfjax.reproduce.config import METRICS, StudyConfig
 
 TABLES = {
     "predictions": "accommodation_predictions.csv",

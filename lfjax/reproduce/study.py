@@ -1,15 +1,15 @@
 """The study's computation: through-focus of every eye per layout, and the example data.
 
 :func:`layout_through_focus` evaluates all eyes for one layout in one
-:func:`lfjax.through_focus.through_focus` call (at the planned sampling, made finer only if
+:func:`lfjax.vision.focus.through_focus` call (at the planned sampling, made finer only if
 the PSF field would alias); :func:`run_study` runs it for every layout and gathers the
 numbers into one labelled :class:`xarray.Dataset`; :func:`study_sampling` reads back the
 sampling a layout used; :func:`compute_examples` computes the PSFs, OTFs and retinal images
-behind Figs. 4, 5 and 9. ``lfjax.claims.aberrated`` / ``average`` select the virtual eyes / the
+behind Figs. 4, 5 and 9. ``lfjax.vision.claims.aberrated`` / ``average`` select the virtual eyes / the
 average eye of a study Dataset (for the claims, the tables and the figures).
 
-Host-side orchestration (numpy, xarray); the numerics are :mod:`lfjax.through_focus` and
-:mod:`lfjax.optics`. Imports only :mod:`lfjax.reproduce.config` from the package.
+Host-side orchestration (numpy, xarray); the numerics are :mod:`lfjax.vision.focus` and
+:mod:`lfjax.kernel.optics`. Imports only :mod:`lfjax.reproduce.config` from the package.
 """
 
 from __future__ import annotations
@@ -24,17 +24,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._version import __version__
-from ..eyes import Eyes, aberration_free_eye
-from ..images import psf_on_grid, retinal_image, snellen_e
-from ..layouts import Layout, grid_layout, open_pupil, paper_layouts
-from ..optics import full_plane
-from ..options import ModelOptions
-from ..psf import polychromatic_otf
-from ..sampling import AliasingError, Sampling, finer_step
-from ..spectral import make_spectrum
-from ..through_focus import ThroughFocus, through_focus, through_focus_variants
-from .config import METRICS, StudyConfig, _planned_sampling, study_eyes
+from lfjax._version import __version__
+from lfjax.model.eyes import Eyes, aberration_free_eye
+from lfjax.vision.images import psf_on_grid, retinal_image, snellen_e
+from lfjax.model.layouts import Layout, grid_layout, open_pupil, paper_layouts
+from lfjax.kernel.optics import full_plane
+from lfjax.model.options import ModelOptions
+from lfjax.vision.psf import polychromatic_otf
+from lfjax.base.sampling import AliasingError, Sampling, finer_step
+from lfjax.model.spectral import make_spectrum
+from lfjax.vision.focus import ThroughFocus, through_focus, through_focus_variants
+from lfjax.reproduce.config import METRICS, StudyConfig, _planned_sampling, study_eyes
 
 # ----------------------------------------------------------------------------- one layout
 
@@ -45,9 +45,9 @@ def layout_through_focus(
 ) -> tuple[ThroughFocus, Sampling]:
     """Through-focus of all eyes for one layout in one call, on the shared accommodation grid.
 
-    The frequency step is :func:`lfjax.planner.plan_sampling`'s choice for the scene (the
+    The frequency step is :func:`lfjax.planner.plan.plan_sampling`'s choice for the scene (the
     largest step whose PSF field holds the blur), made finer only if
-    :func:`lfjax.through_focus.through_focus` still reports that the field would alias.
+    :func:`lfjax.vision.focus.through_focus` still reports that the field would alias.
     The transform is the FFT, or the MFT for the layouts in ``config.mft_pupil_samples``.
     """
     tf, sampling, _ = _layout_run(eyes, layout, depths_D, config, spectrum, options)
@@ -117,7 +117,7 @@ def run_study(
 ):
     """Run the through-focus study; returns an :class:`xarray.Dataset`.
 
-    One :func:`~lfjax.through_focus.through_focus` call per layout evaluates every eye
+    One :func:`~lfjax.vision.focus.through_focus` call per layout evaluates every eye
     (the virtual eyes and the average eye in one batch). ``stage(name)`` is called before
     each layout (progress reporting).
 
@@ -127,7 +127,7 @@ def run_study(
     common 1 cpd axis; 0 beyond a layout's frequency grid, which lies beyond its optical
     cut-off), ``predicted_accommodation``, ``accommodation_error``, ``peak_value``,
     ``predicted_accommodation_parabolic``, ``predicted_accommodation_continuous`` and
-    ``continuous_peak_success`` (VSOTF; :mod:`lfjax.peaks`), ``cutoff_frequency`` (at each metric's peak,
+    ``continuous_peak_success`` (VSOTF; :mod:`lfjax.vision.peaks`), ``cutoff_frequency`` (at each metric's peak,
     from the layout's native frequency grid), ``mtf_at_peak``, ``zernike_um``,
     ``freq_step_cpd``, ``n_fft``.
     """
@@ -142,7 +142,7 @@ def run_study_variants(
     """:func:`run_study` under several model options, {name: ModelOptions} → {name: Dataset}.
 
     Each layout's variants run as one batch (:func:`layout_through_focus_variants`: one
-    compiled program over their stacked :class:`~lfjax.options.ModelParameters`); ``stage``
+    compiled program over their stacked :class:`~lfjax.model.options.ModelParameters`); ``stage``
     is called once per layout. Each Dataset's ``compute_seconds`` is the whole batch's."""
     return _run_studies(config, dict(variants), stage, batched=True)
 
@@ -153,7 +153,7 @@ def layout_through_focus_variants(
     """:func:`layout_through_focus` for several model options in one batch: each variant's
     sampling planned (and, if the field would alias, made finer) on its own, as
     :func:`layout_through_focus` does, then the variants computed together by
-    :func:`lfjax.through_focus.through_focus_variants` (one compiled call per sampling)."""
+    :func:`lfjax.vision.focus.through_focus_variants` (one compiled call per sampling)."""
     return [(tf, sampling) for tf, sampling, _ in
             _layout_run_variants(eyes, layout, depths_D, config, options)]
 
@@ -284,7 +284,7 @@ def _study_dataset(config: StudyConfig, options: ModelOptions, eyes: Eyes, label
                 "units": "D"}),
             predicted_accommodation_continuous=(("layout", "eye", "depth", "metric"), pred_cont, {
                 "long_name": "continuous peak: three-point local refinement of the grid peak "
-                             "(lfjax.peaks 'local'; VSOTF only, NaN for Strehl)", "units": "D"}),
+                             "(lfjax.vision.peaks 'local'; VSOTF only, NaN for Strehl)", "units": "D"}),
             continuous_peak_success=(("layout", "eye", "depth", "metric"), cont_ok, {
                 "long_name": "the continuous peak converged inside its bracket"}),
             accommodation_error=(("layout", "eye", "depth", "metric"),

@@ -12,19 +12,19 @@ Layers (imports go one way): config → compute → guard, store → run → rep
 ten_eyes).
 """
 
-from .compute import ChunkEvaluator, Task, build_tasks, population
-from .config import (
+from lfjax.sweep.compute import ChunkEvaluator, Task, build_tasks, population
+from lfjax.sweep.config import (
     SweepConfig,
     SweepConfigError,
     config_from_dict,
     config_to_toml,
     load_config,
 )
-from .guard import SweepEstimate, SweepTooLargeError, estimate
-from .report import sweep_report
-from .run import SweepRun, plan_sweep, run_sweep
-from .store import StoreMismatchError, completed_chunks, open_store, study_view
-from .ten_eyes import ten_eye_claims, ten_eye_markdown
+from lfjax.sweep.guard import SweepEstimate, SweepTooLargeError, estimate
+from lfjax.sweep.report import sweep_report
+from lfjax.sweep.run import SweepRun, plan_sweep, run_sweep
+from lfjax.sweep.store import StoreMismatchError, completed_chunks, open_store, study_view
+from lfjax.sweep.ten_eyes import ten_eye_claims, ten_eye_markdown
 
 __all__ = [
     "ChunkEvaluator",

@@ -4,8 +4,8 @@
 :class:`Task` per (pupil, layout): the scene, the accommodation grid, the sampling (planned
 once on the whole population, so every chunk sees the same grid) and the static pipeline
 configuration. :class:`ChunkEvaluator` compiles each task's chunk function once — the
-pipeline (:func:`lfjax.pipeline.retinal_metrics`), the grid and continuous peaks
-(:func:`lfjax.peaks.peaks_from_grid`) and the MTF cut-off, all inside one ``jit`` — and
+pipeline (:func:`lfjax.kernel.pipeline.retinal_metrics`), the grid and continuous peaks
+(:func:`lfjax.vision.peaks.peaks_from_grid`) and the MTF cut-off, all inside one ``jit`` — and
 re-uses it for every chunk of the same size; it counts traces, so a recompilation per chunk
 is caught, not merely slow. With several local devices the eye axis is split over them with
 ``shard_map`` over a one-axis :class:`jax.sharding.Mesh` (each device runs its eyes' FFTs;
@@ -25,19 +25,19 @@ import numpy as np
 from jax.sharding import Mesh
 from jax.sharding import PartitionSpec as P
 
-from ..display_spectra import display_spectrum
-from ..eyes import Eyes, append_average_eye, sample_eyes
-from ..layout_files import load_layout_json
-from ..layouts import Layout, paper_layouts
-from ..metrics import cutoff_frequency
-from ..optics import _field_check, _validate_coefficients
-from ..peaks import METRICS, peaks_from_grid
-from ..pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
-from .._plan_cache import cached_plan_sampling
-from ..sampling import AliasingError, Sampling, finer_step
-from ..spectral import Spectrum, make_spectrum
-from ..through_focus import _used_states, _windowed_grid
-from .config import SweepConfig
+from lfjax.display.spectra import display_spectrum
+from lfjax.model.eyes import Eyes, append_average_eye, sample_eyes
+from lfjax.model.layout_files import load_layout_json
+from lfjax.model.layouts import Layout, paper_layouts
+from lfjax.kernel.metrics import cutoff_frequency
+from lfjax.kernel.optics import _field_check, _validate_coefficients
+from lfjax.vision.peaks import METRICS, peaks_from_grid
+from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
+from lfjax.planner.cache import cached_plan_sampling
+from lfjax.base.sampling import AliasingError, Sampling, finer_step
+from lfjax.model.spectral import Spectrum, make_spectrum
+from lfjax.vision.focus import _used_states, _windowed_grid
+from lfjax.sweep.config import SweepConfig
 
 FREQUENCIES_CPD = np.arange(0.0, 61.0, 1.0)
 """Frequency axis (cpd) of the stored MTF at the predicted accommodation (claim 5 reads
@@ -110,9 +110,9 @@ def planned_wavelength_step(config: SweepConfig) -> float:
     """The wavelength step (nm) of a sweep whose ``wavelengths_nm`` gives none: for every
     (pupil, layout) the planner's coarsest step whose proxy peaks stay within
     ``peak_tolerance_D`` and cut-offs within ``cutoff_tolerance_cpd``
-    (:func:`lfjax.planner.plan_sampling`), and the finest of those. Eye-independent and
+    (:func:`lfjax.planner.plan.plan_sampling`), and the finest of those. Eye-independent and
     deterministic (a resumed sweep plans the same step); 3–10 s per (pupil, layout) the
-    first time, then remembered (:mod:`lfjax._plan_cache`: in the process and, from the
+    first time, then remembered (:mod:`lfjax.planner.cache`: in the process and, from the
     command line, on disk)."""
     start, stop = config.wavelengths_nm
     all_depths = config.depths_D

@@ -24,13 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..display import DisplayOptics, display_optics_at
-from ..display_spectra import DISPLAY_NAMES
-from ..eyes import THIBOS_PUPILS_MM
-from ..layout_files import load_layout_json
-from ..layouts import PAPER_LAYOUTS
-from ..options import ModelOptions
-from ..peaks import METRICS, PEAK_METHODS
+from lfjax.display.lenslets import DisplayOptics, display_optics_at
+from lfjax.display.spectra import DISPLAY_NAMES
+from lfjax.model.eyes import THIBOS_PUPILS_MM
+from lfjax.model.layout_files import load_layout_json
+from lfjax.model.layouts import PAPER_LAYOUTS
+from lfjax.model.options import ModelOptions
+from lfjax.vision.peaks import METRICS, PEAK_METHODS
 
 CONFIG_FORMAT = "lfjax-sweep/1"
 
@@ -76,13 +76,13 @@ class SweepConfig:
 
     Display
     -------
-    layouts : names from ``lfjax.layouts.PAPER_LAYOUTS`` (sized to each pupil) or paths of
+    layouts : names from ``lfjax.model.layouts.PAPER_LAYOUTS`` (sized to each pupil) or paths of
         layout JSON files written by ``lfjax optimise`` (fixed in mm; relative paths are
         relative to the config file)
     cdp_D : central depth plane, D
     depth_offsets_D : rendered depths relative to the CDP, D (natural view: the CDP only)
     lenslet_distance_mm : a lenslet-array display at this distance from the eye (mm): each
-        view is its lenslet's Fresnel pattern (:func:`lfjax.display.display_optics_at`);
+        view is its lenslet's Fresnel pattern (:func:`lfjax.display.lenslets.display_optics_at`);
         None: the paper's ideal display
     pixel_width_arcmin : angular width of the emitters, arcmin (0: points)
 
@@ -97,19 +97,19 @@ class SweepConfig:
         (:func:`lfjax.sweep.compute.sweep_spectrum`): the coarsest whose proxy peaks stay
         within ``peak_tolerance_D`` and cut-offs within ``cutoff_tolerance_cpd`` in every
         (pupil, layout) of the sweep (default; 25 nm for the paper's scene)
-    display_spectrum : a built-in display's white (:data:`lfjax.display_spectra.DISPLAY_NAMES`)
+    display_spectrum : a built-in display's white (:data:`lfjax.display.spectra.DISPLAY_NAMES`)
         weighted by V(λ) on the wavelengths that carry it, instead of V(λ) white on
         ``wavelengths_nm`` (whose step then sets the cell width); None: V(λ) white
     freq_step_cpd : frequency step of the OTF grid, cpd; None: planned per (pupil, layout)
-        by :func:`lfjax.planner.plan_sampling` on the whole population
+        by :func:`lfjax.planner.plan.plan_sampling` on the whole population
     vsotf_tolerance : with a planned step: the planner's VSOTF accuracy target (its proxy
         runs, seconds per layout); None: its field guard alone (milliseconds)
     peak_tolerance_D, cutoff_tolerance_cpd : targets of a planned wavelength step (D, cpd)
 
     Metrics
     -------
-    continuous_peaks : metrics whose peak is refined off the grid (``lfjax.peaks``)
-    peak_method : refinement method (``lfjax.peaks.PEAK_METHODS``)
+    continuous_peaks : metrics whose peak is refined off the grid (``lfjax.vision.peaks``)
+    peak_method : refinement method (``lfjax.vision.peaks.PEAK_METHODS``)
     cutoff_threshold : MTF value defining the cut-off frequency
     dof_fraction : depth of field fraction (claim 6; the report's population claims)
 
@@ -192,7 +192,7 @@ class SweepConfig:
         return _grid(*self.wavelengths_nm)
 
     def display_optics(self):
-        """The display's :class:`~lfjax.display.DisplayOptics`, or None (ideal display)."""
+        """The display's :class:`~lfjax.display.lenslets.DisplayOptics`, or None (ideal display)."""
         if self.lenslet_distance_mm is not None:
             return display_optics_at(self.lenslet_distance_mm, self.cdp_D, self.pixel_width_arcmin)
         if self.pixel_width_arcmin > 0:
@@ -617,7 +617,7 @@ _KEY_HELP = {
     "vsotf_tolerance": "plan for this VSOTF accuracy (the planner's proxy)",
     "peak_tolerance_D": "a planned wavelength step moves no peak by more, D",
     "cutoff_tolerance_cpd": "a planned wavelength step moves no cut-off by more, cpd",
-    "continuous_peaks": "metrics refined off the grid (lfjax.peaks)",
+    "continuous_peaks": "metrics refined off the grid (lfjax.vision.peaks)",
     "peak_method": f"refinement: {', '.join(PEAK_METHODS)}",
     "cutoff_threshold": "MTF value defining the cut-off frequency",
     "dof_fraction": "depth of field fraction (claim 6)",

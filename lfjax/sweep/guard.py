@@ -24,14 +24,14 @@ from pathlib import Path
 
 import jax
 
-from ..peaks import METRICS, STATE_COST, resolved_method
-from ..sampling import EYE_BLOCK
-from .compute import sweep_spectrum
-from .config import SweepConfig
+from lfjax.vision.peaks import METRICS, STATE_COST, resolved_method
+from lfjax.base.sampling import EYE_BLOCK
+from lfjax.sweep.compute import sweep_spectrum
+from lfjax.sweep.config import SweepConfig
 
 N_FREQUENCIES = 61  # the stored MTF's 0 ... 60 cpd axis (compute.FREQUENCIES_CPD)
 N_MODES = 45  # Zernike coefficients per eye (Thibos et al. 2002: OSA j = 0 ... 44)
-GUARD_GRID = 48  # samples across the pupil of the host guards' wavefronts (lfjax.sampling)
+GUARD_GRID = 48  # samples across the pupil of the host guards' wavefronts (lfjax.base.sampling)
 
 DEVICE_ALLOWANCE = 3.0
 """Device working set / the pipeline's largest arrays (elemental OTFs and the rendered
@@ -52,7 +52,7 @@ section 31, BFGS 11.5), rounded up; the one-shot methods take one."""
 REFINEMENT_STATES = {method: STATE_COST[method] * TYPICAL_STEPS.get(method, 1)
                      for method in STATE_COST} | {"vertex": 0, "grid": 0}
 """Accommodation states one continuous peak costs beyond the grid, per (eye, depth), by
-method: each step's states (:data:`lfjax.peaks.STATE_COST`: ``local``'s three-point
+method: each step's states (:data:`lfjax.vision.peaks.STATE_COST`: ``local``'s three-point
 stencil, Newton's value and two forward derivatives, …) times its typical steps; ``vertex``
 and ``grid`` evaluate nothing beyond the grid. Each state transforms every view at every
 wavelength, as a grid state does."""
@@ -204,7 +204,7 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
     eye_bytes = _eye_bytes(config, n_acc)
     store = n_eyes * eye_bytes
     # the population's coefficients (a few copies), the host guards' block of wavefronts
-    # and gradients (lfjax.sampling.EYE_BLOCK eyes, 48 x 48 samples, five arrays); the store
+    # and gradients (lfjax.base.sampling.EYE_BLOCK eyes, 48 x 48 samples, five arrays); the store
     # is created from one chunk's template, so its size does not count here
     setup = n_eyes * N_MODES * 8 * 4 + EYE_BLOCK * GUARD_GRID**2 * 8 * 5
     chunk = 2 * config.chunk_size * eye_bytes  # the chunk's arrays and their Dataset

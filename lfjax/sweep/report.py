@@ -12,7 +12,7 @@ interrupted is reported on what it has — and writes into a folder:
   the grid peak) against rendered depth relative to the CDP, as percentile bands per layout,
   one panel per pupil; ``cutoff_frequency.png``: the cut-off frequency at the
   VSOTF-predicted accommodation, the same way; ``layouts.png``: each layout's subapertures
-  in each pupil (:func:`lfjax.layout_plots.draw_layout`);
+  in each pupil (:func:`lfjax.model.layout_plots.draw_layout`);
 * ``ten_eyes.md`` / ``ten_eyes.csv``: "what ten eyes cannot tell"
   (:mod:`lfjax.sweep.ten_eyes`) when the store holds enough eyes and the layouts the claims
   need;
@@ -30,13 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .._tables import printable
-from ..layout_plots import draw_layout
-from ..layouts import LF_LAYOUTS
-from .compute import resolve_layout
-from .config import config_from_dict
-from .store import is_store, open_store
-from .ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
+from lfjax.base.tables import printable
+from lfjax.model.layout_plots import draw_layout
+from lfjax.model.layouts import LF_LAYOUTS
+from lfjax.sweep.compute import resolve_layout
+from lfjax.sweep.config import config_from_dict
+from lfjax.sweep.store import is_store, open_store
+from lfjax.sweep.ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
 
 PERCENTILES = (5, 25, 50, 75, 95)
 """Percentiles (%) reported over the eyes of each cell."""

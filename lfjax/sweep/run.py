@@ -22,10 +22,10 @@ import jax
 import numpy as np
 from jax.experimental import multihost_utils
 
-from .compute import ChunkEvaluator, build_tasks, population, sweep_spectrum
-from .config import SweepConfig
-from .guard import check_fits, estimate
-from .store import (
+from lfjax.sweep.compute import ChunkEvaluator, build_tasks, population, sweep_spectrum
+from lfjax.sweep.config import SweepConfig
+from lfjax.sweep.guard import check_fits, estimate
+from lfjax.sweep.store import (
     StoreLock,
     _now,
     check_store_matches,

@@ -14,7 +14,7 @@ The metadata are consolidated, and the attributes record the provenance.
 Dataset (dims ``eye, pupil, layout, depth, accommodation, metric, frequency, zernike_j,
 chunk``), see :func:`template` for every variable's units. :func:`study_view` presents one
 pupil of a store as the reproduction's study Dataset, so the paper's claims
-(:func:`lfjax.claims.evaluate_claims`) run on any subset of its eyes.
+(:func:`lfjax.vision.claims.evaluate_claims`) run on any subset of its eyes.
 """
 
 from __future__ import annotations
@@ -33,12 +33,12 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from .._files import owned_temp_dir, pid_alive, remove_orphans
-from .._version import __version__
-from ..peaks import METRICS
-from ..sampling import Sampling
-from .compute import FREQUENCIES_CPD, Task, layout_name, sweep_spectrum
-from .config import SweepConfig, config_differences, config_to_toml
+from lfjax.base.files import owned_temp_dir, pid_alive, remove_orphans
+from lfjax._version import __version__
+from lfjax.vision.peaks import METRICS
+from lfjax.base.sampling import Sampling
+from lfjax.sweep.compute import FREQUENCIES_CPD, Task, layout_name, sweep_spectrum
+from lfjax.sweep.config import SweepConfig, config_differences, config_to_toml
 
 STORE_FORMAT = "lfjax-sweep-store/1"
 ZARR_FORMAT = 2  # strings (layout names) have no stable Zarr v3 encoding yet (zarr 3.1 warns)
@@ -107,7 +107,7 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
                  "Zernike coefficients in um",
         "eyes_source": "Thibos, Bradley & Hong (2002) statistics, lfjax.sample_eyes(seed, n) "
                        "on the measured pupil; the average eye (if any) is the last eye",
-        # what the reproduction's claims read (lfjax.claims)
+        # what the reproduction's claims read (lfjax.vision.claims)
         "cdp_D": float(config.cdp_D),
         "measured_pupil_mm": float(config.fit_pupil_mm),
         "config_cutoff_threshold": float(config.cutoff_threshold),
@@ -136,7 +136,7 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
                 "long_name": "grid predicted accommodation minus rendered depth (negative: "
                              "focused farther than the image)", "units": "D"}),
             predicted_accommodation_continuous=(dims5 + ("metric",), nan(per_metric, np.float64), {
-                "long_name": f"continuous peak refined from the grid (lfjax.peaks "
+                "long_name": f"continuous peak refined from the grid (lfjax.vision.peaks "
                              f"{config.peak_method!r}); NaN for metrics not in "
                              f"continuous_peaks", "units": "D"}),
             continuous_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
@@ -606,7 +606,7 @@ def is_disk_full(err: BaseException) -> bool:
 def study_view(ds, pupil_mm: float | None = None):
     """One pupil of a sweep store as the reproduction's study Dataset: dims ``layout, eye,
     depth, accommodation, metric, frequency``, eyes labelled ``eye00001`` … and
-    ``average`` — what :func:`lfjax.claims.evaluate_claims` reads."""
+    ``average`` — what :func:`lfjax.vision.claims.evaluate_claims` reads."""
     if pupil_mm is None:
         if ds.sizes["pupil"] != 1:
             raise ValueError(f"the store holds pupils {ds.pupil.values.tolist()} mm: name one")

@@ -5,7 +5,7 @@ Thibos average eye. A sweep of many eyes gives the distribution those ten were d
 :func:`ten_eye_claims` draws ``n_draws`` samples of ``sample_size`` eyes without replacement
 from a sweep's population (the average eye excluded from the draw, then appended to every
 sample, since claims 4 and 5 compare against it), evaluates
-:func:`lfjax.claims.evaluate_claims` on each sample, and reports for every claim
+:func:`lfjax.vision.claims.evaluate_claims` on each sample, and reports for every claim
 the fraction of samples in which it holds, a 95 % Wilson score interval for that fraction,
 the samples where it could not be evaluated, and the population's own answer (the claims
 evaluated on all of the population's eyes). :func:`ten_eye_markdown` renders the table and
@@ -15,7 +15,7 @@ The interval is a Monte Carlo interval: it bounds the probability that a random 
 this size *from this population* (the sweep's eyes) reproduces the claim, given the finite
 number of draws. It says nothing about eyes outside the sweep.
 
-Speed: :func:`~lfjax.claims.evaluate_claims` is the single source of the criteria.
+Speed: :func:`~lfjax.vision.claims.evaluate_claims` is the single source of the criteria.
 On an xarray Dataset it spends ~0.1 s per call in xarray's indexing (hundreds of ``sel`` /
 ``isel`` on the (layout, depth) cells), which makes 1,000 draws take minutes. The draws
 therefore run it on :class:`_Frame`, a small stand-in for the Dataset that holds the same
@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..claims import evaluate_claims
-from .store import ZARR_FORMAT, is_store, open_store, study_view
+from lfjax.vision.claims import evaluate_claims
+from lfjax.sweep.store import ZARR_FORMAT, is_store, open_store, study_view
 
 Z_95 = 1.959963984540054
 """Standard normal quantile of 0.975 (two-sided 95 % interval)."""
@@ -57,7 +57,7 @@ _CLAIM_VARIABLES = (
     "mtf_at_peak",
     "zernike_um",
 )
-"""Data variables of a study Dataset that :func:`~lfjax.claims.evaluate_claims`
+"""Data variables of a study Dataset that :func:`~lfjax.vision.claims.evaluate_claims`
 reads (with the coordinates ``is_average`` and ``depth_rel_cdp`` and the dimension labels).
 The through-focus curves (``vsotf``, ``strehl``: an accommodation axis each) are not read
 and are left out of every sample, which keeps the samples small."""
@@ -138,7 +138,7 @@ class _Field:
 
 class _Frame:
     """A study Dataset's arrays with the labelled-array operations of
-    :func:`~lfjax.claims.evaluate_claims`: ``sel`` by label (a scalar, an exact
+    :func:`~lfjax.vision.claims.evaluate_claims`: ``sel`` by label (a scalar, an exact
     ``method="nearest"`` match or a boolean mask), ``isel`` by position (an integer or an
     integer array), variables and coordinates as attributes, ``attrs``.
 

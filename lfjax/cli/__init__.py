@@ -1,0 +1,5 @@
+"""The ``lfjax`` command line (:func:`main`)."""
+
+from lfjax.cli.main import main
+
+__all__ = ["main"]

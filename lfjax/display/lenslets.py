@@ -1,0 +1,351 @@
+"""Beyond the ideal display: lenslet diffraction and finite pixels (paper Eq. 2 and §Limitations).
+
+The paper's display is ideal: every view fills a geometric subaperture of the pupil and
+comes from a point on the central depth plane (CDP). A real integral-imaging display has a
+lenslet (or pinhole) array at distance z_m from the eye and a pixel panel at the gap z_0
+behind it. This module models two of the effects the paper leaves out, each an optional
+component of the pure pipeline, differentiable in its parameters:
+
+**Lenslet diffraction (Eq. 2).** A pixel at z_0 behind a thin lenslet of focal length f is
+imaged to the CDP, at v = 1/(1/z_0 − 1/f) behind the lenslet (virtual image; v = ∞ when
+z_0 = f), L = z_m + v from the eye. In the paraxial (Fresnel) approximation the field the
+lenslet sends into the eye's pupil plane factorises exactly (complete the square in the
+two Fresnel kernels) into
+
+    U(p) = exp(iπ|p − s′|²/(λL)) · Fr_{z_eff}[P](p − p_n),
+
+the spherical wave of the CDP image point s′ — which the eye model already carries (the
+eye's defocus is relative to the CDP; the view's direction is its display shift) — times the
+Fresnel diffraction pattern of the lenslet aperture P magnified by M = L/v = 1 + z_m/v onto
+the pupil (diameter M·a, centred on the geometric subaperture centre p_n) and propagated
+over the effective distance z_eff = z_m·M. The Fresnel number N = (M a/2)²/(λ z_eff) =
+(a/2)²/(λ z_m v/L) is the same in both planes. N → ∞ gives back the geometric subaperture
+(the paper's ideal display); N ≲ 1 spreads each view over much of the pupil, and its phase
+is then that of a source on the lenslet plane rather than on the CDP.
+
+The paper's Eq. 2 keeps only the modulus |Fr[…]| of the pattern; ``diffraction="modulus"``
+does that, ``"fresnel"`` (default) keeps the complex pattern, the physically complete
+field (its phase is what makes a small lenslet look like a source at the lenslet plane).
+
+The pattern is computed on the pupil window as a linear convolution with the Fresnel
+impulse response, by FFT on a grid padded twice: the kernel is sampled in space where it is
+resolved (far field) and as the analytic transfer function exp(−iπλz f²) where that is
+(near field) — :func:`fresnel_transfer_1d` (Voelz & Roggemann 2009 give the criterion).
+With diffraction on, every view's
+window is the whole pupil (a diffracted beam is not confined to its subaperture), so a view
+costs what the open pupil costs.
+
+**Finite pixels.** An emitter of width w on the panel is an extended, incoherent source;
+its image on the CDP subtends w/(z_0·M) rad at the eye (w/f for a collimating lenslet). Each
+rendered OTF is multiplied by its transfer function sinc(a f_x)·sinc(a f_y) (a square
+pixel aligned with the display axes, a in rad, f in cycles/rad). Width 0 changes nothing.
+
+Reference: J. W. Goodman, *Introduction to Fourier Optics*, 4th ed. (2017), ch. 4–5
+(Fresnel diffraction, the lens as a phase transformation); D. G. Voelz & M. C. Roggemann,
+Appl. Opt. 48, 6132 (2009) (transfer-function versus impulse-response sampling).
+"""
+
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from lfjax.base.types import as_real_array
+from lfjax.base.types import is_concrete as _concrete
+from lfjax.base.apertures import aperture_edge_distance as aperture_edge_distance
+from lfjax.base.apertures import fresnel_propagate as fresnel_propagate
+from lfjax.base.apertures import fresnel_transfer_1d as fresnel_transfer_1d
+from lfjax.model.layouts import Layout
+from lfjax.base.units import ARCMIN_PER_RADIAN
+
+DIFFRACTION_MODES = ("off", "fresnel", "modulus")
+APERTURE_SHAPES = ("circle", "square")
+
+
+class DisplayOptics(eqx.Module):
+    """What a real display adds to every view, as the pipeline needs it (all leaves arrays).
+
+    Attributes
+    ----------
+    diffraction : str (static)
+        ``"off"`` (geometric subapertures, the paper's ideal display), ``"fresnel"`` (the
+        complex Fresnel pattern of each lenslet aperture) or ``"modulus"`` (its modulus, the
+        paper's Eq. 2 read literally).
+    aperture : str (static)
+        Subaperture shape, ``"circle"`` (diameter) or ``"square"`` (side, axis-aligned);
+        applies to the geometric subapertures too.
+    fresnel_distance_mm : () effective propagation distance z_eff = z_m·M in pupil
+        coordinates, mm (> 0; used when ``diffraction`` is on).
+    pixel_width_arcmin : () angular width of one emitter's image on the CDP seen from the
+        eye, arcmin (≥ 0; 0 = point emitters, the paper's ideal).
+    """
+
+    diffraction: str = eqx.field(static=True, default="off")
+    aperture: str = eqx.field(static=True, default="circle")
+    fresnel_distance_mm: jnp.ndarray = eqx.field(converter=as_real_array, default=1.0)
+    pixel_width_arcmin: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
+
+    def __check_init__(self):
+        if self.diffraction not in DIFFRACTION_MODES:
+            raise ValueError(
+                f"DisplayOptics.diffraction={self.diffraction!r}; allowed: {', '.join(DIFFRACTION_MODES)}"
+            )
+        if self.aperture not in APERTURE_SHAPES:
+            raise ValueError(
+                f"DisplayOptics.aperture={self.aperture!r}; allowed: {', '.join(APERTURE_SHAPES)}"
+            )
+        if _concrete(self.fresnel_distance_mm, self.pixel_width_arcmin):
+            z = np.asarray(self.fresnel_distance_mm, float)
+            w = np.asarray(self.pixel_width_arcmin, float)
+            if z.shape != () or w.shape != ():
+                raise ValueError("DisplayOptics.fresnel_distance_mm and pixel_width_arcmin must be scalars")
+            if not (np.isfinite(z) and z > 0):
+                raise ValueError(f"fresnel_distance_mm must be finite and > 0 mm, got {float(z)}")
+            if not (np.isfinite(w) and w >= 0):
+                raise ValueError(f"pixel_width_arcmin must be finite and >= 0 arcmin, got {float(w)}")
+
+    @property
+    def diffracts(self) -> bool:
+        return self.diffraction != "off"
+
+    @property
+    def pixel_width_rad(self):
+        return self.pixel_width_arcmin / ARCMIN_PER_RADIAN
+
+    def fresnel_number(self, diameter_mm, wavelength_nm):
+        """N = (d/2)²/(λ z_eff) of a subaperture of ``diameter_mm`` (mm) at ``wavelength_nm``."""
+        return (0.5 * diameter_mm) ** 2 / (wavelength_nm * 1e-6 * self.fresnel_distance_mm)
+
+    def checked(self) -> DisplayOptics:
+        """Traced-value checks (``eqx.error_if``) for use inside the pipeline."""
+        z = eqx.error_if(self.fresnel_distance_mm,
+                         ~(jnp.isfinite(self.fresnel_distance_mm) & (self.fresnel_distance_mm > 0)),
+                         "fresnel_distance_mm must be finite and > 0 mm")
+        w = eqx.error_if(self.pixel_width_arcmin,
+                         ~(jnp.isfinite(self.pixel_width_arcmin) & (self.pixel_width_arcmin >= 0)),
+                         "pixel_width_arcmin must be finite and >= 0 arcmin")
+        return DisplayOptics(self.diffraction, self.aperture, z, w)
+
+
+def ideal_display() -> DisplayOptics:
+    """The paper's ideal display: geometric circular subapertures, point emitters."""
+    return DisplayOptics()
+
+
+def __getattr__(name: str):
+    # IDEAL_DISPLAY is built on first use, not at import: its leaves are JAX arrays, and
+    # creating one starts JAX's backend, after which jax.distributed.initialize refuses
+    # (``lfjax sweep --distributed`` imports lfjax first).
+    if name == "IDEAL_DISPLAY":
+        return ideal_display()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _check_positive(name: str, value, allow_inf: bool = False) -> None:
+    if not _concrete(value):
+        return
+    v = np.asarray(value, float)
+    ok = (v > 0) & (np.isfinite(v) | (allow_inf & np.isposinf(v)))
+    if not np.all(ok):
+        extra = " (inf for a pinhole or barrier: no lens)" if allow_inf else ""
+        raise ValueError(f"{name} must be > 0 mm{extra}, got {v.ravel().tolist()}")
+
+
+class LensletArray(eqx.Module):
+    """A lenslet (or pinhole) array in front of a pixel panel: the display's physical optics.
+
+    Attributes (mm; every float a differentiable leaf)
+    ----------
+    pitch_mm : () lenslet pitch Δu on the modulation plane
+    aperture_mm : () lenslet aperture: diameter (circle) or side (square), ≤ pitch
+    focal_length_mm : () focal length f (> 0; ``inf`` for a pinhole or barrier)
+    gap_mm : () panel–lenslet distance z_0, ≤ f (the CDP is a virtual image behind the
+        display, or at infinity when z_0 = f)
+    distance_mm : () eye pupil–lenslet distance z_m
+    aperture : "circle" or "square" (static)
+    diffraction : "fresnel" or "modulus" (static, see :class:`DisplayOptics`)
+
+    All derived quantities are written with the image vergence V = 1/z_0 − 1/f (1/mm), so a
+    collimating lenslet (V = 0, CDP at infinity) needs no special case.
+    """
+
+    pitch_mm: jnp.ndarray = eqx.field(converter=as_real_array)
+    aperture_mm: jnp.ndarray = eqx.field(converter=as_real_array)
+    focal_length_mm: jnp.ndarray = eqx.field(converter=as_real_array)
+    gap_mm: jnp.ndarray = eqx.field(converter=as_real_array)
+    distance_mm: jnp.ndarray = eqx.field(converter=as_real_array)
+    aperture: str = eqx.field(static=True, default="circle")
+    diffraction: str = eqx.field(static=True, default="fresnel")
+
+    def __check_init__(self):
+        if self.aperture not in APERTURE_SHAPES:
+            raise ValueError(f"LensletArray.aperture={self.aperture!r}; allowed: {', '.join(APERTURE_SHAPES)}")
+        if self.diffraction not in DIFFRACTION_MODES:
+            raise ValueError(
+                f"LensletArray.diffraction={self.diffraction!r}; allowed: {', '.join(DIFFRACTION_MODES)}"
+            )
+        _check_positive("pitch_mm", self.pitch_mm)
+        _check_positive("aperture_mm", self.aperture_mm)
+        _check_positive("focal_length_mm", self.focal_length_mm, allow_inf=True)
+        _check_positive("gap_mm", self.gap_mm)
+        _check_positive("distance_mm", self.distance_mm)
+        if _concrete(self.pitch_mm, self.aperture_mm, self.focal_length_mm, self.gap_mm):
+            if float(self.aperture_mm) > float(self.pitch_mm) * (1 + 1e-9):
+                raise ValueError(
+                    f"aperture_mm={float(self.aperture_mm):g} must be <= pitch_mm={float(self.pitch_mm):g} "
+                    "(lenslet apertures cannot overlap)"
+                )
+            if float(self.gap_mm) > float(self.focal_length_mm) * (1 + 1e-12):
+                raise ValueError(
+                    f"gap_mm={float(self.gap_mm):g} must be <= focal_length_mm="
+                    f"{float(self.focal_length_mm):g}: the CDP is then a virtual image behind the "
+                    "display (or at infinity); the real-image mode is not modelled"
+                )
+
+    @property
+    def image_vergence_per_mm(self):
+        """V = 1/z_0 − 1/f, 1/mm (0: collimated, CDP at infinity)."""
+        return 1.0 / self.gap_mm - 1.0 / self.focal_length_mm
+
+    @property
+    def magnification(self):
+        """M = L/v = 1 + z_m·V: lenslet plane → pupil plane scale of pitch and aperture."""
+        return 1.0 + self.distance_mm * self.image_vergence_per_mm
+
+    @property
+    def cdp_D(self):
+        """Central depth plane 1/L (D), L = z_m + v from the eye."""
+        v_per_mm = self.image_vergence_per_mm
+        return 1000.0 * v_per_mm / (1.0 + self.distance_mm * v_per_mm)
+
+    @property
+    def subaperture_pitch_mm(self):
+        """Spacing of the views in the pupil, M·Δu (paper Eq. 1 at the CDP), mm."""
+        return self.magnification * self.pitch_mm
+
+    @property
+    def subaperture_diameter_mm(self):
+        """Geometric subaperture in the pupil, M·a (diameter or side), mm."""
+        return self.magnification * self.aperture_mm
+
+    @property
+    def fresnel_distance_mm(self):
+        """z_eff = z_m·M, the distance over which the magnified aperture diffracts, mm."""
+        return self.distance_mm * self.magnification
+
+    def fresnel_number(self, wavelength_nm=550.0):
+        """(a/2)²·M²/(λ z_eff) of one lenslet (unitless; large = geometric)."""
+        return (0.5 * self.subaperture_diameter_mm) ** 2 / (wavelength_nm * 1e-6 * self.fresnel_distance_mm)
+
+    def pixel_width_arcmin(self, pixel_pitch_mm, fill_factor=1.0):
+        """Angular width (arcmin) of one emitter's image on the CDP, seen from the eye.
+
+        ``pixel_pitch_mm`` (mm) on the panel; ``fill_factor`` the emitting fraction of the
+        pixel's area (square emitter of side pitch·√fill). Width w/(z_0·M) rad.
+        """
+        width = pixel_pitch_mm * jnp.sqrt(fill_factor)
+        return width / (self.gap_mm * self.magnification) * ARCMIN_PER_RADIAN
+
+    def optics(self, pixel_pitch_mm=0.0, fill_factor=1.0, diffraction: str | None = None) -> DisplayOptics:
+        """The :class:`DisplayOptics` of this array (pixels of ``pixel_pitch_mm``, mm, and
+        area ``fill_factor``; 0 mm: point emitters). ``diffraction`` overrides the array's."""
+        if _concrete(pixel_pitch_mm, fill_factor, self.pitch_mm):
+            p, f = float(np.asarray(pixel_pitch_mm)), float(np.asarray(fill_factor))
+            if not (math.isfinite(p) and p >= 0):
+                raise ValueError(f"pixel_pitch_mm must be finite and >= 0 mm, got {p}")
+            if p > float(self.pitch_mm) * (1 + 1e-9):
+                raise ValueError(
+                    f"pixel_pitch_mm={p:g} is larger than the lenslet pitch_mm={float(self.pitch_mm):g}: "
+                    "each lenslet needs at least one pixel behind it (allowed 0 <= pixel_pitch_mm <= pitch_mm)"
+                )
+            if not (0 < f <= 1):
+                raise ValueError(f"fill_factor must be in (0, 1] (emitting area fraction), got {f}")
+        return DisplayOptics(
+            self.diffraction if diffraction is None else diffraction, self.aperture,
+            self.fresnel_distance_mm, self.pixel_width_arcmin(pixel_pitch_mm, fill_factor),
+        )
+
+    def layout(self, pupil_diameter_mm: float, n_per_side: int, offset_mm=(0.0, 0.0),
+               name: str | None = None) -> Layout:
+        """The n×n views nearest the pupil centre: centres M·Δu apart shifted by ``offset_mm``
+        (mm), diameters M·a (a side for square apertures). Differentiable in the array's
+        parameters; the numerical window is the pupil (what diffraction needs)."""
+        n = int(n_per_side)
+        if n != n_per_side or n < 1:
+            raise ValueError(f"n_per_side must be an integer >= 1, got {n_per_side}")
+        k = jnp.arange(n, dtype=jnp.result_type(float)) - (n - 1) / 2.0
+        xx, yy = jnp.meshgrid(k, k)
+        centres = jnp.stack([xx.ravel(), yy.ravel()], axis=1) * self.subaperture_pitch_mm
+        centres = centres + jnp.asarray(offset_mm, centres.dtype)
+        diameters = jnp.full((n * n,), 1.0, centres.dtype) * self.subaperture_diameter_mm
+        return Layout(centres, diameters, float(pupil_diameter_mm), name or f"{n}x{n} lenslets")
+
+
+def lenslets_for_layout(n_per_side: int, pupil_diameter_mm: float, cdp_D: float, distance_mm: float,
+                        fill: float = 1.0, f_number: float = 3.0, aperture: str = "circle",
+                        diffraction: str = "fresnel") -> LensletArray:
+    """The lenslet array at ``distance_mm`` (mm) from the eye that puts n×n tangent views in
+    a pupil of ``pupil_diameter_mm`` (the paper's layouts: view pitch pupil/n) with its CDP
+    at ``cdp_D`` (D; the CDP lies behind the display, so cdp_D < 1000/distance_mm).
+    ``fill`` = aperture/pitch (linear); ``f_number`` = f/aperture sets the focal length and
+    gap (optically only V = 1/z_0 − 1/f matters for the views; the gap sets the pixels'
+    angular size)."""
+    if not (cdp_D >= 0):
+        raise ValueError(f"cdp_D must be >= 0 D, got {cdp_D}")
+    if cdp_D * distance_mm >= 1000.0:
+        raise ValueError(
+            f"cdp_D={cdp_D:g} D puts the CDP in front of a display at {distance_mm:g} mm: "
+            f"need cdp_D < {1000.0 / distance_mm:.4g} D (a virtual image behind the display)"
+        )
+    # 1/L = V/(1 + z_m V) → V = (1/L)/(1 − z_m/L)
+    inv_l = cdp_D / 1000.0
+    vergence = inv_l / (1.0 - distance_mm * inv_l)
+    magnification = 1.0 + distance_mm * vergence
+    pitch = pupil_diameter_mm / n_per_side / magnification
+    focal = f_number * fill * pitch
+    gap = 1.0 / (vergence + 1.0 / focal)
+    return LensletArray(pitch, fill * pitch, focal, gap, distance_mm, aperture, diffraction)
+
+
+def display_optics_at(distance_mm: float, cdp_D: float, pixel_width_arcmin: float = 0.0,
+                      diffraction: str = "fresnel", aperture: str = "circle") -> DisplayOptics:
+    """The :class:`DisplayOptics` of any lenslet array at ``distance_mm`` (mm, eye pupil to
+    lenslets) whose CDP lies at ``cdp_D`` (D): its Fresnel distance z_m·M with
+    M = L/(L − z_m), L = 1000/cdp_D mm, depends on neither the lenslets' size nor their
+    pitch, so one DisplayOptics serves every layout such an array can make (the layout
+    optimiser's and the sweep's). ``pixel_width_arcmin``: the emitters' angular width."""
+    if not (math.isfinite(distance_mm) and distance_mm > 0):
+        raise ValueError(f"display distance must be > 0 mm, got {distance_mm}")
+    if not (math.isfinite(cdp_D) and cdp_D >= 0):
+        raise ValueError(f"cdp_D must be >= 0 D, got {cdp_D}")
+    if cdp_D * distance_mm >= 1000.0:
+        raise ValueError(
+            f"a display at {distance_mm:g} mm cannot put its CDP at {cdp_D:g} D: the CDP is a "
+            f"virtual image behind the display, so the distance must be < {1000.0 / cdp_D:.4g} mm")
+    magnification = 1.0 / (1.0 - distance_mm * cdp_D / 1000.0)
+    return DisplayOptics(diffraction, aperture, distance_mm * magnification, pixel_width_arcmin)
+
+
+def pixel_transfer(fx_cpr, fy_cpr, display: DisplayOptics | None):
+    """OTF of one emitter (square, width ``display.pixel_width_arcmin``) at frequencies in
+    cycles/radian, broadcast (…, L) × (…, Lx); 1 without a display."""
+    if display is None:
+        return 1.0
+    a = display.pixel_width_rad
+    return jnp.sinc(a * fy_cpr)[:, None] * jnp.sinc(a * fx_cpr)[None, :]
+
+
+__all__ = [
+    "DisplayOptics",
+    "IDEAL_DISPLAY",
+    "ideal_display",
+    "LensletArray",
+    "lenslets_for_layout",
+    "display_optics_at",
+    "pixel_transfer",
+    "DIFFRACTION_MODES",
+    "APERTURE_SHAPES",
+]

@@ -1,0 +1,333 @@
+"""The pipeline as one pure function: eyes × scene × spectrum × accommodation → metrics.
+
+Four pytrees carry the physics as arrays (every float a sweep or a fit varies is a leaf, so
+``jax.jit``, ``jax.vmap`` and ``jax.grad`` can wrap the pipeline from outside without
+recompiling per value):
+
+* :class:`lfjax.model.eyes.Eyes` — Zernike coefficients (µm), batch axis first;
+* :class:`Scene` — what the display shows and through which pupil: subaperture centres and
+  diameters (mm), the central depth plane (D), rendered depths (D), the calculation pupil
+  (mm), and optionally the display's own optics (:class:`lfjax.display.lenslets.DisplayOptics`:
+  lenslet diffraction, finite pixels);
+* :class:`lfjax.model.spectral.Spectrum` — wavelengths (nm), weights, LCA (D), Stiles–Crawford ρ;
+* :class:`Accommodation` — the accommodation states (D) and which state each
+  (depth, k) pair uses, with the accommodation-dependent spherical aberration.
+
+One hashable, static :class:`PipelineConfig` holds everything that sets array shapes or
+selects code: the frequency sampling and its wavelength bands, the NCSF model, the VSOTF
+reference and the eye chunk. :func:`retinal_metrics` is the paper's chain on one screen;
+:func:`lfjax.vision.focus.through_focus`, :func:`lfjax.vision.focus.metrics_at`,
+:func:`lfjax.vision.psf.polychromatic_otf`, the peak finder and the layout optimiser all call it
+(or :func:`otf_stack`, its first half).
+
+Bad values are refused twice: on the host with a message naming the parameter (the public
+wrappers, before any tracing) and, for traced values, with ``eqx.error_if`` inside the
+pipeline, so a NaN never leaves it silently.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from lfjax.display.lenslets import DisplayOptics, pixel_transfer
+from lfjax.model.eyes import Eyes
+from lfjax.kernel.metrics import ncsf_half_plane, psf_peak, radial_mtf, vsotf_numerator
+from lfjax.kernel.optics import elemental_otfs
+from lfjax.model.options import ModelOptions
+from lfjax.base.sampling import Sampling, frequencies_cpd, half_frequencies_cpd, wavelength_bands
+from lfjax.kernel.scene import Accommodation, Scene
+from lfjax.model.spectral import Spectrum
+from lfjax.base.units import DEGREES_PER_RADIAN
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """Static configuration: shapes and code paths (hashable; changing it recompiles).
+
+    Attributes
+    ----------
+    sampling : frequency step, transform and aperture edge
+    bands : ((start, stop, n_fft), …) wavelength bands of the scene's layout
+    reference_bands : the same for the VSOTF/Strehl reference aperture
+    ncsf : NCSF model name (:mod:`lfjax.kernel.metrics`)
+    vsotf_reference : "paper" (same layout, aberration-free) or "open_pupil"
+    zero_piston_tilt : drop j = 0, 1, 2 from the eyes' coefficients
+    eye_chunk : eyes evaluated together inside the map over eyes (None: one at a time)
+    traced_checks : check traced inputs inside the program with ``eqx.error_if`` (default).
+        False only where every input was checked on the host first (the public wrappers on
+        concrete values do): ``eqx.error_if`` is a host callback, and JAX's persistent
+        compilation cache does not store programs with host callbacks, so a checked program
+        is recompiled by every new process.
+    """
+
+    sampling: Sampling
+    bands: tuple
+    reference_bands: tuple
+    ncsf: str = "watson_ahumada_2005"
+    vsotf_reference: str = "paper"
+    zero_piston_tilt: bool = True
+    eye_chunk: int | None = None
+    traced_checks: bool = True
+
+    @property
+    def n_fft(self) -> int:
+        return max(b[2] for b in self.bands)
+
+    @property
+    def freq_step_cpd(self) -> float:
+        return self.sampling.freq_step_cpd
+
+    @classmethod
+    def build(
+        cls, wavelengths_nm, window_diameter_mm: float, pupil_diameter_mm: float,
+        sampling: Sampling, options: ModelOptions = ModelOptions(), eye_chunk: int | None = None,
+        traced_checks: bool = True, display: DisplayOptics | None = None,
+    ) -> PipelineConfig:
+        """Bands for a spectrum (nm) and a layout whose largest window is
+        ``window_diameter_mm`` (mm), on a calculation pupil of ``pupil_diameter_mm`` (mm);
+        everything here is concrete host data. With lenslet diffraction (``display``) every
+        view's window is the pupil; the reference (an ideal display) keeps the layout's."""
+        wl = np.asarray(wavelengths_nm, float)
+        pupil = float(pupil_diameter_mm)
+        reference_window = window_diameter_mm if options.vsotf_reference == "paper" else pupil
+        if display is not None and display.diffracts:
+            window_diameter_mm = pupil
+        return cls(
+            sampling,
+            wavelength_bands(wl, float(window_diameter_mm), pupil, sampling),
+            wavelength_bands(wl, float(reference_window), pupil, sampling),
+            options.ncsf, options.vsotf_reference, options.zero_piston_tilt,
+            None if eye_chunk is None else int(eye_chunk), bool(traced_checks),
+        )
+
+    def replace(self, **changes) -> PipelineConfig:
+        return dataclasses.replace(self, **changes)
+
+
+class RetinalMetrics(eqx.Module):
+    """Image quality of each (eye, rendered depth, k) pair.
+
+    Attributes
+    ----------
+    vsotf : (…, n_depth, n_k) visual Strehl ratio from the OTF, unitless
+    strehl : (…, n_depth, n_k) PSF peak over the reference's, unitless
+    radial_mtf : (…, n_depth, n_k, L//2+1) meridian-averaged MTF at f = k·df
+    """
+
+    vsotf: Float[Array, "*n_eyes n_depth n_k"]
+    strehl: Float[Array, "*n_eyes n_depth n_k"]
+    radial_mtf: Float[Array, "*n_eyes n_depth n_k n_freq"]
+
+
+# ----------------------------------------------------------------------------- stages
+
+
+def checked_inputs(eyes: Eyes, scene: Scene, accommodation: Accommodation):
+    """Traced-value checks (``eqx.error_if``); concrete values were checked on the host."""
+    z = eqx.error_if(eyes.zernike_um, ~jnp.all(jnp.isfinite(eyes.zernike_um)),
+                     "zernike_um contains non-finite values (NaN or inf)")
+    # 0.1 % beyond the measured pupil is let through: finite differences at the boundary
+    # step there, and the Zernike fit extrapolates negligibly that far.
+    pupil = eqx.error_if(
+        scene.pupil_diameter_mm,
+        ~((scene.pupil_diameter_mm > 0) & (scene.pupil_diameter_mm <= eyes.measured_pupil_mm * 1.001)),
+        f"pupil_diameter_mm must be in (0, {eyes.measured_pupil_mm:g}] mm (the eyes' measured pupil)",
+    )
+    diameters = eqx.error_if(scene.diameters_mm, ~jnp.all(scene.diameters_mm > 0),
+                             "diameters_mm must be > 0 mm")
+    centres = eqx.error_if(scene.centres_mm, ~jnp.all(jnp.isfinite(scene.centres_mm)),
+                           "centres_mm must be finite")
+    depths = eqx.error_if(scene.depths_D, ~jnp.all(jnp.isfinite(scene.depths_D) & (scene.depths_D >= 0)),
+                          "depths_D must be finite and >= 0 D (0 D is optical infinity)")
+    cdp = eqx.error_if(scene.cdp_D, ~(jnp.isfinite(scene.cdp_D) & (scene.cdp_D >= 0)),
+                       "cdp_D must be finite and >= 0 D")
+    states = eqx.error_if(
+        accommodation.states_D, ~jnp.all(jnp.isfinite(accommodation.states_D)),
+        "accommodation_D must be finite",
+    )
+    display = None if scene.display is None else scene.display.checked()
+    return (
+        eqx.tree_at(lambda e: e.zernike_um, eyes, z),
+        Scene(centres, diameters, cdp, depths, pupil, display),
+        eqx.tree_at(lambda a: a.states_D, accommodation, states),
+    )
+
+
+def _eye_coefficients(eyes: Eyes, config: PipelineConfig):
+    z = eyes.zernike_um
+    return z.at[..., :3].set(0.0) if config.zero_piston_tilt else z
+
+
+def render(elemental, scene: Scene, pair_index, n_fft: int, freq_step_cpd: float):
+    """Rendered polychromatic OTFs of every (depth, k) pair, (n_depth, n_k, L, L//2+1), OTF(0) = 1.
+
+    View n of depth d is displaced by Δθ_n = (D_d − D_CDP)·(p_n, q_n) (rad; D in 1/m, p in
+    m), applied as the phase ramp exp(−2πi f·Δθ_n); pair (d, k) sums the views' elemental
+    OTFs of state ``pair_index[d, k]`` (stages 6–7). Finite pixels (``scene.display``)
+    blur every view alike: the sum is multiplied by the emitter's transfer function.
+    """
+    fy_rad = frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
+    fx_rad = half_frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
+    shift_rad = (scene.depths_D - scene.cdp_D)[:, None, None] * scene.centres_mm[None] * 1e-3
+    ramp_x = jnp.exp(-2j * jnp.pi * shift_rad[..., 0:1] * fx_rad)  # (n_depth, n_sub, Lx)
+    ramp_y = jnp.exp(-2j * jnp.pi * shift_rad[..., 1:2] * fy_rad)  # (n_depth, n_sub, L)
+
+    def add_view(total, view):
+        elemental_n, ry, rx = view  # (n_states, L, Lx), (n_depth, L), (n_depth, Lx)
+        ramp = ry[:, None, :, None] * rx[:, None, None, :]
+        return total + ramp * elemental_n[pair_index], None
+
+    # A scan over views keeps memory at one (n_depth, n_k, L, Lx) block; an einsum over the
+    # view axis lowers to tiny per-pixel matmuls, slow on CPU.
+    init = jnp.zeros(pair_index.shape + elemental.shape[2:], elemental.dtype)
+    otf, _ = jax.lax.scan(
+        add_view, init,
+        (jnp.moveaxis(elemental, 1, 0), jnp.moveaxis(ramp_y, 1, 0), jnp.moveaxis(ramp_x, 1, 0)),
+    )
+    energy = jnp.real(jnp.sum(elemental[:, :, 0, 0], axis=1))[pair_index]
+    if scene.display is not None:
+        otf = otf * pixel_transfer(fx_rad, fy_rad, scene.display)
+    return otf / energy[..., None, None]
+
+
+@eqx.filter_jit
+def reference_normalisers(scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
+                          config: PipelineConfig):
+    """VSOTF denominator Σ NCSF·Re OTF_ref and PSF peak (per arcmin²) of the reference eye:
+    no monochromatic aberrations, accommodated on the CDP and the point rendered on it,
+    accommodation SA and LCA kept, through the same layout or the open pupil, of an ideal
+    display (no lenslet diffraction, point emitters; the subapertures keep their shape), so
+    VSOTF and Strehl values stay comparable when display effects are switched on. Compiled
+    here (``eqx.filter_jit``), for callers that evaluate it once for many calls."""
+    if config.vsotf_reference == "paper":
+        centres, diameters = scene.centres_mm, scene.diameters_mm
+    else:
+        centres = jnp.zeros((1, 2), scene.centres_mm.dtype)
+        diameters = jnp.reshape(scene.pupil_diameter_mm, (1,))
+    cdp = jnp.reshape(scene.cdp_D, (1,))
+    ideal = None
+    if scene.display is not None and scene.display.aperture != "circle" and config.vsotf_reference == "paper":
+        ideal = DisplayOptics("off", scene.display.aperture)
+    reference_scene = Scene(centres, diameters, scene.cdp_D, cdp, scene.pupil_diameter_mm, ideal)
+    on_cdp = Accommodation(cdp, jnp.zeros((1, 1), jnp.int32), accommodation.sa_c40_um_per_D,
+                           accommodation.sa_radius_mm)
+    n_fft = max(b[2] for b in config.reference_bands)
+    elemental = elemental_otfs(jnp.zeros((1,), cdp.dtype), 1.0, reference_scene, spectrum, on_cdp,
+                               config.reference_bands, config.sampling)
+    otf = render(elemental, reference_scene, on_cdp.pair_index, n_fft, config.freq_step_cpd)[0, 0]
+    weighted_ncsf = ncsf_half_plane(n_fft, config.freq_step_cpd, config.ncsf)
+    return vsotf_numerator(otf, weighted_ncsf), psf_peak(otf, n_fft, config.freq_step_cpd)
+
+
+# ----------------------------------------------------------------------------- the pipeline
+
+
+@eqx.filter_jit
+def otf_stack(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
+              config: PipelineConfig):
+    """Rendered polychromatic OTFs, (n_eyes, n_depth, n_k, L, L//2+1) half planes, OTF(0) = 1.
+
+    Compiled here (``eqx.filter_jit``: ``config`` static, arrays traced), pure like
+    :func:`retinal_metrics`."""
+    if config.traced_checks:
+        eyes, scene, accommodation = checked_inputs(eyes, scene, accommodation)
+
+    def one_eye(zernike_um):
+        elemental = elemental_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum,
+                                   accommodation, config.bands, config.sampling)
+        return render(elemental, scene, accommodation.pair_index, config.n_fft, config.freq_step_cpd)
+
+    return jax.lax.map(one_eye, _eye_coefficients(eyes, config), batch_size=config.eye_chunk)
+
+
+@eqx.filter_jit
+def retinal_metrics(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
+                    config: PipelineConfig, reference=None) -> RetinalMetrics:
+    """VSOTF, Strehl ratio and radial MTF of every eye and (rendered depth, k) pair.
+
+    The paper's chain (Miyanishi et al. §2; docs/design.md#the-model-stage-by-stage), one eye at a time:
+
+    1–5. eye wavefront + accommodation (defocus and SA) + LCA, Stiles–Crawford apodised
+         subaperture pupils → elemental PSFs → OTFs, weighted by the spectrum and summed
+         over wavelength, once per accommodation state;
+    6–7. each view displaced by the display for each rendered depth, summed (OTF(0) = 1);
+    8.   VSOTF = Σ NCSF·Re OTF / the reference's; Strehl = PSF peak / the reference's;
+         radial MTF.
+
+    Compiled here (``eqx.filter_jit``: ``config`` static, arrays traced; inside an outer
+    transformation it is inlined). Pure: ``jax.jit``, ``jax.vmap`` and ``jax.grad`` apply
+    from outside, in every leaf of
+    ``eyes``, ``scene``, ``spectrum`` and ``accommodation``. ``reference`` = the
+    :func:`reference_normalisers` of this scene, when the caller evaluates it once for many
+    calls (solvers). Returns arrays of shape (n_eyes, n_depth, n_k[, L//2+1]).
+    """
+    if config.traced_checks:
+        eyes, scene, accommodation = checked_inputs(eyes, scene, accommodation)
+    n_fft, df = config.n_fft, config.freq_step_cpd
+    if reference is None:
+        reference = reference_normalisers(scene, spectrum, accommodation, config)
+    reference_vsotf, reference_peak = reference
+    weighted_ncsf = ncsf_half_plane(n_fft, df, config.ncsf)
+
+    def one_eye(zernike_um):
+        elemental = elemental_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum,
+                                   accommodation, config.bands, config.sampling)
+        otf = render(elemental, scene, accommodation.pair_index, n_fft, df)
+        return RetinalMetrics(
+            vsotf=vsotf_numerator(otf, weighted_ncsf) / reference_vsotf,
+            strehl=psf_peak(otf, n_fft, df) / reference_peak,
+            radial_mtf=radial_mtf(otf, n_fft, df)[0],
+        )
+
+    return jax.lax.map(one_eye, _eye_coefficients(eyes, config), batch_size=config.eye_chunk)
+
+
+def pair_metric(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
+                accommodation: Accommodation, config: PipelineConfig, reference,
+                metric: str = "vsotf"):
+    """One eye's VSOTF or Strehl ratio for each (depth, k) pair, (n_depth, n_k).
+
+    The inner function of solvers: only the metric asked for is traced (derivatives of the
+    others would be traced and then discarded), and the inputs are not re-checked (the
+    caller's grid evaluation checked them). ``zernike_um`` as the pipeline uses it (piston
+    and tilt already dropped); ``reference`` from :func:`reference_normalisers`.
+    """
+    n_fft, df = config.n_fft, config.freq_step_cpd
+    elemental = elemental_otfs(zernike_um, measured_pupil_mm, scene, spectrum, accommodation,
+                               config.bands, config.sampling)
+    otf = render(elemental, scene, accommodation.pair_index, n_fft, df)
+    if metric == "vsotf":
+        return vsotf_numerator(otf, ncsf_half_plane(n_fft, df, config.ncsf)) / reference[0]
+    return psf_peak(otf, n_fft, df) / reference[1]
+
+
+@eqx.filter_jit
+def vsotf_and_strehl(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
+                     config: PipelineConfig):
+    """(vsotf, strehl), each (n_eyes, n_depth, n_k): :func:`retinal_metrics` without the
+    radial MTF (compiled; what solvers differentiate)."""
+    m = retinal_metrics(eyes, scene, spectrum, accommodation, config)
+    return m.vsotf, m.strehl
+
+
+__all__ = [
+    "Scene",
+    "Accommodation",
+    "PipelineConfig",
+    "RetinalMetrics",
+    "retinal_metrics",
+    "pair_metric",
+    "vsotf_and_strehl",
+    "otf_stack",
+    "reference_normalisers",
+    "elemental_otfs",
+    "render",
+    "checked_inputs",
+]

@@ -1,0 +1,242 @@
+"""Spectral and chromatic parts of the eye: V(λ), LCA and Stiles–Crawford ρ(λ).
+
+Tables are read on the host once (colour-science is numpy-only and is not traced) and
+returned as arrays, so wavelengths are data known before tracing.
+"""
+
+from __future__ import annotations
+
+import csv
+import warnings
+from functools import lru_cache
+from importlib import resources
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from lfjax.base.types import as_real_array
+from lfjax.model.options import ModelOptions, ModelParameters, model_numbers
+
+LEF_NAME = "CIE 2008 2 Degree Physiologically Relevant LEF"
+
+
+@lru_cache(maxsize=1)
+def _lef_table() -> tuple[np.ndarray, np.ndarray]:
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message='.*"Matplotlib" related API')
+        import colour
+
+    sd = colour.colorimetry.SDS_LEFS_PHOTOPIC[LEF_NAME]
+    return np.asarray(sd.wavelengths, float), np.asarray(sd.values, float)
+
+
+def lef_range_nm() -> tuple[float, float]:
+    """Wavelength range (nm) of the CIE 2008 physiologically relevant LEF data."""
+    wl, _ = _lef_table()
+    return float(wl[0]), float(wl[-1])
+
+
+def _check_range(name: str, wavelengths_nm: np.ndarray, lo: float, hi: float, what: str):
+    bad = (wavelengths_nm < lo) | (wavelengths_nm > hi) | ~np.isfinite(wavelengths_nm)
+    if np.any(bad):
+        raise ValueError(
+            f"{name} must lie in {lo:g}–{hi:g} nm ({what}); got {wavelengths_nm[bad].tolist()}"
+        )
+
+
+def luminous_efficiency(wavelengths_nm) -> np.ndarray:
+    """Photopic luminous efficiency V(λ) (CIE 2008 2° physiologically relevant LEF).
+
+    Linear interpolation of colour-science's 1 nm table; peak ≈ 1 at 555–556 nm.
+
+    References: Stockman & Sharpe (2000); CIE 170-1:2006 / Sharpe et al. (2005, 2011).
+    """
+    wavelengths_nm = np.atleast_1d(np.asarray(wavelengths_nm, float))
+    wl, values = _lef_table()
+    _check_range("wavelengths_nm", wavelengths_nm, wl[0], wl[-1], "CIE 2008 LEF data")
+    return np.interp(wavelengths_nm, wl, values)
+
+
+def lca_dioptres(wavelengths_nm, options: ModelOptions | ModelParameters = ModelOptions()):
+    """Longitudinal chromatic aberration in dioptres (positive: more power, myopic).
+
+    .. math:: D(λ) = A\\left(\\frac{1}{λ - c} - \\frac{1}{λ_{ref} - c}\\right)
+
+    Thibos et al. (1992) "chromatic eye", constants from ``options`` (paper: A = 633.26,
+    c = 214.10 nm, λ_ref = 550 nm). Works on numpy or jax arrays; with
+    :class:`~lfjax.model.options.ModelParameters` the constants may be traced (``jax.grad`` in A).
+    """
+    return options.lca_A * (
+        1.0 / (wavelengths_nm - options.lca_c_nm)
+        - 1.0 / (options.lca_reference_nm - options.lca_c_nm)
+    )
+
+
+@lru_cache(maxsize=None)
+def _sce_table(column: str) -> tuple[np.ndarray, np.ndarray]:
+    text = resources.files("lfjax").joinpath("data/stiles_crawford_rho.csv").read_text()
+    rows = list(csv.DictReader(text.splitlines()))
+    wl = np.array([float(r["wavelength_nm"]) for r in rows])
+    rho = np.array([float(r[column]) for r in rows])
+    return wl, rho
+
+
+def sce_rho_per_mm2(wavelengths_nm, table: str = "isetbio_berendschot_data") -> np.ndarray:
+    """Stiles–Crawford peakedness ρ(λ) in mm⁻² (Berendschot et al. 2001, ISETBio table).
+
+    Linear interpolation within the table's 400–700 nm; outside it is an error (ISETBio
+    clamps below and returns NaN above).
+    """
+    wavelengths_nm = np.atleast_1d(np.asarray(wavelengths_nm, float))
+    wl, rho = _sce_table(table)
+    _check_range("wavelengths_nm", wavelengths_nm, wl[0], wl[-1], "Stiles–Crawford ρ(λ) table")
+    return np.interp(wavelengths_nm, wl, rho)
+
+
+class Spectrum(eqx.Module):
+    """Sampled spectrum with the chromatic properties of the eye at each wavelength.
+
+    Attributes (shape ``(n_wavelengths,)`` unless stated)
+    ----------
+    wavelengths_nm : wavelengths, nm.
+    weights : spectral weights, V(λ)·Δλ normalised to sum 1 (unitless).
+    lca_D : LCA defocus at each wavelength, dioptres.
+    sce_rho_per_mm2 : Stiles–Crawford ρ(λ), mm⁻² (0 when SCE is off).
+    unit_sum : () 0 or 1: 1 scales each wavelength's PSF (all views) to unit volume before
+        weighting (``ModelOptions.wavelength_normalisation="unit_sum"``, ISETBio's
+        convention); 0 keeps the energy its apodised pupil transmits (default). Data, not
+        a code path, so switching it does not recompile.
+    """
+
+    wavelengths_nm: jnp.ndarray = eqx.field(converter=as_real_array)
+    weights: jnp.ndarray = eqx.field(converter=as_real_array)
+    lca_D: jnp.ndarray = eqx.field(converter=as_real_array)
+    sce_rho_per_mm2: jnp.ndarray = eqx.field(converter=as_real_array)
+    unit_sum: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
+
+    def __check_init__(self):
+        shape = self.wavelengths_nm.shape
+        for name in ("weights", "lca_D", "sce_rho_per_mm2"):
+            if getattr(self, name).shape != shape:
+                raise ValueError(
+                    f"Spectrum.{name} must have the shape of wavelengths_nm {shape}, "
+                    f"got {getattr(self, name).shape}"
+                )
+
+    @property
+    def n_wavelengths(self) -> int:
+        return int(self.wavelengths_nm.shape[0])
+
+    def band(self, start: int, stop: int) -> Spectrum:
+        """The wavelengths ``start:stop`` (weights not renormalised)."""
+        return Spectrum(self.wavelengths_nm[start:stop], self.weights[start:stop],
+                        self.lca_D[start:stop], self.sce_rho_per_mm2[start:stop], self.unit_sum)
+
+
+def make_spectrum(
+    wavelengths_nm=None, options: ModelOptions = ModelOptions(), weights=None,
+    parameters: ModelParameters | None = None,
+) -> Spectrum:
+    """Spectrum for ``wavelengths_nm`` (default 400–700 nm in 10 nm steps).
+
+    Parameters
+    ----------
+    wavelengths_nm : array_like, nm
+        Strictly increasing wavelengths inside the LEF data (390–830 nm), and inside
+        400–700 nm when the Stiles–Crawford effect is on.
+    options : ModelOptions
+        LCA constants, SCE form and table.
+    weights : array_like, optional
+        Spectral weights; default V(λ) times the trapezoid width of each sample. Normalised
+        to sum 1.
+    parameters : ModelParameters, optional
+        The numeric model to use instead of ``options``' numbers (LCA constants, SCE
+        exponent and ρ scale, normalisation blend); may be traced, so ``jax.grad`` and
+        ``jax.vmap`` reach them (:func:`model_spectrum`). ``options`` still picks the ρ(λ)
+        table and whether it is read at all (``sce="off"``).
+    """
+    if wavelengths_nm is None:
+        wavelengths_nm = np.arange(400.0, 701.0, 10.0)
+    wl = np.atleast_1d(np.asarray(wavelengths_nm, float))
+    if wl.ndim != 1 or wl.size < 1:
+        raise ValueError(f"wavelengths_nm must be a 1-D array of >= 1 values, got shape {wl.shape}")
+    if wl.size > 1 and np.any(np.diff(wl) <= 0):
+        raise ValueError("wavelengths_nm must be strictly increasing")
+    v = luminous_efficiency(wl)
+    if weights is None:
+        if wl.size == 1:
+            widths = np.ones(1)
+        else:
+            edges = np.concatenate([[wl[0]], 0.5 * (wl[1:] + wl[:-1]), [wl[-1]]])
+            widths = np.diff(edges)
+            # Uniform grids: equal weights for every sample (rectangle rule, as ISETBio sums).
+            if np.allclose(np.diff(wl), wl[1] - wl[0]):
+                widths = np.full(wl.size, wl[1] - wl[0])
+        w = v * widths
+    else:
+        w = np.asarray(weights, float)
+        if w.shape != wl.shape or np.any(w < 0) or not np.all(np.isfinite(w)):
+            raise ValueError("weights must be finite, non-negative and match wavelengths_nm")
+    if w.sum() <= 0:
+        raise ValueError("spectral weights sum to zero")
+    w = w / w.sum()
+    rho_table = sce_rho_table(wl, options)
+    if parameters is not None:
+        return model_spectrum(wl, w, rho_table, parameters)
+    # Concrete constants: computed on the host in float64, as the pipeline has always had them.
+    n = model_numbers(options)
+    return Spectrum(
+        wavelengths_nm=jnp.asarray(wl),
+        weights=jnp.asarray(w),
+        lca_D=jnp.asarray(lca_dioptres(wl, n)),
+        sce_rho_per_mm2=jnp.asarray(rho_table * (n.sce_exponent * n.sce_rho_scale)),
+        unit_sum=n.unit_sum,
+    )
+
+
+def sce_rho_table(wavelengths_nm, options: ModelOptions = ModelOptions()) -> np.ndarray:
+    """ρ(λ) of ``options.sce_table`` at ``wavelengths_nm``, mm⁻² (host); zeros when
+    ``options.sce == "off"`` (the table, 400–700 nm, is then not read)."""
+    wl = np.atleast_1d(np.asarray(wavelengths_nm, float))
+    if options.sce == "off":
+        return np.zeros_like(wl)
+    return sce_rho_per_mm2(wl, options.sce_table)
+
+
+def model_spectrum(wavelengths_nm, weights, sce_rho_table_per_mm2,
+                   parameters: ModelParameters) -> Spectrum:
+    """Spectrum whose chromatic leaves come from ``parameters`` (traceable, vmappable).
+
+    ``wavelengths_nm`` (n,) nm and ``weights`` (n,) (summing to 1) as :func:`make_spectrum`
+    makes them; ``sce_rho_table_per_mm2`` (n,) mm⁻² from :func:`sce_rho_table`. LCA (D) is
+    A (1/(λ−c) − 1/(λ_ref−c)), the Stiles–Crawford ρ the table times
+    ``sce_exponent · sce_rho_scale``, and ``unit_sum`` the normalisation's blend weight —
+    computed in the caller's precision (float32 inside a float32 program)."""
+    wl = as_real_array(wavelengths_nm)
+    rho = as_real_array(sce_rho_table_per_mm2)
+    return Spectrum(
+        wavelengths_nm=wl,
+        weights=as_real_array(weights),
+        lca_D=lca_dioptres(wl, parameters),
+        sce_rho_per_mm2=rho * (parameters.sce_exponent * parameters.sce_rho_scale),
+        unit_sum=parameters.unit_sum,
+    )
+
+
+def monochromatic_spectrum(wavelength_nm: float, options: ModelOptions = ModelOptions()):
+    """One-wavelength spectrum (weight 1)."""
+    return make_spectrum([wavelength_nm], options)
+
+
+__all__ = [
+    "luminous_efficiency",
+    "lef_range_nm",
+    "lca_dioptres",
+    "sce_rho_per_mm2",
+    "Spectrum",
+    "make_spectrum",
+    "model_spectrum",
+    "sce_rho_table",
+    "monochromatic_spectrum",
+]

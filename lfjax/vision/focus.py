@@ -1,0 +1,622 @@
+"""Through-focus image quality and predicted accommodation (Miyanishi et al. §3).
+
+One jitted call evaluates VSOTF, Strehl ratio and radial MTF for eyes × rendered depths ×
+accommodation states of one layout. Elemental OTFs are computed once per eye and reused
+for every rendered depth; only OTFs' metrics leave the jitted region, so memory stays at
+one eye's OTF stack (eyes are mapped in chunks).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Bool, Float, Real
+
+from lfjax.base.types import is_concrete as _is_concrete
+from lfjax.base.types import shape_checked
+from lfjax.display.lenslets import DisplayOptics
+from lfjax.model.eyes import Eyes, check_eyes
+from lfjax.model.layouts import Layout, open_pupil
+from lfjax.kernel.metrics import cutoff_frequency
+from lfjax.kernel.optics import _field_check, _validate_coefficients, validate_pupil, validate_states
+from lfjax.model.options import STATIC_CHOICES, ModelOptions, stack_parameters
+from lfjax.vision.peaks import METRICS, PEAK_METHODS, Peaks, peaks_from_grid
+from lfjax.kernel.pipeline import (
+    Accommodation,
+    PipelineConfig,
+    Scene,
+    reference_normalisers,
+    retinal_metrics,
+    vsotf_and_strehl,
+)
+from lfjax.planner.plan import plan_sampling
+from lfjax.base.sampling import AliasingError, Sampling
+from lfjax.model.spectral import Spectrum, make_spectrum, model_spectrum, sce_rho_table
+
+
+class ThroughFocus(eqx.Module):
+    """Through-focus metrics with their axes.
+
+    Attributes
+    ----------
+    vsotf, strehl : (n_eyes, n_depth, n_acc) unitless; NaN where ``allowed`` is False
+    radial_mtf : (n_eyes, n_depth, n_acc, n_freq) meridian-averaged MTF
+    radial_freq_cpd : (n_freq,) cpd
+    accommodation_D : (n_depth, n_acc) absolute accommodation states 1/z_acc, D
+    allowed : (n_depth, n_acc) bool, False where the state is beyond the hyperopic limit
+        (accommodation < 0 D); such states are not computed
+    depths_D : (n_depth,) rendered depths, D
+    cdp_D : float, D
+    layout_name : str
+    sampling : the Sampling used (planned by the field guard when none was given)
+    peaks : {metric: :class:`lfjax.vision.peaks.Peaks`} continuous peaks refined from the grid
+        (``through_focus(continuous_peaks=...)``)
+    """
+
+    vsotf: Float[Array, "n_eyes n_depth n_acc"]
+    strehl: Float[Array, "n_eyes n_depth n_acc"]
+    radial_mtf: Float[Array, "n_eyes n_depth n_acc n_freq"]
+    radial_freq_cpd: Float[Array, " n_freq"]
+    accommodation_D: Float[np.ndarray, "n_depth n_acc"]
+    allowed: Bool[np.ndarray, "n_depth n_acc"]
+    depths_D: Float[np.ndarray, " n_depth"]
+    cdp_D: float = eqx.field(static=True)
+    layout_name: str = eqx.field(static=True, default="custom")
+    sampling: Sampling | None = eqx.field(static=True, default=None)
+    peaks: dict = eqx.field(default_factory=dict)
+
+    def metric(self, name: str):
+        if name not in ("vsotf", "strehl"):
+            raise ValueError(f"metric must be 'vsotf' or 'strehl', got {name!r}")
+        return getattr(self, name)
+
+    def peak_index(self, metric: str = "vsotf"):
+        """Index of the grid peak along accommodation among allowed states, (n_eyes, n_depth)."""
+        values = np.where(np.asarray(self.allowed)[None], np.asarray(self.metric(metric)), -np.inf)
+        return np.argmax(values, axis=-1)
+
+    def predicted_accommodation_D(self, metric: str = "vsotf"):
+        """Grid peak: the allowed accommodation state (D, absolute, exact grid value)."""
+        idx = self.peak_index(metric)
+        acc = np.broadcast_to(
+            np.asarray(self.accommodation_D, float)[None], idx.shape + self.accommodation_D.shape[-1:]
+        )
+        return np.take_along_axis(acc, idx[..., None], axis=-1)[..., 0]
+
+    @property
+    def relative_accommodation_D(self):
+        """Accommodation relative to each rendered depth, (n_depth, n_acc), D."""
+        return self.accommodation_D - self.depths_D[:, None]
+
+    def accommodation_error_D(self, metric: str = "vsotf"):
+        """Predicted accommodation minus rendered depth, D (negative: focused farther)."""
+        return self.predicted_accommodation_D(metric) - np.asarray(self.depths_D, float)[None, :]
+
+    def continuous_peaks(self, metric: str = "vsotf") -> Peaks:
+        """The continuous peaks of ``metric`` (:class:`lfjax.vision.peaks.Peaks`, (n_eyes, n_depth))."""
+        if metric not in self.peaks:
+            raise ValueError(
+                f"no continuous peaks of {metric!r} were computed (have {sorted(self.peaks)}); "
+                f"pass continuous_peaks=({metric!r},) to through_focus"
+            )
+        return self.peaks[metric]
+
+    def continuous_accommodation_D(self, metric: str = "vsotf"):
+        """Continuous predicted accommodation (global maximum), D, (n_eyes, n_depth)."""
+        return np.asarray(self.continuous_peaks(metric).accommodation_D, float)
+
+    def continuous_error_D(self, metric: str = "vsotf"):
+        """Continuous predicted accommodation minus rendered depth, D."""
+        return self.continuous_accommodation_D(metric) - np.asarray(self.depths_D, float)[None, :]
+
+    def mtf_at_peak(self, metric: str = "vsotf"):
+        """Radial MTF at the predicted accommodation, (n_eyes, n_depth, n_freq)."""
+        return _mtf_at_index(self.radial_mtf, jnp.asarray(self.peak_index(metric)))
+
+    def cutoff_cpd(self, metric: str = "vsotf", threshold: float = 0.05):
+        """Cut-off frequency (cpd) of the MTF at the predicted accommodation."""
+        return _cutoff_at_index(self.radial_mtf, jnp.asarray(self.peak_index(metric)),
+                                self.radial_freq_cpd, float(threshold))
+
+
+# One compiled program per shape: run eagerly, these few lines were about ten small
+# compilations for every new layout shape (a cold `lfjax reproduce` makes eight such shapes).
+@jax.jit
+def _mtf_at_index(radial_mtf, index):
+    return jnp.take_along_axis(radial_mtf, index[..., None, None], axis=2)[:, :, 0]
+
+
+@functools.partial(jax.jit, static_argnames="threshold")
+def _cutoff_at_index(radial_mtf, index, frequencies_cpd, threshold: float):
+    return cutoff_frequency(_mtf_at_index(radial_mtf, index), frequencies_cpd, threshold)
+
+
+def _check_states(accommodation_D, depths_D) -> None:
+    acc = np.asarray(accommodation_D, float)
+    depth = np.asarray(depths_D, float)
+    if acc.ndim != 1 or acc.size < 1:
+        raise ValueError(f"accommodation_D must be a 1-D grid of >= 1 states, got shape {acc.shape}")
+    if depth.ndim != 1 or depth.size < 1:
+        raise ValueError(f"depths_D must be a 1-D array of >= 1 depths, got shape {depth.shape}")
+    if not np.all(np.isfinite(acc)) or not np.all(np.isfinite(depth)):
+        raise ValueError("accommodation_D and depths_D must be finite")
+    if np.any(acc < 0):
+        raise ValueError(
+            "accommodation_D must be >= 0 D (hyperopic limit: an eye cannot focus beyond "
+            f"infinity); got states down to {acc.min():g} D. Drop them, e.g. with "
+            "relative_accommodation_grid(..., hyperopic_limit=True)"
+        )
+    if np.any(depth < 0):
+        raise ValueError(
+            f"depths_D must be >= 0 D (0 D is optical infinity); got {depth[depth < 0].tolist()}"
+        )
+
+
+def relative_accommodation_grid(depths_D, offsets_D, hyperopic_limit: bool = True):
+    """Absolute accommodation grid covering ``depth + offset`` for every depth (host).
+
+    Returns (accommodation_D (n_acc,), index (n_depth, n_offsets)) where
+    ``accommodation_D[index[d, k]] == depths_D[d] + offsets_D[k]``; entries excluded by the
+    hyperopic limit (negative accommodation) have index −1. Values are rounded to 1e-9 D
+    so shared states are computed once.
+    """
+    depths = np.atleast_1d(np.asarray(depths_D, float))
+    offsets = np.atleast_1d(np.asarray(offsets_D, float))
+    states = np.round(depths[:, None] + offsets[None, :], 9)
+    allowed = states >= 0 if hyperopic_limit else np.ones_like(states, bool)
+    if not np.any(allowed):
+        raise ValueError("the accommodation grid excludes every allowed state (all < 0 D)")
+    grid = np.unique(states[allowed])
+    index = np.where(allowed, np.searchsorted(grid, states), -1)
+    return grid, index
+
+
+def _check_layout(layout: Layout) -> None:
+    """Host check of a concrete layout: finite centres, diameters > 0 mm."""
+    c = np.asarray(layout.centres_mm, float)
+    d = np.asarray(layout.diameters_mm, float)
+    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(d))):
+        raise ValueError("layout centres_mm and diameters_mm must be finite")
+    if np.any(d <= 0):
+        raise ValueError(f"layout diameters_mm must be > 0 mm, got {d[d <= 0].tolist()}")
+
+
+def _windowed_grid(accommodation_D, depths, window_D=None):
+    """A shared absolute grid (D) seen by every depth, restricted to ±window_D (D) of it.
+
+    Returns (grid (n_acc,), index (n_depth, n_acc), allowed (n_depth, n_acc) bool,
+    absolute (n_depth, n_acc) D).
+    """
+    grid = np.atleast_1d(np.asarray(accommodation_D, float))
+    _check_states(grid, depths)
+    if grid.size > 1 and np.any(np.diff(grid) <= 0):
+        raise ValueError("accommodation_D must be strictly increasing")
+    index = np.broadcast_to(np.arange(grid.size), (depths.size, grid.size))
+    allowed = np.ones(index.shape, bool)
+    if window_D is not None:
+        allowed = np.abs(grid[None, :] - depths[:, None]) <= float(window_D) + 1e-9
+        if not np.all(allowed.any(axis=1)):
+            raise ValueError(
+                f"window_D={window_D} leaves no accommodation state for some rendered depths"
+            )
+    return grid, index, allowed, grid[index]
+
+
+def _used_states(grid, index, allowed):
+    """Keep each absolute state once, and only those some allowed pair uses: (grid, index)."""
+    used = np.zeros(grid.size, bool)
+    used[index[allowed]] = True
+    remap = np.cumsum(used) - 1
+    return grid[used], np.where(allowed, remap[index], 0)
+
+
+PLANNED_NEIGHBOURHOOD_D = np.round(np.arange(-5, 6) * 0.2, 9)
+"""Offsets (D) around each rendered depth that every default sampling covers: the default
+through-focus grid of :func:`through_focus`."""
+
+
+def _planned_sampling(eyes: Eyes, layout: Layout, depths, pairs, pupil_diameter_mm, cdp_D,
+                      spectrum: Spectrum, options: ModelOptions, display=None) -> Sampling:
+    """The planner's field guard for this scene (milliseconds; no accuracy proxy).
+
+    One rule for :func:`through_focus` and :func:`metrics_at`: the guard covers the pairs
+    asked for *and* the default through-focus neighbourhood of every rendered depth
+    (:data:`PLANNED_NEIGHBOURHOOD_D`, states ≥ 0 D). The guard picks the largest frequency
+    step whose field holds the widest blur of the pairs it sees, so a single (depth, state)
+    pair would otherwise get a coarser step than the curve through it, and the two entry
+    points would give different values at the same point (by 2e-3 in VSOTF, more than the
+    planner's accuracy target)."""
+    depths = np.atleast_1d(np.asarray(depths, float))
+    around = depths[:, None] + PLANNED_NEIGHBOURHOOD_D[None, :]
+    keep = around >= 0
+    pairs = (np.concatenate([np.asarray(pairs[0], float).ravel(), around[keep]]),
+             np.concatenate([np.asarray(pairs[1], float).ravel(),
+                             np.broadcast_to(depths[:, None], around.shape)[keep]]))
+    return plan_sampling(
+        layout=layout, pupil_diameter_mm=float(pupil_diameter_mm), cdp_D=float(cdp_D),
+        depths_D=np.asarray(depths, float), accommodation_D=np.unique(np.asarray(pairs[0], float)),
+        accommodation_window_D=None, wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
+        eyes_zernike_um=np.asarray(eyes.zernike_um), measured_pupil_mm=eyes.measured_pupil_mm,
+        options=options, estimate_accuracy=False, spectral_weights=np.asarray(spectrum.weights),
+        pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)), display=display,
+    ).sampling
+
+
+@shape_checked
+def through_focus(
+    eyes: Eyes,
+    layout: Layout | None = None,
+    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None = None,
+    accommodation_D: Real[ArrayLike, " n_acc"] | Sequence[float] | None = None,
+    pupil_diameter_mm: float = 3.0,
+    cdp_D: float = 2.0,
+    spectrum: Spectrum | None = None,
+    sampling: Sampling | None = None,
+    options: ModelOptions = ModelOptions(),
+    accommodation_offsets_D: Real[ArrayLike, " n_acc"] | float | Sequence[float] | None = None,
+    window_D: float | None = None,
+    eye_chunk: int | None = None,
+    check_aliasing: bool = True,
+    continuous_peaks: tuple = (),
+    peak_method: str = "auto",
+    refine_second_peaks: bool = True,
+    display: DisplayOptics | None = None,
+) -> ThroughFocus:
+    """VSOTF, Strehl and radial MTF through focus for eyes × depths × accommodation states.
+
+    Parameters
+    ----------
+    eyes : Eyes (n_eyes batch)
+    layout : Layout, default open pupil (natural view)
+    depths_D : (n_depth,) rendered depths, D ≥ 0; default [cdp_D]
+    accommodation_D : (n_acc,) absolute accommodation states shared by all depths, D ≥ 0
+        (hyperopic limit). Mutually exclusive with ``accommodation_offsets_D``.
+    accommodation_offsets_D : (n_acc,) states relative to each rendered depth, D (the
+        paper's through-focus); states below 0 D absolute are marked not ``allowed``.
+        Default when neither is given: offsets −1 … +1 D in 0.2 D steps.
+    window_D : float, D, optional
+        With ``accommodation_D``: evaluate only states within ±window_D of each rendered
+        depth (others are not ``allowed``), e.g. the paper's 0–5 D grid with a ±1 D window.
+    pupil_diameter_mm : calculation pupil, mm (≤ eyes.measured_pupil_mm)
+    cdp_D : central depth plane of the display, D
+    spectrum, options : see :func:`lfjax.vision.psf.polychromatic_otf`
+    sampling : Sampling, optional
+        Default: the planner's field guard for this scene (the largest frequency step whose
+        PSF field holds every blur and display shift; milliseconds,
+        :func:`lfjax.planner.plan.plan_sampling` with ``estimate_accuracy=False``). The result's
+        ``sampling`` says what was used.
+    continuous_peaks : metrics ("vsotf", "strehl") whose continuous peak is refined from
+        the grid in the same compiled call (:mod:`lfjax.vision.peaks`; ``()`` for grid peaks only)
+    peak_method : refinement, one of :data:`lfjax.vision.peaks.PEAK_METHODS` ("auto": Newton for
+        VSOTF, golden section for the Strehl ratio)
+    refine_second_peaks : refine second local maxima too (default; see
+        :func:`lfjax.vision.peaks.accommodation_peaks`); False halves the refinement's cost
+    display : :class:`lfjax.display.lenslets.DisplayOptics`, optional — lenslet diffraction and
+        finite pixels of a real display (default: the paper's ideal display). The VSOTF and
+        Strehl reference stays the ideal display's, so values compare across displays.
+
+    Elemental OTFs are computed once per distinct absolute state and reused by every depth.
+    The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
+    aberration-free, focused and rendered at the CDP, accommodation SA and LCA kept).
+    """
+    spectrum = make_spectrum(options=options) if spectrum is None else spectrum
+    prepared = _prepare(eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D,
+                        spectrum, sampling, options, accommodation_offsets_D, window_D,
+                        eye_chunk, check_aliasing, continuous_peaks, peak_method, display)
+    metrics, peaks = _metrics_and_peaks(
+        eyes, prepared.scene, spectrum,
+        Accommodation.shared(prepared.grid, prepared.index, options, pupil_diameter_mm),
+        prepared.config, prepared.allowed, tuple(continuous_peaks), peak_method,
+        refine_second_peaks,
+    )
+    return _result(prepared, metrics, peaks)
+
+
+class _Prepared(eqx.Module):
+    """What :func:`through_focus` settles on the host before the compiled call."""
+
+    scene: Scene
+    grid: np.ndarray  # (n_states,) D
+    index: np.ndarray  # (n_depth, n_acc) state of each pair
+    allowed: np.ndarray  # (n_depth, n_acc) bool
+    absolute: np.ndarray  # (n_depth, n_acc) D
+    depths: np.ndarray  # (n_depth,) D
+    cdp_D: float = eqx.field(static=True)
+    layout_name: str = eqx.field(static=True)
+    sampling: Sampling = eqx.field(static=True)
+    config: PipelineConfig = eqx.field(static=True)
+
+
+def _prepare(eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
+             sampling, options, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
+             continuous_peaks, peak_method, display) -> _Prepared:
+    """Host checks, the accommodation grid, the sampling (planned or checked) and the static
+    configuration of one :func:`through_focus` call."""
+    check_eyes(eyes)
+    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
+    validate_states(None, depths_D, cdp_D)
+    layout = open_pupil(float(pupil_diameter_mm)) if layout is None else layout
+    depths = np.atleast_1d(np.asarray(cdp_D if depths_D is None else depths_D, float))
+    if accommodation_D is not None and accommodation_offsets_D is not None:
+        raise ValueError("give accommodation_D or accommodation_offsets_D, not both")
+    for name in continuous_peaks:
+        if name not in METRICS:
+            raise ValueError(f"continuous_peaks must name metrics in {METRICS}, got {name!r}")
+    if peak_method not in PEAK_METHODS:
+        raise ValueError(f"peak_method must be one of {PEAK_METHODS}, got {peak_method!r}")
+    if accommodation_D is not None:
+        grid, index, allowed, absolute = _windowed_grid(accommodation_D, depths, window_D)
+    else:
+        offsets = (
+            np.round(np.arange(-5, 6) * 0.2, 9)
+            if accommodation_offsets_D is None
+            else np.atleast_1d(np.asarray(accommodation_offsets_D, float))
+        )
+        _check_states(np.abs(offsets), depths)  # finiteness and depth range
+        grid, index = relative_accommodation_grid(depths, offsets, hyperopic_limit=True)
+        allowed = index >= 0
+        index = np.where(allowed, index, 0)
+        # true state of every entry, also those beyond the hyperopic limit (not computed)
+        absolute = np.where(allowed, grid[index], depths[:, None] + offsets[None, :])
+    grid, index = _used_states(grid, index, allowed)
+    _validate_coefficients(eyes.zernike_um)
+    pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
+    if sampling is None:
+        sampling = _planned_sampling(eyes, layout, depths, pairs, pupil_diameter_mm, cdp_D,
+                                     spectrum, options, display)
+    elif check_aliasing:
+        _field_check(
+            eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D, grid, depths,
+            layout, spectrum, sampling, pairs=pairs, display=display,
+        )
+    _check_layout(layout)
+    # Every input was checked here on the host: the compiled program needs no traced checks
+    # (host callbacks), so JAX's persistent compilation cache can keep it across processes.
+    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
+                                  float(pupil_diameter_mm), sampling, options, eye_chunk,
+                                  traced_checks=False, display=display)
+    return _Prepared(Scene.from_layout(layout, depths, cdp_D, pupil_diameter_mm, display), grid,
+                     index, allowed, absolute, depths, float(cdp_D), layout.name, sampling, config)
+
+
+def _result(prepared: _Prepared, metrics, peaks) -> ThroughFocus:
+    mask = jnp.asarray(prepared.allowed)
+    # NaN marks states beyond the hyperopic limit (never computed); `allowed` says which.
+    return ThroughFocus(
+        jnp.where(mask[None], metrics.vsotf, jnp.nan), jnp.where(mask[None], metrics.strehl, jnp.nan),
+        metrics.radial_mtf,
+        jnp.arange(prepared.config.n_fft // 2 + 1) * prepared.sampling.freq_step_cpd,
+        np.asarray(prepared.absolute, float), np.asarray(prepared.allowed), prepared.depths,
+        prepared.cdp_D, prepared.layout_name, prepared.sampling, peaks,
+    )
+
+
+def _each_variant(variants, fn) -> list:
+    """``fn(*variant)`` for each variant in order; an :class:`~lfjax.AliasingError` is
+    re-raised carrying ``variant``, the index of the variant that raised it."""
+    results = []
+    for i, variant in enumerate(variants):
+        try:
+            results.append(fn(*variant))
+        except AliasingError as err:
+            err.variant = i
+            raise
+    return results
+
+
+def through_focus_variants(
+    eyes: Eyes,
+    layout: Layout | None,
+    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None,
+    options: Sequence[ModelOptions],
+    accommodation_D: Real[ArrayLike, " n_acc"] | Sequence[float] | None = None,
+    pupil_diameter_mm: float = 3.0,
+    cdp_D: float = 2.0,
+    wavelengths_nm=None,
+    samplings: Sequence[Sampling | None] | None = None,
+    accommodation_offsets_D=None,
+    window_D: float | None = None,
+    eye_chunk: int | None = None,
+    check_aliasing: bool = True,
+    continuous_peaks: tuple = (),
+    peak_method: str = "auto",
+    refine_second_peaks: bool = True,
+    display: DisplayOptics | None = None,
+    batch: str = "auto",
+) -> list[ThroughFocus]:
+    """:func:`through_focus` under several :class:`~lfjax.ModelOptions` at once: one compiled
+    program over their stacked :class:`~lfjax.model.options.ModelParameters` per sampling.
+
+    The variants may differ in every number and in every choice that has a numeric form
+    (SCE form, accommodation SA reading, wavelength normalisation, LCA and SA constants,
+    ρ table and scale); the choices that select code or set shapes
+    (:data:`lfjax.model.options.STATIC_CHOICES`) must agree. Each variant's sampling is planned
+    (or, given in ``samplings``, checked) on its own, exactly as :func:`through_focus`
+    would; variants whose samplings agree share one compiled, vmapped call. The spectrum is
+    :func:`lfjax.model.spectral.make_spectrum`'s for ``wavelengths_nm`` (default 400–700 nm in
+    10 nm steps), its chromatic leaves computed inside the program from each variant's
+    parameters (float32 rounding apart, the numbers :func:`through_focus` gives).
+
+    ``batch``: how the variants run — ``"vmap"`` (one program, side by side: what an
+    accelerator wants), ``"map"`` (one program, one variant after another inside it,
+    ``jax.lax.map``: one variant's memory), ``"loop"`` (a :func:`through_focus` call per
+    variant: the programs are those of the baseline, compiled once for every variant of the
+    same shapes, since the parameters are data) or ``"auto"`` (default: ``"loop"`` on the
+    CPU, where both batched forms were slower — more programs to compile and no parallel
+    hardware to fill, benchmarks/RESULTS.md §17 — and ``"vmap"`` elsewhere, not yet timed
+    on an accelerator).
+
+    An :class:`~lfjax.AliasingError` from a variant's sampling check carries ``variant``,
+    its index in ``options``. Other arguments as :func:`through_focus`. Returns one
+    :class:`ThroughFocus` per variant, in order.
+    """
+    if batch not in VARIANT_BATCHES:
+        raise ValueError(f"batch must be one of {VARIANT_BATCHES}, got {batch!r}")
+    if batch == "auto":
+        batch = "loop" if jax.default_backend() == "cpu" else "vmap"
+    options = list(options)
+    if not options or not all(isinstance(o, ModelOptions) for o in options):
+        raise ValueError("options must be a non-empty sequence of ModelOptions")
+    for name in STATIC_CHOICES:
+        values = {getattr(o, name) for o in options}
+        if len(values) > 1:
+            raise ValueError(
+                f"the variants' ModelOptions.{name} must agree (it selects code or sets "
+                f"shapes; run them apart), got {sorted(map(repr, values))}"
+            )
+    samplings = [None] * len(options) if samplings is None else list(samplings)
+    if len(samplings) != len(options):
+        raise ValueError(f"samplings must hold one entry per variant ({len(options)}), "
+                         f"got {len(samplings)}")
+    continuous_peaks = tuple(continuous_peaks)
+    spectra = [make_spectrum(wavelengths_nm, o) for o in options]
+    variants = list(zip(options, spectra, samplings))
+    if batch == "loop":
+        return _each_variant(variants, lambda o, spectrum, sampling: through_focus(
+            eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
+            sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
+            continuous_peaks, peak_method, refine_second_peaks, display))
+    prepared = _each_variant(variants, lambda o, spectrum, sampling: _prepare(
+        eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
+        sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
+        continuous_peaks, peak_method, display))
+    groups: dict[PipelineConfig, list[int]] = {}
+    for i, p in enumerate(prepared):
+        groups.setdefault(p.config, []).append(i)
+    wl = np.asarray(spectra[0].wavelengths_nm)
+    weights = np.asarray(spectra[0].weights)
+    results: list[ThroughFocus | None] = [None] * len(options)
+    for config, members in groups.items():
+        first = prepared[members[0]]
+        parameters = stack_parameters([options[i].parameters() for i in members])
+        rho_tables = np.stack([sce_rho_table(wl, options[i]) for i in members])
+        metrics, peaks = _metrics_and_peaks_variants(
+            eyes, first.scene, wl, weights, rho_tables, parameters, first.grid, first.index,
+            jnp.asarray(pupil_diameter_mm, float), config, first.allowed, continuous_peaks,
+            peak_method, refine_second_peaks, batch,
+        )
+        # sliced on the host: an eager x[k] per leaf and variant compiles a program each
+        metrics, peaks = jax.device_get((metrics, peaks))
+        for k, i in enumerate(members):
+            one = jax.tree_util.tree_map(lambda x, k=k: jnp.asarray(x[k]), (metrics, peaks))
+            results[i] = _result(prepared[i], *one)
+    return results
+
+
+VARIANT_BATCHES = ("auto", "vmap", "map", "loop")
+
+
+@eqx.filter_jit
+def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables, parameters,
+                                states_D, pair_index, pupil_diameter_mm, config, allowed,
+                                peak_metrics, peak_method, refine_second, batch="vmap"):
+    """:func:`_metrics_and_peaks` over stacked ModelParameters (leading axis) and their ρ(λ)
+    tables (n_variants, n_wavelengths), vmapped or mapped (``batch``): one compiled program
+    for them all."""
+
+    def one(p, rho_table):
+        spectrum = model_spectrum(wavelengths_nm, weights, rho_table, p)
+        accommodation = Accommodation.shared(states_D, pair_index, p, pupil_diameter_mm)
+        return _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed,
+                                  peak_metrics, peak_method, refine_second)
+
+    if batch == "map":
+        return jax.lax.map(lambda xs: one(*xs), (parameters, rho_tables))
+    return jax.vmap(one)(parameters, rho_tables)
+
+
+@eqx.filter_jit
+def _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed, peak_metrics,
+                       peak_method, refine_second):
+    """Grid metrics and the continuous peaks refined from them, in one compiled call."""
+    reference = reference_normalisers(scene, spectrum, accommodation, config)
+    metrics = retinal_metrics(eyes, scene, spectrum, accommodation, config, reference)
+    peaks = {
+        name: peaks_from_grid(getattr(metrics, name), eyes, scene, spectrum, accommodation,
+                              config, reference, name, peak_method, allowed,
+                              refine_second=refine_second)
+        for name in peak_metrics
+    }
+    return metrics, peaks
+
+
+@shape_checked
+def metrics_at(
+    eyes: Eyes,
+    layout: Layout,
+    depths_D: Real[ArrayLike, " n_depth"] | Sequence[float],
+    accommodation_D: Real[ArrayLike, "n_depth n_acc"] | Sequence[Sequence[float]],
+    pupil_diameter_mm=3.0,
+    cdp_D=2.0,
+    spectrum: Spectrum | None = None,
+    sampling: Sampling | None = None,
+    options: ModelOptions = ModelOptions(),
+    display: DisplayOptics | None = None,
+) -> tuple[Float[Array, "n_eyes n_depth n_acc"], Float[Array, "n_eyes n_depth n_acc"]]:
+    """VSOTF and Strehl at given (depth, accommodation) pairs — differentiable in everything.
+
+    Unlike :func:`through_focus` (a host-side grid with the hyperopic limit), this is a pure
+    function of arrays: ``jax.jit``, ``jax.vmap`` and ``jax.grad`` apply from outside, and
+    gradients flow to the eyes' Zernike coefficients, ``depths_D``, ``accommodation_D``,
+    ``pupil_diameter_mm``, ``cdp_D``, the layout's centres and diameters and the display's
+    optics (``display``: Fresnel distance, pixel width; see :mod:`lfjax.display.lenslets`) — the
+    building block of peak finders and layout optimisers. Window sizes are static: they come from
+    ``layout.window_diameter_mm`` and, when ``pupil_diameter_mm`` is traced, the eyes'
+    measured pupil. Concrete inputs are checked on the host (values, aliasing); traced ones
+    inside the pipeline (``eqx.error_if``).
+
+    Parameters
+    ----------
+    depths_D : (n_depth,) rendered depths, D
+    accommodation_D : (n_depth, n_acc) absolute accommodation states for each depth, D
+    sampling : Sampling; default the planner's field guard for these pairs (needs concrete
+        depths and states — give it explicitly when they are traced)
+
+    Returns
+    -------
+    (vsotf, strehl), each (n_eyes, n_depth, n_acc).
+    """
+    check_eyes(eyes)
+    spectrum = make_spectrum(options=options) if spectrum is None else spectrum
+    validate_states(accommodation_D, depths_D, cdp_D)
+    _validate_coefficients(eyes.zernike_um)
+    concrete = _is_concrete(pupil_diameter_mm, cdp_D, depths_D, accommodation_D)
+    if np.ndim(accommodation_D) != 2 or np.shape(accommodation_D)[0] != np.size(depths_D):
+        raise ValueError(
+            f"accommodation_D must have shape (n_depth, n_acc) = ({np.size(depths_D)}, n), "
+            f"got {np.shape(accommodation_D)}"
+        )
+    if concrete:
+        validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
+        acc = np.asarray(accommodation_D, float)
+        depth = np.asarray(depths_D, float)
+        pairs = (acc.ravel(), np.broadcast_to(depth[:, None], acc.shape).ravel())
+        if sampling is None:
+            sampling = _planned_sampling(eyes, layout, depth, pairs, pupil_diameter_mm, cdp_D,
+                                         spectrum, options, display)
+        else:
+            _field_check(eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
+                         acc.ravel(), depth, layout, spectrum, sampling, pairs=pairs,
+                         display=display)
+    elif sampling is None:
+        raise ValueError(
+            "sampling must be given when depths_D, accommodation_D, cdp_D or pupil_diameter_mm "
+            "are traced (jax.jit / vmap / grad): plan it once on concrete values, e.g. "
+            "lfjax.planner.plan.plan_sampling(...).sampling"
+        )
+    pupil_static = (float(pupil_diameter_mm) if _is_concrete(pupil_diameter_mm)
+                    else float(eyes.measured_pupil_mm))
+    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
+                                  pupil_static, sampling, options, display=display)
+    scene = Scene.from_layout(layout, depths_D, cdp_D, pupil_diameter_mm, display)
+    accommodation = Accommodation.per_depth(accommodation_D, options, pupil_diameter_mm)
+    return vsotf_and_strehl(eyes, scene, spectrum, accommodation, config)
+
+
+__all__ = ["ThroughFocus", "through_focus", "through_focus_variants",
+           "relative_accommodation_grid", "metrics_at"]
