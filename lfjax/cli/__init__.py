@@ -1,5 +1,1 @@
-"""The ``lfjax`` command line (:func:`main`)."""
-
-from lfjax.cli.main import main
-
-__all__ = ["main"]
+"""The ``lfjax`` command line; the entry point is :func:`lfjax.cli.main.main`."""

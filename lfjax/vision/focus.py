@@ -397,7 +397,7 @@ def _result(prepared: _Prepared, metrics, peaks) -> ThroughFocus:
 
 
 def _each_variant(variants, fn) -> list:
-    """``fn(*variant)`` for each variant in order; an :class:`~lfjax.AliasingError` is
+    """``fn(*variant)`` for each variant in order; an :class:`~lfjax.base.sampling.AliasingError` is
     re-raised carrying ``variant``, the index of the variant that raised it."""
     results = []
     for i, variant in enumerate(variants):
@@ -451,7 +451,7 @@ def through_focus_variants(
     hardware to fill, benchmarks/RESULTS.md §17 — and ``"vmap"`` elsewhere, not yet timed
     on an accelerator).
 
-    An :class:`~lfjax.AliasingError` from a variant's sampling check carries ``variant``,
+    An :class:`~lfjax.base.sampling.AliasingError` from a variant's sampling check carries ``variant``,
     its index in ``options``. Other arguments as :func:`through_focus`. Returns one
     :class:`ThroughFocus` per variant, in order.
     """
