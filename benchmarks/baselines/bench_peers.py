@@ -22,20 +22,24 @@ Time per PSF: min over interleaved rounds after warm-up, of a call from coeffici
 intensity (Zernike basis precomputed where the library allows; poppy rebuilds its
 OpticalSystem per call, as its API is used).
 
-Run:  .venv/bin/python benchmarks/bench_peers.py
+Run:  .venv/bin/python benchmarks/baselines/bench_peers.py
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 import traceback
 import warnings
+from pathlib import Path
 
 import numpy as np
 
-from _common import fmt_s, header, markdown_table
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
+
+from _common import fmt_s, header, markdown_table  # noqa: E402
 
 PUPIL_MM = 3.0
 WL_NM = 550.0

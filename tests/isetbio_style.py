@@ -1,5 +1,11 @@
 """The strongest baseline a careful ISETBio user would write (issue #11), in numpy.
 
+An independent implementation, like ``reference.py`` beside it: ``test_isetbio_style.py``
+checks it (sampling, diffraction-limited MTF, the sign of the view shifts) and the baseline
+benchmark ``benchmarks/baselines/bench_naive.py`` times lfjax against it, importing it from
+here. It lives with the tests so that the suite needs nothing from ``benchmarks/`` and the
+benchmark races the copy the suite keeps correct.
+
 Part 1 — ISETBio's wavefront → PSF path, re-implemented from reading its MATLAB source
 (no code copied). Files read, in ``isetbio/isetbio`` at b9ca6a78 (the last commit before
 the wavefront code moved to ISETCam in 58a590b8, "Moved wavefront functions into the
@@ -36,9 +42,10 @@ aliasing-free while the aperture's autocorrelation fits the grid, pupil plane si
 ≥ 2 × aperture width.
 
 Part 2 — the study pipeline built on it (``through_focus_isetbio``). The model is lfjax's
-(the same as ``naive_pipeline.py``): eye wavefront (Zernike, ρ on the measured pupil) +
-defocus c(2,0) = (accommodation − CDP + LCA(λ)) over the calculation pupil + accommodation
-SA on c(4,0); amplitude = hard calc pupil × hard subaperture × 10^(−ρ(λ) r²); weights V(λ).
+(the same as ``benchmarks/baselines/naive_pipeline.py``): eye wavefront (Zernike, ρ on the
+measured pupil) + defocus c(2,0) = (accommodation − CDP + LCA(λ)) over the calculation
+pupil + accommodation SA on c(4,0); amplitude = hard calc pupil × hard subaperture ×
+10^(−ρ(λ) r²); weights V(λ).
 What is computed once and reused:
 
 1. for each (eye, accommodation state, λ, subaperture): the pupil function on ISETBio's
@@ -63,7 +70,7 @@ What is computed once and reused:
    for odd N; docs/design.md#conventions), Watson–Ahumada NCSF from ``lfjax.kernel.metrics`` (numpy path).
 
 Orientation: ISETBio negates y in the pupil, so its PSF rows run towards −θ_y; the y phase
-ramp carries the opposite sign (checked by ``tests/test_isetbio_style.py``: an aberration-
+ramp carries the opposite sign (checked by ``test_isetbio_style.py``: an aberration-
 free eye accommodated on the rendered depth brings every view onto the same point). The
 flip mirrors the OTF in f_y, which leaves VSOTF unchanged (the NCSF is even in f_y).
 
@@ -83,7 +90,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.fft
-from naive_pipeline import zernike_ansi
+from reference import zernike_j as zernike_ansi  # OSA/ANSI RMS-normalised Z_j, not masked
 
 ARCMIN_PER_RAD = 180.0 * 60.0 / math.pi
 
@@ -303,7 +310,8 @@ def through_focus_isetbio(pipe: IsetbioPipeline, coeffs_um, layout, depths_D, ac
     """VSOTF (n_depth, n_acc) and predicted accommodation (n_depth,), ISETBio-style.
 
     ``spectrum`` = (wavelengths nm, weights, LCA D, SCE ρ mm⁻², c40(accommodation) µm) as in
-    ``naive_pipeline``; ``layout`` = (centres mm (n_sub, 2), diameters mm (n_sub,)).
+    ``benchmarks/baselines/naive_pipeline.py``; ``layout`` = (centres mm (n_sub, 2), diameters
+    mm (n_sub,)).
     Elemental PSFs are computed once per (state, λ, subaperture) and re-used for every
     depth within ``window_D`` of the state (all depths when None).
     """

@@ -1,14 +1,15 @@
 """Issues #5 and #11 — lfjax against the pipelines a careful user would write.
 
 Two baselines, both plain numpy/scipy in float64:
-* ``naive_pipeline.py`` (issue #5): per-PSF, its own λ-dependent grid, spline-resampled
-  onto a common grid with the view shift — every elemental PSF recomputed per depth;
-* ``isetbio_style.py`` (issue #11): ISETBio's wvfComputePupilFunction / wvfComputePSF
-  sampling re-implemented, each (eye, state, λ, subaperture) PSF computed ONCE and re-used
-  for every depth by a Fourier phase ramp — run twice: at ISETBio's defaults (201 samples,
-  16.212 mm ref pupil plane) and at the setting whose VSOTF error matches lfjax's (found
-  by a scan printed in the output), the latter also with float32 arrays (lfjax's precision;
-  ISETBio computes in double).
+* ``naive_pipeline.py`` (issue #5, beside this script): per-PSF, its own λ-dependent grid,
+  spline-resampled onto a common grid with the view shift — every elemental PSF recomputed
+  per depth;
+* ``tests/isetbio_style.py`` (issue #11; the test suite checks it there): ISETBio's
+  wvfComputePupilFunction / wvfComputePSF sampling re-implemented, each (eye, state, λ,
+  subaperture) PSF computed ONCE and re-used for every depth by a Fourier phase ramp — run
+  twice: at ISETBio's defaults (201 samples, 16.212 mm ref pupil plane) and at the setting
+  whose VSOTF error matches lfjax's (found by a scan printed in the output), the latter also
+  with float32 arrays (lfjax's precision; ISETBio computes in double).
 
 Reduced configuration, every pipeline in this process on the same inputs: one aberrated
 eye (first seeded Thibos 2002 draw, 3 mm), the 2×2 layout, CDP 2 D, 3 rendered depths
@@ -24,8 +25,9 @@ ISETBio-style settings and unit costs are calibrated per layout on this reduced 
 piece of the study (eye 0, 2×2, the whole grid, 31 λ) is measured for lfjax and the
 equal-accuracy ISETBio-style pipeline to check the extrapolation.
 
-Run:  .venv/bin/python benchmarks/bench_naive.py [--repeats 2]      (about 3 min)
-      .venv/bin/python benchmarks/bench_naive.py --part study-eye [--layouts 4x4] [--df 0.9]
+Run:  .venv/bin/python benchmarks/baselines/bench_naive.py [--repeats 2]      (about 3 min)
+      .venv/bin/python benchmarks/baselines/bench_naive.py --part study-eye [--layouts 4x4]
+      [--df 0.9]
       (one eye through the paper's whole grid in lfjax and the naive pipeline; about 30 min)
 """
 
@@ -33,17 +35,25 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
-from _common import _DF_RE, fmt_s, header, markdown_table, passing_freq_step, timed, timed_first
-from isetbio_style import (
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path[1:1] = [str(ROOT / "benchmarks"), str(ROOT / "tests")]  # _common; isetbio_style
+
+from _common import (  # noqa: E402
+    _DF_RE, fmt_s, header, markdown_table, passing_freq_step, timed, timed_first,
+)
+from isetbio_style import (  # noqa: E402
     IsetbioPipeline,
     WvfSampling,
     min_ref_pupil_plane_mm,
     through_focus_isetbio,
 )
-from naive_pipeline import NaiveConfig, through_focus_naive, zernike_ansi
+from naive_pipeline import NaiveConfig, through_focus_naive, zernike_ansi  # noqa: E402
 
 DEPTHS = [2.0, 2.3, 2.6]
 STATES = np.round(np.arange(2.0, 3.01, 0.2), 9)
