@@ -35,7 +35,7 @@ PLANS = ("vsotf", "claims")
 
 def _run(plan: str, work: Path, warm: bool) -> dict:
     cache, out = work / f"cache-{plan}", work / f"out-{plan}"
-    cmd = [sys.executable, str(HERE / "count_compiles.py"), "--full", "--accuracy", plan,
+    cmd = [sys.executable, str(HERE / "speed" / "count_compiles.py"), "--full", "--accuracy", plan,
            "--cache", str(cache), "--out", str(out)]
     print("$", " ".join(cmd), flush=True)
     done = subprocess.run(cmd, capture_output=True, text=True, check=True,

@@ -3,7 +3,7 @@
 Historical (before issue 22): the results below were scored with accommodation peaks searched
 only ±0.3 D around each rendered depth, which hid the overlap-allowed fit's collapse (every
 eye focuses on the CDP: 1.4 D RMSE, not 0.29 D). The optimiser's default objective, its
-uncapped evaluation and its timings are measured by benchmarks/optimise_timing.py
+uncapped evaluation and its timings are measured by benchmarks/speed/optimise_timing.py
 (benchmarks/RESULTS.md §14); this script still runs the named objectives, now scored
 with the uncapped peaks.
 

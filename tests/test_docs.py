@@ -50,7 +50,7 @@ def test_site_builds_strict(tmp_path):
     # The pages that come from outside docs/ are there, with their content.
     results = (site / "benchmarks" / "RESULTS" / "index.html").read_text(encoding="utf-8")
     assert "Polychromatic OTFs per second" in results
-    assert (site / "benchmarks" / "speed_accuracy.png").is_file()
+    assert (site / "benchmarks" / "speed" / "speed_accuracy.png").is_file()
     notebook = (site / "notebooks" / "display_effects" / "index.html").read_text(encoding="utf-8")
     assert "data:image/png;base64" in notebook  # committed outputs rendered
     api = (site / "api" / "through_focus" / "index.html").read_text(encoding="utf-8")

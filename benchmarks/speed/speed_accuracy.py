@@ -8,7 +8,7 @@ Knobs: frequency step (field), wavelength step (5/10/20/50 nm), float32 vs float
 aperture edge width. Error = max |VSOTF - VSOTF_ref| over allowed states, and the largest
 change of predicted accommodation (D). Time = warm wall time of one through_focus call.
 
-Run:  .venv/bin/python benchmarks/speed_accuracy.py   (writes speed_accuracy.csv/.png here)
+Run:  .venv/bin/python benchmarks/speed/speed_accuracy.py   (writes speed_accuracy.csv/.png here)
 """
 
 from __future__ import annotations

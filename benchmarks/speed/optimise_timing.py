@@ -1,7 +1,7 @@
 """Where a layout fit's time goes, and the README's default fit end to end.
 
-Run:  .venv/bin/python benchmarks/optimise_timing.py              (both parts)
-      .venv/bin/python benchmarks/optimise_timing.py --steps-only (part 1)
+Run:  .venv/bin/python benchmarks/speed/optimise_timing.py              (both parts)
+      .venv/bin/python benchmarks/speed/optimise_timing.py --steps-only (part 1)
 
 1. Cost of one solver step (the objective and its gradient, ``layout_value_and_grad``) for
    the 2×2 lattice on 10 training eyes, rendered depths 0–4 D (5), CDP 2 D, 3 mm pupil, one

@@ -2,7 +2,7 @@
 # Peak resident memory of `lfjax reproduce --quick --display-effects --display-eyes 1` on the CPU,
 # for the lfjax source tree in SRC (default: this checkout), with its log under OUTDIR.
 #
-#   bash benchmarks/display_effects_memory.sh [SRC] [OUTDIR] [CPUS]
+#   bash benchmarks/speed/display_effects_memory.sh [SRC] [OUTDIR] [CPUS]
 #
 # PYTHON (default python3) is the interpreter. SRC may be an older tree, e.g. `git archive c687eb3^ lfjax | tar -x -C /tmp/before` (the commit
 # before the radial MTF's dense binning matrix was replaced by a gather). CPUS pins the run

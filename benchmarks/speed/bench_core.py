@@ -17,17 +17,23 @@ Floors (the FFT work alone, one jitted batched call each; input fields made befo
 lfjax's time above the floor is the pupil-function evaluation (Zernike basis, SCE, edges,
 exp), the spectral sum, the rendering and the host-side guard.
 
-Run:  .venv/bin/python benchmarks/bench_core.py [--repeats 5]
+Run:  .venv/bin/python benchmarks/speed/bench_core.py [--repeats 5]
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from _common import fmt_s, header, interleaved_min, markdown_table, timed, timed_first
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
+
+from _common import (  # noqa: E402
+    fmt_s, header, interleaved_min, markdown_table, timed, timed_first,
+)
 
 
 def lfjax_bands(spectrum, window_mm, pupil_mm, sampling):

@@ -14,7 +14,7 @@ TOML given), on one chunk of eyes, warm (best of ``--repeat``):
 
 Prints seconds per eye and the projection to 1,000 eyes.
 
-Run:  .venv/bin/python benchmarks/sweep_floor.py [CONFIG.toml] [--repeat N]
+Run:  .venv/bin/python benchmarks/speed/sweep_floor.py [CONFIG.toml] [--repeat N]
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ def transform_floor(n_fields: int, n_sub: int, bands, repeat: int) -> float:
     """Seconds of the bare transforms of ``n_fields`` (eye, state) pairs × ``n_sub`` views
     on ``bands`` ((start, stop, n_fft), …), as the kernel does them: per wavelength a
     complex fft2 of the pupil field and |.|², summed over the band, then one rfft2 of the
-    band's PSF (benchmarks/bench_reproduce.py's floor); one chunk of at most 64 fields
+    band's PSF (bench_reproduce.py's floor, beside this script); one chunk of at most 64 fields
     timed and scaled."""
     total = 0.0
     for start, stop, n in bands:
@@ -88,7 +88,7 @@ def main() -> None:
     else:
         path = Path(args.config)
     config = load_config(path)
-    print("command: .venv/bin/python benchmarks/sweep_floor.py"
+    print("command: .venv/bin/python benchmarks/speed/sweep_floor.py"
           + (f" {args.config}" if args.config else "") + f" --repeat {args.repeat}")
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"jax {jax.__version__}, {time.strftime('%Y-%m-%d %H:%M')}", flush=True)

@@ -5,12 +5,14 @@ grid (0.2 D) with a ±1 D window, 5 wavelengths (450–650 nm), guard sampling. 
 (compile + run) and a second call (steady), and the largest difference of each method's
 peaks from Newton's (D).
 
-    python benchmarks/bench_peak_cost.py
+    python benchmarks/speed/bench_peak_cost.py
 """
 
 from __future__ import annotations
 
+import sys
 import time
+from pathlib import Path
 
 import jax
 import numpy as np
@@ -18,7 +20,9 @@ import numpy as np
 import lfjax
 from lfjax.vision.focus import through_focus
 
-from _common import header
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
+
+from _common import header  # noqa: E402
 
 
 def main():

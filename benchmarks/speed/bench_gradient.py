@@ -11,12 +11,14 @@ Objective: mean VSOTF (and Strehl) over eyes and depths. Gradients with respect 
 Forward and gradient are timed side by side (interleaved, minimum of repeats), after
 compilation (timed separately). The ratio is the figure of merit (goal ≤ 3×).
 
-    python benchmarks/bench_gradient.py [--repeats 7]
+    python benchmarks/speed/bench_gradient.py [--repeats 7]
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -25,7 +27,9 @@ import numpy as np
 import lfjax
 from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
 
-from _common import header, interleaved_min, timed_first, fmt_s, markdown_table
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
+
+from _common import header, interleaved_min, timed_first, fmt_s, markdown_table  # noqa: E402
 
 
 def main(argv=None):

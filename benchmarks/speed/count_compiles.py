@@ -14,7 +14,7 @@ switched on (``StudyConfig.quick(alternatives=True)``; the command line's ``--qu
 them out), and ``--full`` the default study (``lfjax reproduce``, alternatives included). The cache folder is ``--cache`` (pass a new empty folder for a cold run, the same
 folder again for a warm one).
 
-Run:  PYTHONPATH=. .venv/bin/python benchmarks/count_compiles.py --cache DIR --out DIR
+Run:  PYTHONPATH=. .venv/bin/python benchmarks/speed/count_compiles.py --cache DIR --out DIR
       [--alternatives | --full] [--accuracy claims|vsotf]
 """
 

@@ -16,8 +16,8 @@ Two parts:
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_sweep.py variants --eyes 11 --chunk-size 4
-    .venv/bin/python benchmarks/bench_sweep.py scaling --eyes 100 1000 --wavelength-step 20 \
+    .venv/bin/python benchmarks/speed/bench_sweep.py variants --eyes 11 --chunk-size 4
+    .venv/bin/python benchmarks/speed/bench_sweep.py scaling --eyes 100 1000 --wavelength-step 20 \
         --peak vertex --chunk-size 8 --keep benchmarks/_cache/sweep/paper_1000.zarr
 """
 
@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
 from _common import BENCH_DATE, header  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -146,7 +146,7 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    print(f"wrote {path.relative_to(HERE.parent)} ({BENCH_DATE})")
+    print(f"wrote {path.relative_to(HERE.parents[1])} ({BENCH_DATE})")
 
 
 def main() -> None:

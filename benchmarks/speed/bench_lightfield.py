@@ -15,10 +15,11 @@ Part ``grid`` (``--part grid``; ~3 min): the paper's full study in one call per 
 average eye + 10 seeded Thibos draws), 9 rendered depths (0–4 D / 0.5 D), accommodation
 0–5 D / 0.2 D with a ±1 D window around each depth — first call (compile measured from jax's
 own compile events) and its run time (first call − compile; ``--grid-repeats N`` adds
-steady re-runs). Writes benchmarks/lightfield_grid.csv (predicted accommodation per eye,
+steady re-runs). Writes lightfield_grid.csv beside this script (predicted accommodation per eye,
 layout and depth).
 
-Run:  .venv/bin/python benchmarks/bench_lightfield.py [--part curves|grid|both] [--repeats 3]
+Run:  .venv/bin/python benchmarks/speed/bench_lightfield.py [--part curves|grid|both]
+      [--repeats 3]
 """
 
 from __future__ import annotations
@@ -26,11 +27,15 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from _common import (
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
+
+from _common import (  # noqa: E402
     fmt_s, header, interleaved_min, markdown_table, passing_freq_step, timed, timed_first,
 )
 

@@ -9,7 +9,8 @@ summed PSF, for the main study and for the modelling alternatives (the reduced s
 per variant and for its baseline). Each band's cost is one chunk of 64 fields timed (best of
 9) and scaled to the study's count: read it to ±15 % (benchmarks/RESULTS.md §9).
 
-Run:  .venv/bin/python benchmarks/bench_reproduce.py [--keep-report REPORT.md | --floor-only [claims|vsotf]]
+Run:  .venv/bin/python benchmarks/speed/bench_reproduce.py [--keep-report REPORT.md |
+      --floor-only [claims|vsotf]]
 
 The floor is taken on each layout's own spectrum (the ``claims`` plan by default), and
 counts the three states each continuous peak evaluates beyond the grid (``--floor-only``
@@ -157,7 +158,7 @@ def main():
         keep = Path(sys.argv[2])  # the cold run's REPORT.md (to compare verdicts across machines)
     if len(sys.argv) >= 2 and sys.argv[1] == "--floor-only":
         accuracy = sys.argv[2] if len(sys.argv) > 2 else "claims"
-        print(f"command: .venv/bin/python benchmarks/bench_reproduce.py --floor-only {accuracy}")
+        print(f"command: .venv/bin/python benchmarks/speed/bench_reproduce.py --floor-only {accuracy}")
         print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
               f"jax {jax.__version__}, {time.strftime('%Y-%m-%d %H:%M')}", flush=True)
         for peaks in (False, True):
@@ -167,7 +168,7 @@ def main():
                   f"main {main_floor:.1f} s + alternatives {alt_floor:.1f} s "
                   f"= {main_floor + alt_floor:.1f} s", flush=True)
         return
-    print("command: .venv/bin/python benchmarks/bench_reproduce.py")
+    print("command: .venv/bin/python benchmarks/speed/bench_reproduce.py")
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"jax {jax.__version__}, devices {jax.devices()}, {time.strftime('%Y-%m-%d %H:%M')}",
           flush=True)
