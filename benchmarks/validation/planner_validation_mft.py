@@ -5,13 +5,16 @@ a window around each depth) the planner is forced to the MFT path (``transform="
 its plan and each rejected cheaper neighbour are run through lfjax.vision.focus and
 measured against a converged run: Richardson (order 2) from the FFT plan's df/2 and df/4.
 
-Run:  .venv/bin/python benchmarks/planner_validation_mft.py [tolerance, default 1e-3]
+Run:  .venv/bin/python benchmarks/validation/planner_validation_mft.py [tolerance, default 1e-3]
 """
 import sys
+from pathlib import Path
 
 import numpy as np
 
-from _common import header
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
+
+from _common import header  # noqa: E402
 
 import lfjax
 from lfjax.planner.plan import plan_sampling

@@ -20,8 +20,9 @@ compared with a reference computed on the same spectrum and sampling, so the wav
 count does not enter the errors, only the curves' shapes through LCA), sampling
 from ``lfjax.planner.plan.plan_sampling`` (guard only). Layouts: natural view (open 3 mm pupil),
 2×2, 3×3, 4×4 viewpoints. The natural view has one central view and so ignores the rendered
-depth (RESULTS "issues" 3); its cases here are a real point at each depth (``cdp_D = depth``),
-one call per depth, states from the same absolute 0.2 D grid inside the window.
+depth (benchmarks/results/issues-noticed.md, item 3); its cases here are a real point at each
+depth (``cdp_D = depth``), one call per depth, states from the same absolute 0.2 D grid
+inside the window.
 
 Reference: the metric in float64 (a subprocess with ``jax_enable_x64``), same sampling, on a
 0.05 D grid over the whole window plus a 0.01 D grid within ±0.06 D of that grid's highest
@@ -38,9 +39,9 @@ Run (writes peak_finding.csv, peak_finding.png, peak_failure_cases.json here; ra
 in benchmarks/_cache/peak_finding/; RESULTS.md §10 used three wavelengths, 450, 550 and
 650 nm, so that every method could run on all 100 eyes in about two hours on two cores):
 
-    .venv/bin/python benchmarks/peak_finding.py --eyes 100 --solver-eyes 100 --chunk 10 \
+    .venv/bin/python benchmarks/validation/peak_finding.py --eyes 100 --solver-eyes 100 --chunk 10 \
         --wavelengths 450,550,650
-    .venv/bin/python benchmarks/peak_finding.py --part analyse ...  # re-analyse cached runs
+    .venv/bin/python benchmarks/validation/peak_finding.py --part analyse ...  # analyse the cache
 """
 
 from __future__ import annotations
@@ -60,8 +61,8 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-CACHE = HERE / "_cache" / "peak_finding"
-sys.path.insert(0, str(HERE))
+CACHE = HERE.parent / "_cache" / "peak_finding"  # benchmarks/_cache, not committed
+sys.path.insert(1, str(HERE.parent))  # benchmarks/: _common
 
 PUPIL_MM = 3.0
 CDP_D = 2.0
@@ -957,7 +958,8 @@ def analyse(args):
     ref_seconds = {name: float(np.load(CACHE / f"reference_{name}.npz")["seconds"])
                    for name in args.layouts if (CACHE / f"reference_{name}.npz").exists()}
     doc = dict(
-        about="Failure cases of accommodation peak finding (benchmarks/peak_finding.py, issue #10 "
+        about="Failure cases of accommodation peak finding (benchmarks/validation/peak_finding.py, "
+              "issue #10 "
               "part A). Each example names the eye (seed, index, coefficients), layout, rendered "
               "depth and metric, the float64 0.01 D reference, and what every method returned.",
         scene=dict(pupil_mm=PUPIL_MM, cdp_D=CDP_D, natural_view="cdp_D = rendered depth",
@@ -978,7 +980,7 @@ def analyse(args):
         for layout in args.layouts:
             print(f"\n### {metric.upper()}, {layout}\n")
             print(markdown(rows, metric, layout))
-    print("\n## failure cases (benchmarks/peak_failure_cases.json)\n")
+    print("\n## failure cases (benchmarks/validation/peak_failure_cases.json)\n")
     for k, v in kinds.items():
         ex = "; ".join(f"{x['layout']} {x['metric']} eye {x['eye_index']} depth {x['depth_D']:g}"
                        for x in v["examples"])

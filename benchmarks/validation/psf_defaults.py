@@ -16,7 +16,7 @@ cases (aberration-free and two Thibos 6 mm eyes; pupils 2, 3, 4.5, 6 mm; 450, 55
 0, 1, 2 D; 0.117, 0.5, 1 arcmin) C = error·N² at N and 2N (N ≥ 256, ≥ 1.3 U, so no
 wrap-around) against 4N; then C ≤ a·U + b·w² with a = 1 needs b = max (C − U)/w².
 
-Run:  .venv/bin/python benchmarks/psf_defaults.py [n_random_cases, default 48] [--fit]
+Run:  .venv/bin/python benchmarks/validation/psf_defaults.py [n_random_cases, default 48] [--fit]
 """
 
 from __future__ import annotations
@@ -24,12 +24,15 @@ from __future__ import annotations
 import math
 import sys
 import time
+from pathlib import Path
 
 import jax
 
 jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
+
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
 
 from _common import header  # noqa: E402
 

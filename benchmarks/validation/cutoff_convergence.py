@@ -7,7 +7,7 @@ paper's eleven eyes at the CDP, VSOTF-predicted accommodation, `lfjax reproduce`
 at each plan's wavelength step) at several frequency steps and prints each eye's cut-off
 against the finest step's. The wavelength step is held fixed, so only df moves.
 
-Run:  PYTHONPATH=. .venv/bin/python benchmarks/cutoff_convergence.py [--layout natural]
+Run:  PYTHONPATH=. .venv/bin/python benchmarks/validation/cutoff_convergence.py [--layout natural]
       [--steps 1.1892 1.0905 0.6 0.3] [--wavelength-step 20]
 """
 

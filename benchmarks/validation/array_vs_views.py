@@ -1,6 +1,7 @@
 """The whole lenslet array against the n×n idealisation, across Fresnel numbers (issue #27, item 5).
 
-Run:  python benchmarks/array_vs_views.py [--out benchmarks/array_vs_views] [--max-views 600]
+Run:  python benchmarks/validation/array_vs_views.py [--out benchmarks/validation/array_vs_views]
+          [--max-views 600]
 
 Part 1 — where the idealisation holds. The display study's 2×2 lenslet arrays (3 mm pupil,
 CDP 2 D, f/5, circular lenslets, an ideal renderer: pixels 1e-6 of the lenslet pitch, so
@@ -211,7 +212,8 @@ def main(argv=None) -> int:
                          and y[k] >= 0.5 * y.max()]
                 desc = ", ".join(f"{fine[k]:.2f} D ({y[k]:.3f})" for k in peaks)
                 lines.append(f"| {v} | {name} | {depth:g} | {desc} | {fine[int(np.argmax(y))]:.2f} |")
-    command = "python benchmarks/array_vs_views.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    command = "python benchmarks/validation/array_vs_views.py " + " ".join(
+        argv if argv is not None else sys.argv[1:])
     report = [
         "# The whole array against the 2×2 idealisation", "",
         f"`{command.strip()}` — part 1 {t1 - t0:.0f} s, part 2 {t2 - t1:.0f} s.", "",

@@ -7,14 +7,17 @@ where converged is Richardson-extrapolated from a quarter and an eighth of the p
 the pipeline's wrapped PSF / peak on the plan's field. tests/test_planner.py asserts the
 parts that hold; benchmarks/RESULTS.md §7 records a run.
 
-Run:  .venv/bin/python benchmarks/planner_validation.py [tolerance, default 2e-3]
+Run:  .venv/bin/python benchmarks/validation/planner_validation.py [tolerance, default 2e-3]
 """
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from _common import header
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
+
+from _common import header  # noqa: E402
 
 import lfjax
 from lfjax.planner.plan import plan_sampling

@@ -8,8 +8,8 @@ VSOTF peaks of 3 seeded eyes for the natural view, 2×2 and 4×4 (5 depths, the 
 a ±1 D window, 7 wavelengths, "local" peaks), saves them, and compares a run on another
 device against the saved ones.
 
-    .venv/bin/python benchmarks/device_precision.py --save ref_cpu.npz      # on the CPU
-    python3 benchmarks/device_precision.py --compare ref_cpu.npz            # on the GPU
+    .venv/bin/python benchmarks/validation/device_precision.py --save ref_cpu.npz   # on the CPU
+    python3 benchmarks/validation/device_precision.py --compare ref_cpu.npz         # on the GPU
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ with the pipeline itself (not the planner's aberration-free proxy): continuous V
 (``local``), VSOTF over the window, and cut-offs at the reference's grid peak. An
 experiment, not a feature: lfjax plans uniform steps.
 
-Run:  .venv/bin/python benchmarks/spectral_quadrature.py [natural|2x2|3x3|4x4 ...]
+Run:  .venv/bin/python benchmarks/validation/spectral_quadrature.py [natural|2x2|3x3|4x4 ...]
 """
 
 from __future__ import annotations
@@ -87,7 +87,8 @@ def compare(layout_name: str, n_eyes: int = 6) -> None:
 
 def main() -> None:
     names = sys.argv[1:] or ["natural", "2x2", "4x4"]
-    print(f"command: .venv/bin/python benchmarks/spectral_quadrature.py {' '.join(names)}")
+    print("command: .venv/bin/python benchmarks/validation/spectral_quadrature.py "
+          + " ".join(names))
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"jax {jax.__version__}, {time.strftime('%Y-%m-%d %H:%M')}", flush=True)
     for name in names:

@@ -5,7 +5,7 @@ needs (peaks to 0.01 D, cut-offs to 0.25 cpd); ``--accuracy vsotf`` is the earli
 10 nm grid (made for a VSOTF error of 1e-3). This script runs the full default study under
 both, one after the other, each in a fresh process with a new empty compilation cache
 (cold) and then again on that cache (warm), counting compiled programs
-(``count_compiles.py``), and compares what the claims read:
+(``benchmarks/speed/count_compiles.py``), and compares what the claims read:
 
 * every verdict, in ``claims.csv`` and in ``alternatives.csv``;
 * every continuous VSOTF peak (``results.nc``), against ``--peak-target`` (D);
@@ -14,7 +14,7 @@ both, one after the other, each in a fresh process with a new empty compilation 
   decided the other way) are counted and reported apart, since their cut-offs are read at
   different accommodation states.
 
-Run:  PYTHONPATH=. .venv/bin/python benchmarks/accuracy_plans.py --work DIR
+Run:  PYTHONPATH=. .venv/bin/python benchmarks/validation/accuracy_plans.py --work DIR
       (or --compare-only with the two output folders already in DIR)
 """
 
@@ -30,16 +30,18 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
 PLANS = ("vsotf", "claims")
 
 
 def _run(plan: str, work: Path, warm: bool) -> dict:
     cache, out = work / f"cache-{plan}", work / f"out-{plan}"
-    cmd = [sys.executable, str(HERE / "speed" / "count_compiles.py"), "--full", "--accuracy", plan,
+    cmd = [sys.executable, str(ROOT / "benchmarks" / "speed" / "count_compiles.py"), "--full",
+           "--accuracy", plan,
            "--cache", str(cache), "--out", str(out)]
     print("$", " ".join(cmd), flush=True)
     done = subprocess.run(cmd, capture_output=True, text=True, check=True,
-                          env=dict(os.environ, PYTHONPATH=str(HERE.parent)))
+                          env=dict(os.environ, PYTHONPATH=str(ROOT)))
     result = json.loads(done.stdout.strip().splitlines()[-1])
     report = (out / "REPORT.md").read_text()
     result["stages"] = next(line for line in report.splitlines() if line.startswith("Timings"))
