@@ -163,7 +163,7 @@ def main() -> None:
     s.add_argument("--wavelength-step", type=float, default=20.0)
     s.add_argument("--peak", default="vertex")
     s.add_argument("--keep", default=None, metavar="STORE",
-                   help="move the largest run's store here (e.g. benchmarks/_cache/sweep_1000.zarr)")
+                   help="move the largest run's store here (e.g. benchmarks/_cache/sweep/paper_1000.zarr)")
     args = parser.parse_args()
     variants(args) if args.part == "variants" else scaling(args)
 

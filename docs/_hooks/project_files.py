@@ -20,7 +20,7 @@ from mkdocs.structure.files import File, Files
 MOUNTS = {
     "notebooks": ("*.ipynb",),
     "benchmarks": ("RESULTS.md", "**/*.png", "**/*.csv", "**/*.json", "**/*.toml",
-                   "display_effects/REPORT.md", "sweep_1000/*.md"),
+                   "studies/display_effects/REPORT.md", "studies/sweep_1000/*.md"),
 }
 
 

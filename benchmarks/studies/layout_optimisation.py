@@ -7,8 +7,8 @@ uncapped evaluation and its timings are measured by benchmarks/speed/optimise_ti
 (benchmarks/RESULTS.md §14); this script still runs the named objectives, now scored
 with the uncapped peaks.
 
-Run:  .venv/bin/python benchmarks/layout_optimisation.py            (defaults below)
-      .venv/bin/python benchmarks/layout_optimisation.py --quick    (smoke test, minutes)
+Run:  .venv/bin/python benchmarks/studies/layout_optimisation.py            (defaults below)
+      .venv/bin/python benchmarks/studies/layout_optimisation.py --quick    (smoke test, minutes)
 
 What it does
 1. The reference check (lfjax.layout_opt's docstring): 2×2 views at 1.5 mm pitch, 4 seeded
@@ -22,16 +22,16 @@ What it does
    3 mm pupil, diameters 0.5–2 mm; with and without the non-overlap constraint.
 3. Gains over the tangent grid on train and held-out eyes; the held-out accommodation error
    (continuous VSOTF peak within ±0.3 D) before/after on the first --accommodation-eyes
-   held-out eyes; figures benchmarks/layout_optimisation_*.png; results
-   benchmarks/layout_optimisation.json.
+   held-out eyes; figures layout_optimisation/layout_optimisation_*.png and results
+   layout_optimisation/layout_optimisation.json, beside this script.
 
 Sampling: the planner's aliasing guard (plan_sampling(..., estimate_accuracy=False)) for the
 worst case of the feasible set (lfjax.layout_opt.guard_sampling) and 3 wavelengths
 (450/550/650 nm, V(λ)-weighted), to keep it affordable on 2 CPU cores.
 
 Results (2 CPU cores shared with other jobs, float32; see the JSON for every number):
-$ python benchmarks/layout_optimisation.py                      (scan + first two fits, 720 s)
-$ python benchmarks/layout_optimisation.py --runs tradeoff --no-scan        (third fit, 1924 s)
+$ python benchmarks/studies/layout_optimisation.py                  (scan + first two fits, 720 s)
+$ python benchmarks/studies/layout_optimisation.py --runs tradeoff --no-scan    (third fit, 1924 s)
 reference check, 2x2 at 1.5 mm pitch, 4 eyes, correct accommodation 0-4 D:
   d (mm)                0.50   0.75   1.00   1.25   1.50
   mean, paper         0.822  0.712  0.608  0.513  0.431
@@ -77,7 +77,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+OUT = HERE / "layout_optimisation"  # figures and JSON
 
 
 RUNS = {
@@ -103,7 +103,7 @@ def parse(argv=None):
     p.add_argument("--quick", action="store_true", help="2 train, 10 test eyes, 5 steps")
     p.add_argument("--runs", nargs="+", default=list(RUNS), choices=list(RUNS),
                    help="fits to run (default all); results of others are kept from an "
-                        "earlier benchmarks/layout_optimisation.json")
+                        "earlier layout_optimisation/layout_optimisation.json")
     p.add_argument("--no-scan", action="store_true", help="skip the reference check")
     args = p.parse_args(argv)
     if args.quick:
@@ -196,11 +196,11 @@ def run_fit(args, train, test, tag: str):
             curves, depths, f"held-out eyes ({shown.n_eyes}), {tag}"),
     }
     for name, fig in figs.items():
-        fig.savefig(HERE / name, dpi=110)
-    lo.save_layout_json(HERE / f"layout_optimisation_{tag}.json", fit.layout, 3.0,
+        fig.savefig(OUT / name, dpi=110)
+    lo.save_layout_json(OUT / f"layout_optimisation_{tag}.json", fit.layout, 3.0,
                         objective=dict(name=fit.objective.name, train=result["train"],
                                        test=result["test"]),
-                        provenance=dict(script="benchmarks/layout_optimisation.py",
+                        provenance=dict(script="benchmarks/studies/layout_optimisation.py",
                                         seed_train=args.seed, seed_test=args.seed + 1,
                                         n_train=train.n_eyes, n_test=test.n_eyes),
                         parameters=fit.params)
@@ -247,15 +247,17 @@ def main(argv=None):
 
     enable_compilation_cache()
     t_all = time.perf_counter()
-    command = "python benchmarks/layout_optimisation.py " + " ".join(sys.argv[1:] if argv is None else argv)
+    command = "python benchmarks/studies/layout_optimisation.py " + " ".join(
+        sys.argv[1:] if argv is None else argv)
     print(f"$ {command}")
-    results_file = HERE / "layout_optimisation.json"
+    OUT.mkdir(exist_ok=True)
+    results_file = OUT / "layout_optimisation.json"
     earlier = json.loads(results_file.read_text()) if results_file.exists() else {}
     if args.no_scan and "scan" in earlier:
         scan = earlier["scan"]
     else:
         scan = reference_scan(args.wavelengths)
-    fig_scan(scan).savefig(HERE / "layout_optimisation_reference_scan.png", dpi=110)
+    fig_scan(scan).savefig(OUT / "layout_optimisation_reference_scan.png", dpi=110)
     train = lfjax.sample_eyes(args.seed, args.train_eyes)
     test = lfjax.sample_eyes(args.seed + 1, args.test_eyes)
     fits = {r["tag"]: r for r in earlier.get("fits", [])}

@@ -1,7 +1,8 @@
 """Display-effects study (issue #13): lenslet diffraction, pixels and an OLED-like spectrum
 switched on one by one for 2×2, 3×3 and 4×4, and the 2×2 lenslet-size sweep.
 
-Run:  python benchmarks/display_effects.py [--eyes N] [--out benchmarks/display_effects]
+Run:  python benchmarks/studies/display_effects.py [--eyes N]
+          [--out benchmarks/studies/display_effects]
 
 Eyes: the Thibos average eye and the first N virtual eyes of seed 0 (the reproduction's
 eyes). Writes display_effects.csv, display_lenslet_sweep.csv, study.nc and sweep.nc (the
@@ -54,7 +55,8 @@ def main(argv=None) -> int:
     de.effects_table(study).to_csv(out / "display_effects.csv", index=False, float_format="%.6g")
     de.sweep_table(sweep).to_csv(out / "display_lenslet_sweep.csv", index=False, float_format="%.6g")
     de.save_display_figures(study, sweep, out)
-    command = "python benchmarks/display_effects.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    command = "python benchmarks/studies/display_effects.py " + " ".join(
+        argv if argv is not None else sys.argv[1:])
     seconds = "\n".join(
         f"| {layout} | {step} | {float(study.seconds.sel(step=step, layout=layout)):.1f} | "
         f"{float(study.freq_step_cpd.sel(step=step, layout=layout)):.3g} |"

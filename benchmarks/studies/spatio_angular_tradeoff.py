@@ -1,7 +1,7 @@
 """The spatio-angular trade-off of two real panels (issue #27, item 3): perceivable resolution
 and accommodation error against views per pupil, over a population of eyes.
 
-Run:  python benchmarks/spatio_angular_tradeoff.py [--eyes 100] [--panels near-eye phone]
+Run:  python benchmarks/studies/spatio_angular_tradeoff.py [--eyes 100] [--panels near-eye phone]
           [--counts 1 2 3 4 5 6] [--wavelengths 550 550 10] [--work DIR] [--out DIR]
 
 For each panel class (lfjax.display.panel's presets: a 0.7-inch OLED microdisplay at 30 mm, a
@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
 
 from _common import header  # noqa: E402
 
@@ -42,7 +42,7 @@ def main(argv=None) -> int:
     parser.add_argument("--wavelengths", nargs=3, type=float, default=[550.0, 550.0, 10.0],
                         metavar=("START", "STOP", "STEP"), help="V(λ)-weighted spectrum, nm")
     parser.add_argument("--chunk-size", type=int, default=5)
-    parser.add_argument("--work", default=str(HERE / "_cache" / "spatio_angular_tradeoff"),
+    parser.add_argument("--work", default=str(HERE.parent / "_cache" / "spatio_angular_tradeoff"),
                         help="folder of the sweep stores and layout files")
     parser.add_argument("--out", default=str(HERE / "spatio_angular_tradeoff"))
     parser.add_argument("--report-only", action="store_true",
@@ -78,7 +78,7 @@ def main(argv=None) -> int:
             writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
     fig = to.fig_tradeoff(results, config.accommodation_tolerance_D, config.window_D)
     fig.savefig(out / "tradeoff.png", dpi=110)
-    command = "python benchmarks/spatio_angular_tradeoff.py " + " ".join(
+    command = "python benchmarks/studies/spatio_angular_tradeoff.py " + " ".join(
         argv if argv is not None else sys.argv[1:])
     lines = [f"command: `{command}`",
              f"machine: {info['cpu']}, {info['cores']} cores (shared; load avg at start "
