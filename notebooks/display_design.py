@@ -20,7 +20,7 @@
 # 4 held-out eyes, 2×2 and 3×3, two solver steps, the fit setting's single wavelength) or
 # `tiny` (what `tests/test_design.py` runs: one eye each, 2×2 only, one step, lenslet
 # diffraction off and a coarse fixed frequency step; numbers meaningless). The population
-# trade-off is `benchmarks/spatio_angular_tradeoff.py` (RESULTS.md).
+# trade-off is `benchmarks/studies/spatio_angular_tradeoff.py` (RESULTS §15).
 #
 # `notebooks/display_design.py` is this notebook as a plain script (jupytext percent
 # format); the test checks that the two agree.

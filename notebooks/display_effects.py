@@ -21,7 +21,7 @@
 # average eye, three layouts, three depths, 50 nm wavelength steps) or `tiny` (what
 # `tests/test_display.py` runs: 2×2 only, 100 nm steps, peaks from three states around the
 # grid's instead of Newton; numbers meaningless). The full
-# study: `benchmarks/display_effects.py` (RESULTS.md) or `lfjax reproduce --display-effects`.
+# study: `benchmarks/studies/display_effects.py` (RESULTS §12) or `lfjax reproduce --display-effects`.
 #
 # `notebooks/display_effects.py` is this notebook as a plain script (jupytext percent
 # format); the test checks that the two agree.
@@ -109,7 +109,7 @@ print(de.effects_table(study).round(3).to_string(index=False))
 # ## What this shows
 #
 # The table and figures above are the small run's numbers for the average eye only; the
-# study on a population and every depth is in `benchmarks/RESULTS.md` (display effects).
+# study on a population and every depth is in `benchmarks/results/12-display-effects.md`.
 # Read the lenslet sweep from right to left: as the lenslets shrink the Fresnel number
 # falls below 1 and the beams spread over the pupil; the cut-off frequency is what moves
 # first, the accommodation prediction much later.

@@ -47,10 +47,20 @@ def test_site_builds_strict(tmp_path):
     log = proc.stdout + proc.stderr
     assert proc.returncode == 0, f"mkdocs build --strict failed:\n{log[-6000:]}"
     site = tmp_path / "site"
-    # The pages that come from outside docs/ are there, with their content.
+    # The pages that come from outside docs/ are there, with their content: the benchmark
+    # results' summary links every topic page, each page is built, and the figures the
+    # scripts write beside themselves are served.
     results = (site / "benchmarks" / "RESULTS" / "index.html").read_text(encoding="utf-8")
     assert "Polychromatic OTFs per second" in results
-    assert (site / "benchmarks" / "speed_accuracy.png").is_file()
+    table = results.split("<article", 1)[1].split("</article>", 1)[0]  # the page, not the nav
+    pages = sorted((ROOT / "benchmarks" / "results").glob("*.md"))
+    assert len(pages) >= 20, [p.name for p in pages]
+    for page in pages:
+        assert f'href="../results/{page.stem}/' in table, f"the summary does not link {page.name}"
+        assert (site / "benchmarks" / "results" / page.stem / "index.html").is_file(), page.name
+    first = (site / "benchmarks" / "results" / "01-polychromatic-otfs" / "index.html")
+    assert "Each floor is one jitted batched call" in first.read_text(encoding="utf-8")
+    assert (site / "benchmarks" / "speed" / "speed_accuracy.png").is_file()
     notebook = (site / "notebooks" / "display_effects" / "index.html").read_text(encoding="utf-8")
     assert "data:image/png;base64" in notebook  # committed outputs rendered
     api = (site / "api" / "through_focus" / "index.html").read_text(encoding="utf-8")

@@ -1,14 +1,10 @@
-"""The ISETBio-style baseline of benchmarks/bench_naive.py (benchmarks/isetbio_style.py):
-its sampling reproduces ISETBio's, its PSF is the diffraction-limited one, and its view
-shifts have the right sign under ISETBio's flipped y axis. Pure numpy, < 2 s."""
-
-import sys
-from pathlib import Path
+"""The ISETBio-style baseline (``isetbio_style.py`` beside this file, which
+benchmarks/baselines/bench_naive.py times lfjax against): its sampling reproduces ISETBio's,
+its PSF is the diffraction-limited one, and its view shifts have the right sign under
+ISETBio's flipped y axis. Pure numpy, < 2 s."""
 
 import numpy as np
 import pytest
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 from isetbio_style import (
     ARCMIN_PER_RAD,

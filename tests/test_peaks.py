@@ -293,8 +293,8 @@ def test_flat_curves_of_strongly_aberrated_eyes_are_not_reported_as_successes():
 
 def test_non_smooth_peak_newton_reports_failure_golden_and_bfgs_find_it():
     """A peak with a kink (the Strehl ratio is a maximum over PSF samples, so its curve has
-    corners; benchmarks/peak_failure_cases.json "non_smooth_strehl"): V = 1 − 0.3|a − c| −
-    0.5(a − c)². Newton on dV/da cannot converge (the slope jumps at the peak) and must say
+    corners; benchmarks/validation/peak_failure_cases.json "non_smooth_strehl"):
+    V = 1 − 0.3|a − c| − 0.5(a − c)². Newton on dV/da cannot converge (the slope jumps at the peak) and must say
     so rather than return a point; golden section (``"auto"`` for the Strehl ratio) and BFGS
     find the corner."""
     def kinked(a, args):

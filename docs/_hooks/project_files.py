@@ -1,10 +1,12 @@
 """MkDocs hook: serve project files that live outside ``docs/`` from their own paths.
 
 The notebooks (``notebooks/*.ipynb``, rendered by mkdocs-jupyter with their committed
-outputs) and the benchmarks' results (``benchmarks/RESULTS.md`` and the figures, tables and
-reports next to it) are read where they are, so the site cannot drift from them: there is no
-copy to forget. Each file keeps its project path as its site path, so the relative links
-inside ``RESULTS.md`` and the guides' links to ``../benchmarks/...`` resolve as they do on
+outputs) and the benchmarks' results (``benchmarks/RESULTS.md``, its summary table, and
+``benchmarks/results/*.md``, one page per topic, with the figures, tables and reports the
+scripts write beside themselves in ``benchmarks/{speed,baselines,validation,studies}/``) are
+read where they are, so the site cannot drift from them: there is no copy to forget. Each
+file keeps its project path as its site path, so the relative links between the results
+pages, to the figures, and the guides' links to ``../benchmarks/...`` resolve as they do on
 GitHub.
 """
 
@@ -19,8 +21,8 @@ from mkdocs.structure.files import File, Files
 # (folder, glob patterns): what the site shows from outside docs/.
 MOUNTS = {
     "notebooks": ("*.ipynb",),
-    "benchmarks": ("RESULTS.md", "**/*.png", "**/*.csv", "**/*.json", "**/*.toml",
-                   "display_effects/REPORT.md", "sweep_1000/*.md"),
+    "benchmarks": ("RESULTS.md", "results/*.md", "**/*.png", "**/*.csv", "**/*.json",
+                   "**/*.toml", "studies/display_effects/REPORT.md", "studies/sweep_1000/*.md"),
 }
 
 
@@ -45,9 +47,9 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
     """Make links that work on GitHub work on the site too.
 
     In the project, ``docs/guides/x.md`` reaches ``benchmarks/`` as ``../../benchmarks/``
-    and ``benchmarks/RESULTS.md`` reaches ``docs/design.md`` as ``../docs/design.md``. On
-    the site, ``docs/`` is the root and the mounted folders sit beside its pages, so each such
-    link loses one level (or its ``docs/``)."""
+    and ``benchmarks/results/x.md`` reaches ``docs/design.md`` as ``../../docs/design.md``.
+    On the site, ``docs/`` is the root and the mounted folders sit beside its pages, so each
+    such link loses one level (or its ``docs/``)."""
     markdown = _blank_line_before_lists(markdown)
     depth = page.file.src_uri.count("/")
     up = "../" * depth
