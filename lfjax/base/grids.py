@@ -49,7 +49,8 @@ class DepthGrid:
 
     @property
     def accommodation_D(self) -> np.ndarray:
-        """Accommodation states ``0, step, …, ≤ max``, D (:func:`inclusive_grid`), shape (n_acc,)."""
+        """Accommodation states ``0, step, …, ≤ max``, D (:func:`inclusive_grid`),
+        shape (n_acc,)."""
         return inclusive_grid(0.0, self.accommodation_max_D, self.accommodation_step_D)
 
 
