@@ -86,7 +86,7 @@ class StudyConfig(DepthGrid):
         main study's plan, so each change is measured on the same spectrum).
     mft_pupil_samples : ((layout, samples), ...)
         Layouts whose elemental PSFs come from the matrix Fourier transform with this many
-        pupil samples across a view (:class:`~lfjax.Sampling`), at the field guard's
+        pupil samples across a view (:class:`~lfjax.base.sampling.Sampling`), at the field guard's
         frequency step; the others use the FFT. The FFT's pupil step is λ·Δf, so a small
         view gets few samples at long wavelengths (26 across a 4×4 view at 700 nm). On the
         paper's grid (benchmarks/RESULTS.md §9), MFT 48 is twice as accurate as the FFT for
