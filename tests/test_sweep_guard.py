@@ -62,6 +62,45 @@ def test_grids_and_pupils_outside_the_model_are_refused_with_the_range(changes, 
     assert message in str(err.value)
 
 
+def test_every_key_is_declared_once_and_its_declared_range_is_enforced():
+    """Each SweepConfig field (but options and base_dir) is one declared key: its type is
+    the field's, its unit its name's suffix, its default the field's; every declared range
+    or choice is refused just outside it, naming the key, and shows in the template and the
+    docstring."""
+    import dataclasses
+
+    from lfjax.sweep.config import KEYS, OneOf, Range
+
+    fields = [f.name for f in dataclasses.fields(SweepConfig)
+              if f.name not in ("options", "base_dir")]
+    assert [k.field for k in KEYS] == fields
+    assert len({k.where for k in KEYS}) == len(KEYS)
+    default = SweepConfig()
+    template = " ".join(config_template().replace("#", " ").split())  # comments unwrapped
+    doc = SweepConfig.__doc__
+    for key in KEYS:
+        assert getattr(default, key.field) == key.default, key.where
+        assert key.unit == ("" if "_" not in key.name else
+                            {"D": "D", "mm": "mm", "nm": "nm", "cpd": "cpd",
+                             "arcmin": "arcmin"}.get(key.name.rsplit("_", 1)[1], "")), key.where
+        assert f"[{key.section}] {key.name}``" in doc, key.where
+        for check in key.checks:
+            if isinstance(check, Range):
+                outside = (check.lo - (0 if check.lo_open else 1) if check.lo is not None
+                           else check.hi + (0 if check.hi_open else 1))
+                bad = float(outside) if key.kind in ("float", "floats") else int(outside)
+            elif isinstance(check, OneOf):
+                bad = 5.5 if key.kind in ("float", "floats") else "nope"
+            else:
+                continue
+            assert check.rule(key.unit) in template, (key.where, check.rule(key.unit))
+            value = [bad] if key.kind in ("floats", "strings") else bad
+            with pytest.raises(SweepConfigError) as err:
+                config_from_dict(one_eye(**{key.section: {key.name: value}}))
+            assert any(p.startswith(f"{key.where} must ") for p in err.value.problems), (
+                key.where, err.value.problems)
+
+
 def test_empty_config_file_and_a_folder_are_refused(tmp_path):
     empty = tmp_path / "empty.toml"
     empty.write_text("# nothing set yet\n")

@@ -2,12 +2,13 @@
 
 Units and angular conversions (:mod:`~lfjax.base.units`), Zernike polynomials
 (:mod:`~lfjax.base.zernike`), the Fourier sampling grids and their aliasing guards
-(:mod:`~lfjax.base.sampling`), pupil apertures and the Fresnel propagator
+(:mod:`~lfjax.base.sampling`), the host grids of depths, accommodation states and wavelengths
+(:mod:`~lfjax.base.grids`), pupil apertures and the Fresnel propagator
 (:mod:`~lfjax.base.apertures`), array type aliases (:mod:`~lfjax.base.types`) and the
 host-side helpers for atomic files and plain-text tables (:mod:`~lfjax.base.files`,
 :mod:`~lfjax.base.tables`). Nothing here imports any other part of lfjax.
 """
 
-from lfjax.base import apertures, files, sampling, tables, types, units, zernike
+from lfjax.base import apertures, files, grids, sampling, tables, types, units, zernike
 
-__all__ = ["apertures", "files", "sampling", "tables", "types", "units", "zernike"]
+__all__ = ["apertures", "files", "grids", "sampling", "tables", "types", "units", "zernike"]

@@ -66,6 +66,7 @@ from lfjax.layout_opt import (
     parallax_warning,
 )
 from lfjax.model.options import ModelOptions
+from lfjax.model.layout_files import jsonable
 from lfjax.model.layout_plots import draw_layout
 from lfjax.display.panel import Panel
 from lfjax.vision.resolution import perceivable_cutoff_cpd
@@ -585,20 +586,6 @@ def panel_specification(panel: Panel, wavelength_nm: float = 550.0) -> dict:
     return {"build": build, "derived": derived}
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.ndarray, jax.Array)):
-        return _jsonable(np.asarray(x).tolist())
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
-
-
 def _score_units(score: dict | None) -> dict | None:
     if score is None:
         return None
@@ -642,7 +629,7 @@ def save_design(result: DesignResult, out_dir, command: str | None = None) -> li
                            utc=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")),
     }
     path = out / "design.json"
-    path.write_text(json.dumps(_jsonable(record), indent=2) + "\n")
+    path.write_text(json.dumps(jsonable(record), indent=2) + "\n")
     files = [path]
     chosen = best or next((f for f in result.fits if f.panel is not None), None)
     if chosen is not None:

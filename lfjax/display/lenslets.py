@@ -63,6 +63,16 @@ from lfjax.base.units import ARCMIN_PER_RADIAN
 
 DIFFRACTION_MODES = ("off", "fresnel", "modulus")
 APERTURE_SHAPES = ("circle", "square")
+_CHOICES = {"aperture": APERTURE_SHAPES, "diffraction": DIFFRACTION_MODES}
+
+
+def check_choices(owner: str, **values: str) -> None:
+    """Refuse a static option outside its choices (``aperture``: :data:`APERTURE_SHAPES`,
+    ``diffraction``: :data:`DIFFRACTION_MODES`), in the order given: ``ValueError``
+    ``"Owner.name='value'; allowed: …"``."""
+    for name, value in values.items():
+        if value not in _CHOICES[name]:
+            raise ValueError(f"{owner}.{name}={value!r}; allowed: {', '.join(_CHOICES[name])}")
 
 
 class DisplayOptics(eqx.Module):
@@ -89,14 +99,7 @@ class DisplayOptics(eqx.Module):
     pixel_width_arcmin: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
 
     def __check_init__(self):
-        if self.diffraction not in DIFFRACTION_MODES:
-            raise ValueError(
-                f"DisplayOptics.diffraction={self.diffraction!r}; allowed: {', '.join(DIFFRACTION_MODES)}"
-            )
-        if self.aperture not in APERTURE_SHAPES:
-            raise ValueError(
-                f"DisplayOptics.aperture={self.aperture!r}; allowed: {', '.join(APERTURE_SHAPES)}"
-            )
+        check_choices("DisplayOptics", diffraction=self.diffraction, aperture=self.aperture)
         if _concrete(self.fresnel_distance_mm, self.pixel_width_arcmin):
             z = np.asarray(self.fresnel_distance_mm, float)
             w = np.asarray(self.pixel_width_arcmin, float)
@@ -181,12 +184,7 @@ class LensletArray(eqx.Module):
     diffraction: str = eqx.field(static=True, default="fresnel")
 
     def __check_init__(self):
-        if self.aperture not in APERTURE_SHAPES:
-            raise ValueError(f"LensletArray.aperture={self.aperture!r}; allowed: {', '.join(APERTURE_SHAPES)}")
-        if self.diffraction not in DIFFRACTION_MODES:
-            raise ValueError(
-                f"LensletArray.diffraction={self.diffraction!r}; allowed: {', '.join(DIFFRACTION_MODES)}"
-            )
+        check_choices("LensletArray", aperture=self.aperture, diffraction=self.diffraction)
         _check_positive("pitch_mm", self.pitch_mm)
         _check_positive("aperture_mm", self.aperture_mm)
         _check_positive("focal_length_mm", self.focal_length_mm, allow_inf=True)
@@ -348,4 +346,5 @@ __all__ = [
     "pixel_transfer",
     "DIFFRACTION_MODES",
     "APERTURE_SHAPES",
+    "check_choices",
 ]

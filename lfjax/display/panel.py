@@ -49,7 +49,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from lfjax.display.lenslets import APERTURE_SHAPES, DIFFRACTION_MODES, DisplayOptics, LensletArray
+from lfjax.display.lenslets import DisplayOptics, LensletArray, check_choices
 from lfjax.model.layouts import Layout
 from lfjax.base.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
 
@@ -120,10 +120,7 @@ class Panel(eqx.Module):
     name: str = eqx.field(static=True, default="panel")
 
     def __check_init__(self):
-        if self.aperture not in APERTURE_SHAPES:
-            raise ValueError(f"Panel.aperture={self.aperture!r}; allowed: {', '.join(APERTURE_SHAPES)}")
-        if self.diffraction not in DIFFRACTION_MODES:
-            raise ValueError(f"Panel.diffraction={self.diffraction!r}; allowed: {', '.join(DIFFRACTION_MODES)}")
+        check_choices("Panel", aperture=self.aperture, diffraction=self.diffraction)
         counts = tuple(self.pixel_count)
         if (len(counts) != 2 or any(isinstance(c, bool) or int(c) != c or c < 1 for c in counts)):
             raise ValueError(f"Panel.pixel_count must be two integers >= 1 (horizontal, vertical), "

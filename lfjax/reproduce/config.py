@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from lfjax.base.grids import DepthGrid, inclusive_grid
 from lfjax.model.eyes import Eyes, append_average_eye, sample_eyes
 from lfjax.model.layouts import LF_LAYOUTS as LF_LAYOUTS
 from lfjax.model.layouts import PAPER_LAYOUTS
@@ -35,14 +35,8 @@ what the claims read (peaks to ``peak_tolerance_D``, cut-offs to ``cutoff_tolera
 lfjax ≤ 0.3, made for a VSOTF error of 1e-3)."""
 
 
-def _grid(start: float, stop: float, step: float) -> tuple[float, ...]:
-    n = int(math.floor((stop - start) / step + 1e-9)) + 1
-    return tuple(float(v) for v in np.round(start + step * np.arange(n), 9))
-
-
-
 @dataclass(frozen=True)
-class StudyConfig:
+class StudyConfig(DepthGrid):
     """Settings of the reproduction (defaults: the paper's experiment).
 
     Attributes
@@ -106,7 +100,7 @@ class StudyConfig:
     seed: int = 0
     pupil_diameter_mm: float = 3.0
     cdp_D: float = 2.0
-    depth_offsets_D: tuple[float, ...] = _grid(-2.0, 2.0, 0.5)
+    depth_offsets_D: tuple[float, ...] = tuple(inclusive_grid(-2.0, 2.0, 0.5).tolist())
     accommodation_step_D: float = 0.2
     accommodation_max_D: float = 5.0
     window_D: float = 2.0
@@ -197,17 +191,8 @@ class StudyConfig:
         return dataclasses.replace(self, **changes)
 
     @property
-    def depths_D(self) -> np.ndarray:
-        return np.round(self.cdp_D + np.asarray(self.depth_offsets_D, float), 9)
-
-    @property
-    def accommodation_D(self) -> np.ndarray:
-        return np.asarray(_grid(0.0, self.accommodation_max_D, self.accommodation_step_D))
-
-    @property
     def wavelength_grid_nm(self) -> np.ndarray:
-        start, stop, step = self.wavelengths_nm
-        return np.asarray(_grid(start, stop, step))
+        return inclusive_grid(*self.wavelengths_nm)
 
     def as_attrs(self) -> dict:
         """Flat, netCDF-safe description (numbers and strings)."""
@@ -257,7 +242,7 @@ def _planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, 
     fixed_step = dict(config.wavelength_steps_nm).get(layout.name)
     spectrum = {"wavelengths_nm": config.wavelength_grid_nm}
     if config.accuracy == "claims" and fixed_step is not None:
-        spectrum = {"wavelengths_nm": np.asarray(_grid(start, stop, fixed_step))}
+        spectrum = {"wavelengths_nm": inclusive_grid(start, stop, fixed_step)}
     elif config.accuracy == "claims":
         spectrum = {"wavelength_range_nm": (start, stop), "vsotf_tolerance": None,
                     "peak_tolerance_D": config.peak_tolerance_D,

@@ -243,31 +243,44 @@ def fig_natural(ds, metric: str = "vsotf") -> Figure:
     return fig
 
 
-def fig_viewpoints(ds, metric: str = "vsotf") -> Figure:
-    """Figs. 7 and 8: through-focus metric per viewpoint density (rows) × rendered depth
-    (columns); grey: eyes, red: mean peak, blue: average eye, green: the CDP."""
+def _layout_by_depth(ds, panel, ylabel: str, xlabel: str, title: str, row_height: float,
+                     sharey) -> Figure:
+    """A panel per light-field layout (rows) × rendered depth (columns), drawn by
+    ``panel(ax, layout, depth_index)``, with one legend and shared axis labels."""
     layouts = [n for n in ("2x2", "3x3", "4x4") if n in ds.layout.values]
     nd = ds.depth.size
-    window = float(ds.attrs.get("config_window_D", 2.0))
-    fig = Figure(figsize=(1.9 * nd + 1.0, 2.1 * len(layouts) + 1.2))
-    axes = fig.subplots(len(layouts), nd, sharex=True, sharey="row", squeeze=False,
+    fig = Figure(figsize=(1.9 * nd + 1.0, row_height * len(layouts) + 1.2))
+    axes = fig.subplots(len(layouts), nd, sharex=True, sharey=sharey, squeeze=False,
                         gridspec_kw=_GRID_SPACING)
     for r, name in enumerate(layouts):
         for c in range(nd):
             ax = axes[r, c]
-            _through_focus_panel(ax, ds, name, c, metric, values_in_labels=False)
-            ax.set_xlim(-window - 0.1, window + 0.1)
+            panel(ax, name, c)
             ax.tick_params(labelsize=7)
             if r == 0:
                 ax.set_title(f"CDP {float(ds.depth_rel_cdp[c]):+.1f} D", fontsize=9)
             if c == 0:
-                ax.set_ylabel(f"{name}\n{METRIC_LABEL[metric]}", fontsize=9)
+                ax.set_ylabel(f"{name}\n{ylabel}", fontsize=9)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
-    fig.supxlabel("accommodation relative to the rendered depth (D); grey lines: each eye's "
-                  "peak", fontsize=9, y=0.07)
-    fig.suptitle(f"Through-focus {METRIC_LABEL[metric]} for viewpoint densities", fontsize=11)
+    fig.supxlabel(xlabel, fontsize=9, y=0.07)
+    fig.suptitle(title, fontsize=11)
     return fig
+
+
+def fig_viewpoints(ds, metric: str = "vsotf") -> Figure:
+    """Figs. 7 and 8: through-focus metric per viewpoint density (rows) × rendered depth
+    (columns); grey: eyes, red: mean peak, blue: average eye, green: the CDP."""
+    window = float(ds.attrs.get("config_window_D", 2.0))
+
+    def panel(ax, name, c):
+        _through_focus_panel(ax, ds, name, c, metric, values_in_labels=False)
+        ax.set_xlim(-window - 0.1, window + 0.1)
+
+    return _layout_by_depth(
+        ds, panel, METRIC_LABEL[metric],
+        "accommodation relative to the rendered depth (D); grey lines: each eye's peak",
+        f"Through-focus {METRIC_LABEL[metric]} for viewpoint densities", 2.1, "row")
 
 
 # ----------------------------------------------------------------------------- Fig. 9
@@ -349,25 +362,9 @@ def _mtf_panel(ax, ds, layout, depth_index, fmax=60.0):
 
 def fig_radial_mtf(ds) -> Figure:
     """Fig. 10: radial MTFs at the VSOTF-predicted accommodation per density × depth."""
-    layouts = [n for n in ("2x2", "3x3", "4x4") if n in ds.layout.values]
-    nd = ds.depth.size
-    fig = Figure(figsize=(1.9 * nd + 1.0, 2.0 * len(layouts) + 1.2))
-    axes = fig.subplots(len(layouts), nd, sharex=True, sharey=True, squeeze=False,
-                        gridspec_kw=_GRID_SPACING)
-    for r, name in enumerate(layouts):
-        for c in range(nd):
-            ax = axes[r, c]
-            _mtf_panel(ax, ds, name, c)
-            ax.tick_params(labelsize=7)
-            if r == 0:
-                ax.set_title(f"CDP {float(ds.depth_rel_cdp[c]):+.1f} D", fontsize=9)
-            if c == 0:
-                ax.set_ylabel(f"{name}\nradial MTF", fontsize=9)
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
-    fig.supxlabel("spatial frequency (cpd)", fontsize=9, y=0.07)
-    fig.suptitle("Radial MTF at the accommodation predicted by VSOTF", fontsize=11)
-    return fig
+    return _layout_by_depth(ds, lambda ax, name, c: _mtf_panel(ax, ds, name, c), "radial MTF",
+                            "spatial frequency (cpd)",
+                            "Radial MTF at the accommodation predicted by VSOTF", 2.0, True)
 
 
 def fig_cutoff(ds) -> Figure:

@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lfjax.base.grids import DepthGrid
 from lfjax.display.lenslets import lenslets_for_layout
 from lfjax.display.spectra import display_spectrum
 from lfjax.model.eyes import Eyes
@@ -47,7 +48,7 @@ LAYOUT_SIZES = {"2x2": 2, "3x3": 3, "4x4": 4}
 
 
 @dataclass(frozen=True)
-class DisplayStudyConfig:
+class DisplayStudyConfig(DepthGrid):
     """Settings of the display-effects study (mm, D, nm).
 
     Attributes
@@ -122,14 +123,10 @@ class DisplayStudyConfig:
         return cls(**base)
 
     @property
-    def depths_D(self) -> np.ndarray:
-        return np.round(self.cdp_D + np.asarray(self.depth_offsets_D, float), 9)
-
-    @property
-    def accommodation_D(self) -> np.ndarray:
-        top = float(self.depths_D.max()) + max(self.window_D, self.sweep_window_D)
-        n = int(math.floor(top / self.accommodation_step_D + 1e-9)) + 1
-        return np.round(self.accommodation_step_D * np.arange(n), 9)
+    def accommodation_max_D(self) -> float:
+        """Last accommodation state, D: the farthest rendered depth plus the wider window
+        (``accommodation_D`` is 0 … this in ``accommodation_step_D``)."""
+        return float(self.depths_D.max()) + max(self.window_D, self.sweep_window_D)
 
     def white_spectrum(self):
         """The paper's V(λ)-weighted white on 400–700 nm at ``wavelength_step_nm``."""

@@ -7,9 +7,16 @@ takes the same structure as a dict. Every problem found (unknown keys, values of
 type or unit, impossible ranges) is collected and raised once as :class:`SweepConfigError`,
 one line per problem, so a user fixes the file in one pass.
 
-Units are part of the key names (``_D`` dioptres, ``_mm`` millimetres, ``_nm`` nanometres,
-``_cpd`` cycles per degree); a key with another unit suffix is reported as unknown with the
-key it probably meant.
+Each key is declared once, on its :class:`SweepConfig` field: the field gives its name, type
+and default, and its metadata (a :class:`Key`) its section, unit, help line, allowed values
+and an example. :data:`KEYS` collects them; the TOML schema, the type and range checks,
+:func:`config_template` and the key list in ``SweepConfig``'s docstring are derived from
+it. Checks that relate several keys (a pupil against the measured pupil, a depth against
+the CDP, …) are written once, below the keys.
+
+Units are part of the key names (:data:`UNIT_SUFFIXES`: ``_D`` dioptres, ``_mm``
+millimetres, ``_nm`` nanometres, ``_cpd`` cycles per degree, ``_arcmin`` arcminutes); a key
+with another unit suffix is reported as unknown with the key it probably meant.
 """
 
 from __future__ import annotations
@@ -18,12 +25,17 @@ import dataclasses
 import difflib
 import json
 import math
+import textwrap
 import tomllib
+import types
+import typing
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from lfjax.base.grids import DepthGrid, inclusive_grid
 from lfjax.display.lenslets import DisplayOptics, display_optics_at
 from lfjax.display.spectra import DISPLAY_NAMES
 from lfjax.model.eyes import THIBOS_PUPILS_MM
@@ -44,6 +56,10 @@ MAX_ACCOMMODATION_STATES = 10_000
 """Most accommodation states on the grid (0.0005 D steps over 5 D); the store holds every
 state for every eye, and continuous peaks refine off the grid."""
 
+UNIT_SUFFIXES = {"_D": "dioptres", "_mm": "millimetres", "_nm": "nanometres",
+                 "_cpd": "cycles per degree", "_arcmin": "arcminutes"}
+"""A key's unit is the suffix of its name (``cdp_D`` is in D); a key without one has none."""
+
 
 class SweepConfigError(ValueError):
     """A sweep configuration with one or more problems (``problems``: one string each)."""
@@ -54,108 +70,309 @@ class SweepConfigError(ValueError):
         super().__init__(f"{source}: {len(self.problems)} problem(s):\n{lines}")
 
 
-def _grid(start: float, stop: float, step: float) -> np.ndarray:
-    n = int(math.floor((stop - start) / step + 1e-9)) + 1
-    return np.round(start + step * np.arange(n), 9)
+# ------------------------------------------------------------------- how a key is declared
+
+@dataclass(frozen=True)
+class Key:
+    """One key of the TOML file, declared on its :class:`SweepConfig` field.
+
+    Written in the field's metadata: ``section``, ``help``, ``checks``, and where needed
+    ``name``, ``example`` and ``none_word``; taken from the field itself: ``field``,
+    ``kind`` and ``optional`` (its annotation), ``default``; from the name: ``unit``.
+
+    Attributes
+    ----------
+    section : the TOML table it stands in (``[population]``, …)
+    help : what it sets, one line (the template's comment, the docstring's key list)
+    checks : rules on the value alone, each a callable ``check(key, value, base_dir)``
+        returning the problems it finds (``Range``, ``OneOf``, ``NonEmpty``, ``Distinct``
+        or a function); a key's every check runs, so all its problems are listed at once
+    name : the key in its table (default: the field's name)
+    example : a value the template shows, commented out, for a key not set by default
+    none_word : the TOML word that means None where None means something
+        (``freq_step_cpd = "planned"``); other optional keys are simply left out
+    field : the :class:`SweepConfig` field it sets
+    kind : its TOML type: ``int``, ``float``, ``bool``, ``string``, ``floats`` or ``strings``
+    optional : None is a valid value (the annotation is ``X | None``)
+    default : the field's default
+    unit : from the name's suffix (:data:`UNIT_SUFFIXES`), "" if none
+    """
+
+    section: str
+    help: str
+    checks: tuple = ()
+    name: str = ""
+    example: object = None
+    none_word: str | None = None
+    field: str = ""
+    kind: str = ""
+    optional: bool = False
+    default: object = None
+    unit: str = ""
+
+    @property
+    def where(self) -> str:
+        """``section.name``, as problems name the key."""
+        return f"{self.section}.{self.name}"
+
+    def rules(self) -> str:
+        """The allowed values in words ("" when no check describes itself)."""
+        described = [c.rule(self.unit) for c in self.checks if hasattr(c, "rule")]
+        return "; ".join(r for r in described if r)
+
+
+def _key(section: str, help: str, *checks, name: str = "", example=None,
+         none_word: str | None = None) -> dict:
+    """Field metadata declaring a TOML key (the rest of :class:`Key` comes from the field)."""
+    return {"sweep_key": Key(section, help, tuple(checks), name, example, none_word)}
+
+
+def _shown(value):
+    return list(value) if isinstance(value, tuple) else value
 
 
 @dataclass(frozen=True)
-class SweepConfig:
+class Range:
+    """The interval a number (or every number of a list) must lie in.
+
+    ``text`` writes the interval where ``:g`` would not (``[0, 2**32)``); ``note`` says why,
+    in parentheses after it; ``tol`` lets values this close outside it pass (rounding)."""
+
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    text: str | None = None
+    note: str = ""
+    tol: float = 0.0
+
+    def rule(self, unit: str = "") -> str:
+        if self.text is not None:
+            body = f"in {self.text}"
+        elif self.lo is not None and self.hi is not None:
+            body = (f"in {'(' if self.lo_open else '['}{self.lo:g}, "
+                    f"{self.hi:g}{')' if self.hi_open else ']'}")
+        elif self.lo is not None:
+            body = f"{'>' if self.lo_open else '>='} {self.lo:g}"
+        else:
+            body = f"{'<' if self.hi_open else '<='} {self.hi:g}"
+        return f"{body} {unit}".rstrip()
+
+    def holds(self, x) -> bool:
+        if self.lo is not None and not (x > self.lo - self.tol if self.lo_open
+                                        else x >= self.lo - self.tol):
+            return False
+        return self.hi is None or (x < self.hi + self.tol if self.hi_open
+                                   else x <= self.hi + self.tol)
+
+    def __call__(self, key: Key, value, base_dir: Path) -> list[str]:
+        values = value if isinstance(value, tuple) else (value,)
+        if all(self.holds(x) for x in values):
+            return []
+        notes = [n for n in (self.note, key.none_word and f'or "{key.none_word}"') if n]
+        why = "".join(f" ({n})" for n in notes)
+        return [f"{key.where} must be {self.rule(key.unit)}{why}, got {_shown(value)}"]
+
+
+@dataclass(frozen=True)
+class OneOf:
+    """The values a key (or every entry of a list key) may take; ``note`` says why."""
+
+    choices: tuple
+    note: str = ""
+
+    def listed(self, unit: str = "") -> str:
+        if all(isinstance(c, str) for c in self.choices):
+            return ", ".join(self.choices)
+        return f"{list(self.choices)} {unit}".rstrip()
+
+    def rule(self, unit: str = "") -> str:
+        return f"one of {self.listed(unit)}"
+
+    def __call__(self, key: Key, value, base_dir: Path) -> list[str]:
+        why = f" ({self.note})" if self.note else ""
+        if isinstance(value, tuple):
+            bad = [x for x in value if x not in self.choices]
+            return [f"{key.where} must list only {self.listed(key.unit)}{why}, got {bad}"
+                    ] if bad else []
+        if value in self.choices:
+            return []
+        return [f"{key.where} must be {self.rule(key.unit)}{why}, got {value!r}"]
+
+
+@dataclass(frozen=True)
+class NonEmpty:
+    """A list key must hold at least one ``what``."""
+
+    what: str
+
+    def __call__(self, key: Key, value, base_dir: Path) -> list[str]:
+        return [] if value else [f"{key.where} must list at least one {self.what}"]
+
+
+@dataclass(frozen=True)
+class Distinct:
+    """A list key holds no value twice (numbers compared to 1e-9)."""
+
+    def __call__(self, key: Key, value, base_dir: Path) -> list[str]:
+        seen = [round(x, 9) if isinstance(x, float) else x for x in value]
+        return [] if len(set(seen)) == len(seen) else [
+            f"{key.where} has repeated values: {list(value)}"]
+
+
+def _layout_entries(key: Key, layouts, base_dir: Path) -> list[str]:
+    """Each entry is a paper layout or a readable layout JSON file."""
+    p = []
+    for entry in layouts:
+        if entry in PAPER_LAYOUTS:
+            continue
+        if not entry.endswith(".json"):
+            p.append(f"{key.where}: {entry!r} is neither a paper layout "
+                     f"({', '.join(PAPER_LAYOUTS)}) nor a .json layout file")
+            continue
+        path = Path(entry) if Path(entry).is_absolute() else base_dir / entry
+        if not path.is_file():
+            p.append(f"{key.where}: layout file {str(path)!r} does not exist")
+            continue
+        try:
+            load_layout_json(path)
+        except (ValueError, OSError, json.JSONDecodeError) as err:
+            p.append(f"{key.where}: {path}: {err}")
+    return p
+
+
+def _wavelength_grid(key: Key, wl, base_dir: Path) -> list[str]:
+    """[start, stop] or [start, stop, step], increasing, the step no finer than the data."""
+    if len(wl) not in (2, 3):
+        return [f"{key.where} must be [start, stop] (step planned) or [start, stop, step] in "
+                f"nm, got {list(wl)}"]
+    start, stop, step = wl if len(wl) == 3 else (*wl, 5.0)
+    if not (step > 0 and stop >= start):
+        return [f"{key.where}: need step > 0 and stop >= start, got {list(wl)}"]
+    if step < MIN_WAVELENGTH_STEP_NM - 1e-12:
+        return [f"{key.where} step must be >= {MIN_WAVELENGTH_STEP_NM:g} nm (the tabulation "
+                f"interval of the luminous-efficiency data; a finer step only interpolates), "
+                f"got {step:g} nm ({(stop - start) / step + 1:.3g} wavelengths)"]
+    return []
+
+
+# --------------------------------------------------------------------------- the keys
+
+@dataclass(frozen=True)
+class SweepConfig(DepthGrid):
     """Everything a sweep computes (defaults: the paper's scene on 1,000 eyes).
 
-    Population
-    ----------
-    n_eyes : virtual eyes drawn from Thibos et al. (2002), ``sample_eyes(seed, n_eyes)``
-    seed : seed of the draw, 0 ≤ seed < 2³²
-    measured_pupil_mm : which Thibos fit to sample (3.0, 4.5, 6.0 or 7.5 mm); the eyes are
-        evaluated inside every pupil of ``pupil_diameters_mm`` (each ≤ this). Default: the
-        smallest fit that holds the largest pupil.
-    pupil_diameters_mm : calculation pupils, mm
-    average_eye : append the Thibos average eye (of the measured pupil) as one more eye,
-        flagged ``is_average`` (claims 4 and 5 compare against it)
+    Every field but ``options`` and ``base_dir`` is one key of the TOML file, declared once
+    on the field (:class:`Key`); the list of keys below, with their types, defaults, units
+    and allowed values, is derived from those declarations. ``options`` is the ``[model]``
+    table (any :class:`lfjax.ModelOptions` field); ``base_dir`` is the folder relative layout
+    paths start from (the config file's).
 
-    Display
-    -------
-    layouts : names from ``lfjax.model.layouts.PAPER_LAYOUTS`` (sized to each pupil) or paths of
-        layout JSON files written by ``lfjax optimise`` (fixed in mm; relative paths are
-        relative to the config file)
-    cdp_D : central depth plane, D
-    depth_offsets_D : rendered depths relative to the CDP, D (natural view: the CDP only)
-    lenslet_distance_mm : a lenslet-array display at this distance from the eye (mm): each
-        view is its lenslet's Fresnel pattern (:func:`lfjax.display.lenslets.display_optics_at`);
-        None: the paper's ideal display
-    pixel_width_arcmin : angular width of the emitters, arcmin (0: points)
-
-    Accommodation
-    -------------
-    accommodation_step_D, accommodation_max_D : absolute grid 0 … max, D
-    window_D : each depth is evaluated within ±window_D of it, D
-
-    Spectrum and sampling
-    ---------------------
-    wavelengths_nm : (start, stop, step), nm; or (start, stop): the step is planned
-        (:func:`lfjax.sweep.compute.sweep_spectrum`): the coarsest whose proxy peaks stay
-        within ``peak_tolerance_D`` and cut-offs within ``cutoff_tolerance_cpd`` in every
-        (pupil, layout) of the sweep (default; 25 nm for the paper's scene)
-    display_spectrum : a built-in display's white (:data:`lfjax.display.spectra.DISPLAY_NAMES`)
-        weighted by V(λ) on the wavelengths that carry it, instead of V(λ) white on
-        ``wavelengths_nm`` (whose step then sets the cell width); None: V(λ) white
-    freq_step_cpd : frequency step of the OTF grid, cpd; None: planned per (pupil, layout)
-        by :func:`lfjax.planner.plan.plan_sampling` on the whole population
-    vsotf_tolerance : with a planned step: the planner's VSOTF accuracy target (its proxy
-        runs, seconds per layout); None: its field guard alone (milliseconds)
-    peak_tolerance_D, cutoff_tolerance_cpd : targets of a planned wavelength step (D, cpd)
-
-    Metrics
-    -------
-    continuous_peaks : metrics whose peak is refined off the grid (``lfjax.vision.peaks``)
-    peak_method : refinement method (``lfjax.vision.peaks.PEAK_METHODS``)
-    cutoff_threshold : MTF value defining the cut-off frequency
-    dof_fraction : depth of field fraction (claim 6; the report's population claims)
-
-    Run
-    ---
-    chunk_size : eyes per compiled call (memory grows linearly with it); a multiple of the
-        number of local devices when sharded
-    options : :class:`lfjax.ModelOptions`
+    Eyes come from ``sample_eyes(seed, n_eyes)`` on the Thibos fit of ``fit_pupil_mm`` and are
+    evaluated inside every pupil of ``pupil_diameters_mm``. Each depth ``cdp_D + offset`` is
+    evaluated on the states of the absolute grid 0 … ``max_D`` within ±``window_D`` of it.
+    Without a wavelength step the sweep plans it (:func:`lfjax.sweep.compute.sweep_spectrum`):
+    the coarsest whose proxy peaks stay within ``peak_tolerance_D`` and cut-offs within
+    ``cutoff_tolerance_cpd`` in every (pupil, layout) of the sweep (25 nm for the paper's
+    scene); a planned frequency step comes from :func:`lfjax.planner.plan.plan_sampling` on
+    the whole population.
     """
 
-    n_eyes: int = 1000
-    seed: int = 0
-    measured_pupil_mm: float | None = None
-    pupil_diameters_mm: tuple[float, ...] = (3.0,)
-    average_eye: bool = True
-    layouts: tuple[str, ...] = PAPER_LAYOUTS
-    cdp_D: float = 2.0
-    depth_offsets_D: tuple[float, ...] = tuple(float(x) for x in _grid(-2.0, 2.0, 0.5))
-    lenslet_distance_mm: float | None = None
-    pixel_width_arcmin: float = 0.0
-    accommodation_step_D: float = 0.2
-    accommodation_max_D: float = 5.0
-    window_D: float = 2.0
-    wavelengths_nm: tuple[float, ...] = (400.0, 700.0)
-    display_spectrum: str | None = None
-    freq_step_cpd: float | None = None
-    vsotf_tolerance: float | None = None
-    peak_tolerance_D: float = 0.01
-    cutoff_tolerance_cpd: float = 0.25
-    continuous_peaks: tuple[str, ...] = ("vsotf",)
-    peak_method: str = "local"
-    cutoff_threshold: float = 0.05
-    dof_fraction: float = 0.8
-    chunk_size: int = 8
+    n_eyes: int = field(default=1000, metadata=_key(
+        "population", "virtual eyes drawn from Thibos et al. (2002), sample_eyes(seed, n_eyes)",
+        Range(lo=1)))
+    seed: int = field(default=0, metadata=_key(
+        "population", "seed of the draw", Range(0, 2**32, hi_open=True, text="[0, 2**32)")))
+    measured_pupil_mm: float | None = field(default=None, metadata=_key(
+        "population", "which Thibos fit to sample; the eyes are evaluated inside every pupil "
+        "of pupil_diameters_mm (each <= it); not set: the smallest fit holding the largest pupil",
+        OneOf(THIBOS_PUPILS_MM, note="the Thibos et al. 2002 fits"), example=6.0))
+    pupil_diameters_mm: tuple[float, ...] = field(default=(3.0,), metadata=_key(
+        "population", "calculation pupils, up to the measured pupil",
+        NonEmpty("pupil (mm)"),
+        Range(lo=MIN_PUPIL_MM, tol=1e-9,
+              note=f"the human pupil's range; the eye model and its Thibos statistics are for "
+                   f"{MIN_PUPIL_MM:g}-{max(THIBOS_PUPILS_MM):g} mm"),
+        Distinct()))
+    average_eye: bool = field(default=True, metadata=_key(
+        "population", "append the Thibos average eye (of the measured pupil), flagged "
+        "is_average (claims 4 and 5 compare against it)"))
+    layouts: tuple[str, ...] = field(default=PAPER_LAYOUTS, metadata=_key(
+        "display", f"paper layouts ({', '.join(PAPER_LAYOUTS)}, sized to each pupil) or layout "
+        f"JSON files of lfjax optimise (fixed in mm; relative to the config file)",
+        NonEmpty(f"layout ({', '.join(PAPER_LAYOUTS)} or a layout JSON file)"), Distinct(),
+        _layout_entries))
+    cdp_D: float = field(default=2.0, metadata=_key(
+        "display", "central depth plane", Range(lo=0, note="0 D is optical infinity")))
+    depth_offsets_D: tuple[float, ...] = field(
+        default=tuple(inclusive_grid(-2.0, 2.0, 0.5).tolist()), metadata=_key(
+            "display", "rendered depths relative to the CDP (the natural view: the CDP only)",
+            NonEmpty("depth (D)"), Distinct()))
+    lenslet_distance_mm: float | None = field(default=None, metadata=_key(
+        "display", "a lenslet-array display this far from the eye: each view is its "
+        "lenslet's Fresnel pattern (lfjax.display.lenslets.display_optics_at); not set: the "
+        "paper's ideal display", example=300.0))
+    pixel_width_arcmin: float = field(default=0.0, metadata=_key(
+        "display", "angular width of the emitters (0: points)", Range(lo=0)))
+    accommodation_step_D: float = field(default=0.2, metadata=_key(
+        "accommodation", "step of the absolute accommodation grid 0 ... max_D",
+        Range(lo=0, lo_open=True), name="step_D"))
+    accommodation_max_D: float = field(default=5.0, metadata=_key(
+        "accommodation", "last state of the grid", Range(lo=0, lo_open=True), name="max_D"))
+    window_D: float = field(default=2.0, metadata=_key(
+        "accommodation", "each depth is evaluated within +-window_D of it",
+        Range(lo=0, lo_open=True)))
+    wavelengths_nm: tuple[float, ...] = field(default=(400.0, 700.0), metadata=_key(
+        "spectrum", f"start, stop[, step] (step >= {MIN_WAVELENGTH_STEP_NM:g} nm; without it "
+        f"the step is planned for peak_tolerance_D and cutoff_tolerance_cpd)",
+        _wavelength_grid))
+    display_spectrum: str | None = field(default=None, metadata=_key(
+        "spectrum", "a built-in display's white weighted by V(lambda), on the wavelengths "
+        "that carry it, instead of V(lambda) white (needs a wavelength step: the cells' "
+        "width); not set: V(lambda) white", OneOf(DISPLAY_NAMES), name="display",
+        example="oled"))
+    freq_step_cpd: float | None = field(default=None, metadata=_key(
+        "sampling", "frequency step of the OTF grid, or \"planned\": per (pupil, layout) by "
+        "lfjax.planner.plan.plan_sampling, once, on the whole population",
+        Range(lo=0, lo_open=True), none_word="planned"))
+    vsotf_tolerance: float | None = field(default=None, metadata=_key(
+        "sampling", "with a planned frequency step: the planner's VSOTF accuracy target (its "
+        "proxy runs, seconds per layout); not set: its field guard alone (milliseconds)",
+        Range(0, 0.1, lo_open=True, hi_open=True), example=1e-3))
+    peak_tolerance_D: float = field(default=0.01, metadata=_key(
+        "sampling", "a planned wavelength step moves no peak by more",
+        Range(0, 0.5, lo_open=True)))
+    cutoff_tolerance_cpd: float = field(default=0.25, metadata=_key(
+        "sampling", "a planned wavelength step moves no cut-off by more",
+        Range(0, 10, lo_open=True)))
+    continuous_peaks: tuple[str, ...] = field(default=("vsotf",), metadata=_key(
+        "metrics", "metrics whose peak is refined off the grid (lfjax.vision.peaks)",
+        OneOf(METRICS)))
+    peak_method: str = field(default="local", metadata=_key(
+        "metrics", "how a peak is refined (lfjax.vision.peaks.PEAK_METHODS)",
+        OneOf(PEAK_METHODS)))
+    cutoff_threshold: float = field(default=0.05, metadata=_key(
+        "metrics", "MTF value defining the cut-off frequency",
+        Range(0, 1, lo_open=True, hi_open=True)))
+    dof_fraction: float = field(default=0.8, metadata=_key(
+        "metrics", "depth of field fraction (claim 6; the report's population claims)",
+        Range(0, 1, lo_open=True, hi_open=True)))
+    chunk_size: int = field(default=8, metadata=_key(
+        "run", "eyes per compiled call (memory grows linearly with it); a multiple of the "
+        "number of local devices when sharded", Range(lo=1)))
     options: ModelOptions = field(default_factory=ModelOptions)
     base_dir: str = field(default=".", compare=False)
 
     def __post_init__(self):
         # Direct construction (the Python API) gets the same checks as a TOML file.
-        for name in ("pupil_diameters_mm", "depth_offsets_D", "wavelengths_nm", "layouts",
-                     "continuous_peaks"):
-            value = getattr(self, name)
+        for key in KEYS:
+            if key.kind not in ("floats", "strings"):
+                continue
+            value = getattr(self, key.field)
             if isinstance(value, (list, np.ndarray)):
-                object.__setattr__(self, name, tuple(np.asarray(value).tolist()))
+                object.__setattr__(self, key.field, tuple(np.asarray(value).tolist()))
             elif isinstance(value, str):
-                object.__setattr__(self, name, (value,))
+                object.__setattr__(self, key.field, (value,))
         problems = _range_problems(_flat(self), Path(self.base_dir))
         if problems:
             raise SweepConfigError(problems, "SweepConfig")
@@ -170,14 +387,6 @@ class SweepConfig:
         return float(min(p for p in THIBOS_PUPILS_MM if p >= largest - 1e-9))
 
     @property
-    def depths_D(self) -> np.ndarray:
-        return np.round(self.cdp_D + np.asarray(self.depth_offsets_D, float), 9)
-
-    @property
-    def accommodation_D(self) -> np.ndarray:
-        return _grid(0.0, self.accommodation_max_D, self.accommodation_step_D)
-
-    @property
     def wavelength_step_planned(self) -> bool:
         """True when ``wavelengths_nm`` gives no step (the planner chooses it)."""
         return len(self.wavelengths_nm) == 2
@@ -189,7 +398,7 @@ class SweepConfig:
         if self.wavelength_step_planned:
             raise ValueError("wavelengths_nm gives no step: the sweep plans it "
                              "(lfjax.sweep.compute.sweep_spectrum)")
-        return _grid(*self.wavelengths_nm)
+        return inclusive_grid(*self.wavelengths_nm)
 
     def display_optics(self):
         """The display's :class:`~lfjax.display.lenslets.DisplayOptics`, or None (ideal display)."""
@@ -243,50 +452,56 @@ class SweepConfig:
                                 base_dir=self.base_dir)
 
 
-# --------------------------------------------------------------------------- the TOML schema
+def _declared_keys() -> tuple[Key, ...]:
+    """Every field's :class:`Key`, completed from the field (name, type, default, unit)."""
+    hints = typing.get_type_hints(SweepConfig)
+    keys = []
+    for f in dataclasses.fields(SweepConfig):
+        if "sweep_key" not in f.metadata:
+            continue
+        declared: Key = f.metadata["sweep_key"]
+        hint = hints[f.name]
+        args = typing.get_args(hint)
+        optional = isinstance(hint, types.UnionType) and type(None) in args
+        if optional:
+            (hint,) = [a for a in args if a is not type(None)]
+        if typing.get_origin(hint) is tuple:
+            kind = {float: "floats", str: "strings"}[typing.get_args(hint)[0]]
+        else:
+            kind = {int: "int", float: "float", bool: "bool", str: "string"}[hint]
+        name = declared.name or f.name
+        unit = next((s[1:] for s in UNIT_SUFFIXES if name.endswith(s)), "")
+        keys.append(dataclasses.replace(declared, name=name, field=f.name, kind=kind,
+                                        optional=optional, default=f.default, unit=unit))
+    return tuple(keys)
 
-# section -> {key: (field name, kind)}; kinds are checked by _convert
-_SCHEMA: dict[str, dict[str, tuple[str, str]]] = {
-    "population": {
-        "n_eyes": ("n_eyes", "int"),
-        "seed": ("seed", "int"),
-        "measured_pupil_mm": ("measured_pupil_mm", "float"),
-        "pupil_diameters_mm": ("pupil_diameters_mm", "floats"),
-        "average_eye": ("average_eye", "bool"),
-    },
-    "display": {
-        "layouts": ("layouts", "strings"),
-        "cdp_D": ("cdp_D", "float"),
-        "depth_offsets_D": ("depth_offsets_D", "floats"),
-        "lenslet_distance_mm": ("lenslet_distance_mm", "float"),
-        "pixel_width_arcmin": ("pixel_width_arcmin", "float"),
-    },
-    "accommodation": {
-        "step_D": ("accommodation_step_D", "float"),
-        "max_D": ("accommodation_max_D", "float"),
-        "window_D": ("window_D", "float"),
-    },
-    "spectrum": {
-        "wavelengths_nm": ("wavelengths_nm", "floats"),
-        "display": ("display_spectrum", "string"),
-    },
-    "sampling": {
-        "freq_step_cpd": ("freq_step_cpd", "float_or_planned"),
-        "vsotf_tolerance": ("vsotf_tolerance", "float"),
-        "peak_tolerance_D": ("peak_tolerance_D", "float"),
-        "cutoff_tolerance_cpd": ("cutoff_tolerance_cpd", "float"),
-    },
-    "metrics": {
-        "continuous_peaks": ("continuous_peaks", "strings"),
-        "peak_method": ("peak_method", "string"),
-        "cutoff_threshold": ("cutoff_threshold", "float"),
-        "dof_fraction": ("dof_fraction", "float"),
-    },
-    "run": {
-        "chunk_size": ("chunk_size", "int"),
-    },
-}
+
+KEYS: tuple[Key, ...] = _declared_keys()
+"""Every key of a sweep's TOML file, in the order of :class:`SweepConfig`'s fields."""
+
+_SCHEMA: dict[str, dict[str, Key]] = {}
+for _k in KEYS:
+    _SCHEMA.setdefault(_k.section, {})[_k.name] = _k
+"""section -> {key name: Key}: the TOML schema, derived from :data:`KEYS`."""
+del _k
 _MODEL_KEYS = {f.name for f in dataclasses.fields(ModelOptions)}
+
+
+def _key_list() -> str:
+    """The docstring's key list: one entry per key, from :data:`KEYS`."""
+    lines = ["", "    Keys (``[section] key``: type (unit), default; allowed values)",
+             "    " + "-" * 62]
+    for key in KEYS:
+        if key.default is not None:
+            default = _toml_value(key.default)
+        else:
+            default = _toml_value(key.none_word) if key.none_word else "not set"
+        kind = key.kind + (", or not set" if key.optional and not key.none_word else "")
+        unit = f" ({key.unit})" if key.unit else ""
+        rules = f"; {key.rules()}" if key.rules() else ""
+        lines.append(f"    ``[{key.section}] {key.name}``: {kind}{unit}, default {default}{rules}")
+        lines += textwrap.wrap(key.help, 88, initial_indent=" " * 8, subsequent_indent=" " * 8)
+    return "\n".join(lines) + "\n"
 
 
 def _flat(config: SweepConfig) -> dict:
@@ -296,11 +511,11 @@ def _flat(config: SweepConfig) -> dict:
 
 def _flat_to_sections(flat: dict) -> dict:
     out: dict = {}
-    for section, keys in _SCHEMA.items():
-        for key, (name, _) in keys.items():
-            if name in flat and flat[name] is not None:
-                value = flat[name]
-                out.setdefault(section, {})[key] = list(value) if isinstance(value, tuple) else value
+    for key in KEYS:
+        if key.field in flat and flat[key.field] is not None:
+            value = flat[key.field]
+            out.setdefault(key.section, {})[key.name] = (list(value) if isinstance(value, tuple)
+                                                         else value)
     options = flat.get("options")
     if options is not None:
         out["model"] = options.as_dict() if isinstance(options, ModelOptions) else dict(options)
@@ -316,8 +531,11 @@ def _is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-def _convert(where: str, value, kind: str, problems: list[str]):
+def _convert(key: Key, value, problems: list[str]):
     """Type-check one value; returns the converted value or None (problem recorded)."""
+    where, kind = key.where, key.kind
+    if key.none_word is not None and value == key.none_word:
+        return None
     if kind == "int":
         if isinstance(value, bool) or not isinstance(value, int):
             problems.append(f"{where} must be a whole number, got {value!r}")
@@ -325,14 +543,11 @@ def _convert(where: str, value, kind: str, problems: list[str]):
         return int(value)
     if kind == "float":
         if not _is_number(value) or not math.isfinite(float(value)):
-            problems.append(f"{where} must be a finite number, got {value!r}")
-            return None
-        return float(value)
-    if kind == "float_or_planned":
-        if value == "planned":
-            return None
-        if not _is_number(value) or not math.isfinite(float(value)):
-            problems.append(f"{where} must be a number (cpd) or \"planned\", got {value!r}")
+            if key.none_word is not None:
+                problems.append(f"{where} must be a number ({key.unit}) or "
+                                f"\"{key.none_word}\", got {value!r}")
+            else:
+                problems.append(f"{where} must be a finite number, got {value!r}")
             return None
         return float(value)
     if kind == "bool":
@@ -379,23 +594,22 @@ def config_from_dict(data: dict, base_dir: str | Path = ".", source: str = "swee
             problems.append(f"[{section}] must be a table of keys, got {body!r}")
             continue
         if section == "model":
-            for key, value in body.items():
+            for key in body:
                 if key not in _MODEL_KEYS:
                     problems.append(f"model.{key}: unknown model option{_suggest(key, _MODEL_KEYS)}"
                                     f"; known: {', '.join(sorted(_MODEL_KEYS))}")
             continue
         keys = _SCHEMA[section]
-        for key, value in body.items():
-            if key not in keys:
-                all_keys = {k for s in _SCHEMA.values() for k in s}
-                hint = _suggest(key, keys) or _suggest(key, all_keys)
-                problems.append(f"{section}.{key}: unknown key{hint}; known in [{section}]: "
+        for name, value in body.items():
+            if name not in keys:
+                all_keys = {k.name for k in KEYS}
+                hint = _suggest(name, keys) or _suggest(name, all_keys)
+                problems.append(f"{section}.{name}: unknown key{hint}; known in [{section}]: "
                                 f"{', '.join(keys)}")
                 continue
-            name, kind = keys[key]
-            converted = _convert(f"{section}.{key}", value, kind, problems)
-            if converted is not None or kind == "float_or_planned":
-                values[name] = converted
+            converted = _convert(keys[name], value, problems)
+            if converted is not None or keys[name].none_word is not None:
+                values[keys[name].field] = converted
 
     options = ModelOptions()
     model = data.get("model") if isinstance(data.get("model"), dict) else {}
@@ -418,146 +632,70 @@ def config_from_dict(data: dict, base_dir: str | Path = ".", source: str = "swee
 
 
 def _range_problems(v: dict, base_dir: Path) -> list[str]:
-    """Every impossible value or combination (the values' types are already right)."""
+    """Every impossible value or combination (the values' types are already right): each
+    key's declared checks, then the checks that relate several keys."""
     p: list[str] = []
-    if v["n_eyes"] < 1:
-        p.append(f"population.n_eyes must be >= 1, got {v['n_eyes']}")
-    if not (0 <= v["seed"] < 2**32):
-        p.append(f"population.seed must be in [0, 2**32), got {v['seed']}")
-    pupils = v["pupil_diameters_mm"]
-    if not pupils:
-        p.append("population.pupil_diameters_mm must list at least one pupil (mm)")
-    elif any(d < MIN_PUPIL_MM - 1e-9 for d in pupils):
-        p.append(f"population.pupil_diameters_mm must be >= {MIN_PUPIL_MM:g} mm (the human "
-                 f"pupil's range; the eye model and its Thibos statistics are for "
-                 f"{MIN_PUPIL_MM:g}-{max(THIBOS_PUPILS_MM):g} mm), got {list(pupils)}")
-    elif len(set(pupils)) != len(pupils):
-        p.append(f"population.pupil_diameters_mm has repeated values: {list(pupils)}")
-    measured = v["measured_pupil_mm"]
-    if measured is not None and measured not in THIBOS_PUPILS_MM:
-        p.append(f"population.measured_pupil_mm must be one of {list(THIBOS_PUPILS_MM)} mm "
-                 f"(the Thibos et al. 2002 fits), got {measured}")
-    elif pupils and all(d > 0 for d in pupils):
+    failed = set()
+    for key in KEYS:
+        value = v[key.field]
+        if value is None and key.optional:
+            continue
+        found = [problem for check in key.checks for problem in check(key, value, base_dir)]
+        if found:
+            failed.add(key.field)
+            p += found
+    return p + _combination_problems(v, failed)
+
+
+def _combination_problems(v: dict, failed: set[str]) -> list[str]:
+    """The checks that relate several keys (``failed``: fields whose own checks failed)."""
+    p: list[str] = []
+    pupils, measured = v["pupil_diameters_mm"], v["measured_pupil_mm"]
+    if "measured_pupil_mm" not in failed and pupils and all(d > 0 for d in pupils):
         limit = measured if measured is not None else max(THIBOS_PUPILS_MM)
         too_big = [d for d in pupils if d > limit + 1e-9]
         if too_big:
             p.append(f"population.pupil_diameters_mm {too_big} exceed the measured pupil "
                      f"({limit:g} mm): allowed range (0, {limit:g}] mm")
-    layouts = v["layouts"]
-    if not layouts:
-        p.append(f"display.layouts must list at least one layout ({', '.join(PAPER_LAYOUTS)} or a "
-                 "layout JSON file)")
-    if len(set(layouts)) != len(layouts):
-        p.append(f"display.layouts has repeated entries: {list(layouts)}")
-    for entry in layouts:
-        if entry in PAPER_LAYOUTS:
-            continue
-        if not entry.endswith(".json"):
-            p.append(f"display.layouts: {entry!r} is neither a paper layout "
-                     f"({', '.join(PAPER_LAYOUTS)}) nor a .json layout file")
-            continue
-        path = Path(entry) if Path(entry).is_absolute() else base_dir / entry
-        if not path.is_file():
-            p.append(f"display.layouts: layout file {str(path)!r} does not exist")
-            continue
-        try:
-            load_layout_json(path)
-        except (ValueError, OSError, json.JSONDecodeError) as err:
-            p.append(f"display.layouts: {path}: {err}")
-    if v["cdp_D"] < 0:
-        p.append(f"display.cdp_D must be >= 0 D (0 D is optical infinity), got {v['cdp_D']}")
-    offsets = v["depth_offsets_D"]
-    if not offsets:
-        p.append("display.depth_offsets_D must list at least one depth (D)")
-    else:
-        if any(v["cdp_D"] + d < -1e-9 for d in offsets):
-            p.append(f"display.depth_offsets_D: every rendered depth cdp_D + offset must be >= 0 D; "
-                     f"cdp_D = {v['cdp_D']} with offsets {list(offsets)}")
-        if len(set(np.round(offsets, 9))) != len(offsets):
-            p.append(f"display.depth_offsets_D has repeated values: {list(offsets)}")
-        if "natural" in layouts and 0.0 not in [round(d, 9) for d in offsets]:
-            p.append("display.depth_offsets_D must include 0 when layouts include 'natural' "
-                     "(natural view is evaluated at the CDP)")
-    if v["accommodation_step_D"] <= 0:
-        p.append(f"accommodation.step_D must be > 0 D, got {v['accommodation_step_D']}")
-    elif (v["accommodation_max_D"] > 0
-          and v["accommodation_max_D"] / v["accommodation_step_D"] > MAX_ACCOMMODATION_STATES):
-        p.append(f"accommodation.step_D = {v['accommodation_step_D']:g} D makes "
-                 f"{v['accommodation_max_D'] / v['accommodation_step_D']:.3g} states on "
-                 f"0 ... max_D = {v['accommodation_max_D']:g} D: at most "
-                 f"{MAX_ACCOMMODATION_STATES} (step >= "
-                 f"{v['accommodation_max_D'] / MAX_ACCOMMODATION_STATES:.2g} D); continuous peaks "
+    cdp, offsets = v["cdp_D"], v["depth_offsets_D"]
+    if offsets and any(cdp + d < -1e-9 for d in offsets):
+        p.append(f"display.depth_offsets_D: every rendered depth cdp_D + offset must be >= 0 D; "
+                 f"cdp_D = {cdp} with offsets {list(offsets)}")
+    if offsets and "natural" in v["layouts"] and 0.0 not in [round(d, 9) for d in offsets]:
+        p.append("display.depth_offsets_D must include 0 when layouts include 'natural' "
+                 "(natural view is evaluated at the CDP)")
+    step, top, window = v["accommodation_step_D"], v["accommodation_max_D"], v["window_D"]
+    if "accommodation_step_D" not in failed and top > 0 and top / step > MAX_ACCOMMODATION_STATES:
+        p.append(f"accommodation.step_D = {step:g} D makes {top / step:.3g} states on "
+                 f"0 ... max_D = {top:g} D: at most {MAX_ACCOMMODATION_STATES} (step >= "
+                 f"{top / MAX_ACCOMMODATION_STATES:.2g} D); continuous peaks "
                  f"(metrics.continuous_peaks) refine off the grid")
-    if v["accommodation_max_D"] <= 0:
-        p.append(f"accommodation.max_D must be > 0 D, got {v['accommodation_max_D']}")
-    if v["window_D"] <= 0:
-        p.append(f"accommodation.window_D must be > 0 D, got {v['window_D']}")
-    elif v["accommodation_step_D"] > 0 and v["window_D"] < v["accommodation_step_D"]:
-        p.append(f"accommodation.window_D ({v['window_D']} D) must be >= step_D "
-                 f"({v['accommodation_step_D']} D): a peak needs >= 2 states per depth")
-    if (offsets and v["accommodation_max_D"] > 0 and v["cdp_D"] >= 0
-            and max(v["cdp_D"] + d for d in offsets) - v["window_D"] > v["accommodation_max_D"]):
-        p.append(f"accommodation.max_D ({v['accommodation_max_D']} D) leaves no state within "
-                 f"window_D of the nearest rendered depth")
+    if "window_D" not in failed and step > 0 and window < step:
+        p.append(f"accommodation.window_D ({window} D) must be >= step_D ({step} D): a peak "
+                 f"needs >= 2 states per depth")
+    if offsets and top > 0 and cdp >= 0 and max(cdp + d for d in offsets) - window > top:
+        p.append(f"accommodation.max_D ({top} D) leaves no state within window_D of the "
+                 f"nearest rendered depth")
     wl = v["wavelengths_nm"]
-    if not (0 < v["peak_tolerance_D"] <= 0.5):
-        p.append(f"sampling.peak_tolerance_D must be in (0, 0.5] D, got {v['peak_tolerance_D']}")
-    if not (0 < v["cutoff_tolerance_cpd"] <= 10):
-        p.append(f"sampling.cutoff_tolerance_cpd must be in (0, 10] cpd, got "
-                 f"{v['cutoff_tolerance_cpd']}")
     if len(wl) == 2 and v["display_spectrum"] is not None:
         p.append("spectrum.wavelengths_nm needs a step with spectrum.display (the step is the "
                  "width of the display spectrum's cells): [start, stop, step] in nm")
-    if len(wl) not in (2, 3):
-        p.append(f"spectrum.wavelengths_nm must be [start, stop] (step planned) or "
-                 f"[start, stop, step] in nm, got {list(wl)}")
-    else:
-        start, stop, step = wl if len(wl) == 3 else (*wl, 5.0)
-        if not (step > 0 and stop >= start):
-            p.append(f"spectrum.wavelengths_nm: need step > 0 and stop >= start, got {list(wl)}")
-        elif step < MIN_WAVELENGTH_STEP_NM - 1e-12:
-            p.append(f"spectrum.wavelengths_nm step must be >= {MIN_WAVELENGTH_STEP_NM:g} nm "
-                     f"(the tabulation interval of the luminous-efficiency data; a finer step "
-                     f"only interpolates), got {step:g} nm ({(stop - start) / step + 1:.3g} "
-                     f"wavelengths)")
+    if len(wl) in (2, 3):
         sce_on = v["options"].sce != "off"
         lo, hi = (400.0, 700.0) if sce_on else (390.0, 830.0)
-        if start < lo - 1e-9 or stop > hi + 1e-9:
+        if wl[0] < lo - 1e-9 or wl[1] > hi + 1e-9:
             p.append(f"spectrum.wavelengths_nm must lie in [{lo:g}, {hi:g}] nm "
                      f"({'Stiles-Crawford data' if sce_on else 'luminous efficiency data'}), got "
                      f"{list(wl)}")
-    distance = v.get("lenslet_distance_mm")
+    distance = v["lenslet_distance_mm"]
     if distance is not None:
-        limit = 1000.0 / v["cdp_D"] if v["cdp_D"] > 0 else math.inf
+        limit = 1000.0 / cdp if cdp > 0 else math.inf
         if not (0 < distance < limit):
             p.append(f"display.lenslet_distance_mm must be in (0, {limit:.4g}) mm (the CDP is a "
                      f"virtual image behind the display), got {distance}")
-    if v.get("pixel_width_arcmin", 0.0) < 0:
-        p.append(f"display.pixel_width_arcmin must be >= 0 arcmin, got {v['pixel_width_arcmin']}")
-    name = v.get("display_spectrum")
-    if name is not None:
-        if name not in DISPLAY_NAMES:
-            p.append(f"spectrum.display must be one of {', '.join(DISPLAY_NAMES)}, got {name!r}")
-    if v["freq_step_cpd"] is not None and v["freq_step_cpd"] <= 0:
-        p.append(f"sampling.freq_step_cpd must be > 0 cpd (or \"planned\"), got {v['freq_step_cpd']}")
-    tol = v["vsotf_tolerance"]
-    if tol is not None:
-        if not (0 < tol < 0.1):
-            p.append(f"sampling.vsotf_tolerance must be in (0, 0.1), got {tol}")
-        if v["freq_step_cpd"] is not None:
-            p.append("sampling.vsotf_tolerance plans the frequency step: give it or "
-                     "freq_step_cpd, not both")
-    bad = [m for m in v["continuous_peaks"] if m not in METRICS]
-    if bad:
-        p.append(f"metrics.continuous_peaks must name metrics in {list(METRICS)}, got {bad}")
-    if v["peak_method"] not in PEAK_METHODS:
-        p.append(f"metrics.peak_method must be one of {list(PEAK_METHODS)}, got {v['peak_method']!r}")
-    if not (0 < v["cutoff_threshold"] < 1):
-        p.append(f"metrics.cutoff_threshold must be in (0, 1), got {v['cutoff_threshold']}")
-    if not (0 < v["dof_fraction"] < 1):
-        p.append(f"metrics.dof_fraction must be in (0, 1), got {v['dof_fraction']}")
-    if v["chunk_size"] < 1:
-        p.append(f"run.chunk_size must be >= 1 eye, got {v['chunk_size']}")
+    if v["vsotf_tolerance"] is not None and v["freq_step_cpd"] is not None:
+        p.append("sampling.vsotf_tolerance plans the frequency step: give it or "
+                 "freq_step_cpd, not both")
     return p
 
 
@@ -595,57 +733,29 @@ def config_to_toml(config: SweepConfig) -> str:
     return "\n".join(lines)
 
 
-_KEY_HELP = {
-    "n_eyes": "virtual eyes, Thibos et al. (2002), sample_eyes(seed, n)",
-    "seed": "seed of the draw, 0 <= seed < 2**32",
-    "measured_pupil_mm": "Thibos fit (3, 4.5, 6 or 7.5 mm); default: the smallest holding "
-                         "the largest pupil",
-    "pupil_diameters_mm": f"calculation pupils, mm ({MIN_PUPIL_MM:g} mm up to the measured pupil)",
-    "average_eye": "append the Thibos average eye (claims 4 and 5 need it)",
-    "layouts": "paper layouts (natural, 2x2, 3x3, 4x4) or layout JSON files",
-    "cdp_D": "central depth plane, D",
-    "depth_offsets_D": "rendered depths relative to the CDP, D",
-    "lenslet_distance_mm": "lenslet diffraction of an array this far from the eye, mm",
-    "pixel_width_arcmin": "emitters' angular width, arcmin (0: points)",
-    "step_D": "absolute accommodation grid 0 ... max_D, step in D",
-    "max_D": "last state of the grid, D",
-    "window_D": "each depth is evaluated within +-window_D of it, D",
-    "wavelengths_nm": f"start, stop[, step] in nm (step >= {MIN_WAVELENGTH_STEP_NM:g} nm; "
-                      f"without it the step is planned for the targets below)",
-    "display": "a display's white (crt, lcd, oled, laser) instead of V(lambda) white",
-    "freq_step_cpd": "OTF frequency step, cpd, or \"planned\" (once, on the whole population)",
-    "vsotf_tolerance": "plan for this VSOTF accuracy (the planner's proxy)",
-    "peak_tolerance_D": "a planned wavelength step moves no peak by more, D",
-    "cutoff_tolerance_cpd": "a planned wavelength step moves no cut-off by more, cpd",
-    "continuous_peaks": "metrics refined off the grid (lfjax.vision.peaks)",
-    "peak_method": f"refinement: {', '.join(PEAK_METHODS)}",
-    "cutoff_threshold": "MTF value defining the cut-off frequency",
-    "dof_fraction": "depth of field fraction (claim 6)",
-    "chunk_size": "eyes per compiled call; memory grows with it",
-}
-_EXAMPLES = {"measured_pupil_mm": 6.0, "lenslet_distance_mm": 300.0, "display": "oled",
-             "vsotf_tolerance": 1e-3}
-
-
 def config_template() -> str:
     """A commented TOML config with every key at its default (keys whose default is "not
     set" are commented out with an example value); :func:`load_config` reads it as
-    ``SweepConfig()``. ``lfjax sweep --template CONFIG.toml`` writes it."""
-    default = SweepConfig()
+    ``SweepConfig()``. ``lfjax sweep --template CONFIG.toml`` writes it. Above each key: its
+    help and allowed values (:data:`KEYS`)."""
+    units = ", ".join(f"{suffix} {name}" for suffix, name in UNIT_SUFFIXES.items())
     lines = [f"# lfjax sweep configuration ({CONFIG_FORMAT}): every key with its default.",
-             "# Units are in the key names: _D dioptres, _mm millimetres, _nm nanometres,",
-             "# _cpd cycles per degree. Run: lfjax sweep THIS.toml --dry-run", ""]
+             *textwrap.wrap(f"Units are in the key names: {units}. Run: lfjax sweep "
+                            f"THIS.toml --dry-run", 88, initial_indent="# ",
+                            subsequent_indent="# "), ""]
     for section, keys in _SCHEMA.items():
         lines.append(f"[{section}]")
-        for key, (name, kind) in keys.items():
-            value = getattr(default, name)
-            if kind == "float_or_planned" and value is None:
-                text, prefix = '"planned"', ""
-            elif value is None:
-                text, prefix = _toml_value(_EXAMPLES[key]), "# "
+        for key in keys.values():
+            if key.default is not None:
+                text, prefix = _toml_value(key.default), ""
+            elif key.none_word is not None:
+                text, prefix = _toml_value(key.none_word), ""
             else:
-                text, prefix = _toml_value(value), ""
-            lines.append(f"{prefix}{key} = {text}  # {_KEY_HELP[key]}")
+                text, prefix = _toml_value(key.example), "# "
+            about = key.help + (f"; {key.rules()}" if key.rules() else "")
+            lines += textwrap.wrap(about, 88, initial_indent="# ", subsequent_indent="#   ",
+                                   break_on_hyphens=False)
+            lines.append(f"{prefix}{key.name} = {text}")
         lines.append("")
     lines.append("[model]  # lfjax.ModelOptions fields")
     for key, value in ModelOptions().as_dict().items():
@@ -666,6 +776,9 @@ def _toml_value(value) -> str:
     return repr(value)
 
 
+SweepConfig.__doc__ += _key_list()
+
+
 def config_differences(stored: dict, current: dict, prefix: str = "") -> list[str]:
     """Human-readable differences between two :meth:`SweepConfig.as_dict` records."""
     out = []
@@ -680,8 +793,11 @@ def config_differences(stored: dict, current: dict, prefix: str = "") -> list[st
 
 __all__ = [
     "CONFIG_FORMAT",
+    "KEYS",
+    "Key",
     "SweepConfig",
     "SweepConfigError",
+    "UNIT_SUFFIXES",
     "config_from_dict",
     "config_differences",
     "config_template",

@@ -25,6 +25,7 @@ from pathlib import Path
 import jax
 
 from lfjax.vision.peaks import METRICS, STATE_COST, resolved_method
+from lfjax.base.grids import grid_size
 from lfjax.base.sampling import EYE_BLOCK
 from lfjax.sweep.compute import sweep_spectrum
 from lfjax.sweep.config import SweepConfig
@@ -175,10 +176,9 @@ class SweepEstimate:
 def _count(start: float, stop: float, step: float) -> float:
     """Points of the grid start … stop by step, without building it (inf if absurd)."""
     try:
-        n = math.floor((stop - start) / step + 1e-9) + 1
+        return float(grid_size(start, stop, step))
     except (OverflowError, ZeroDivisionError, ValueError):
         return math.inf
-    return float(n)
 
 
 def _eye_bytes(config: SweepConfig, n_acc: float) -> float:
