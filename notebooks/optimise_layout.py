@@ -41,7 +41,7 @@ from IPython.display import Image, display
 import lfjax
 from lfjax import layout_opt as lo
 from lfjax.model import layout_plots
-from lfjax.cli.main import enable_compilation_cache
+from lfjax.cli import enable_compilation_cache
 
 # Optional: keep JAX compilations on disk (as the command line does), so a second session
 # starts faster.

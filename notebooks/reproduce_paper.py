@@ -26,7 +26,7 @@ from IPython.display import Image, display
 
 import lfjax
 from lfjax import reproduce
-from lfjax.cli.main import enable_compilation_cache
+from lfjax.cli import enable_compilation_cache
 from lfjax.vision.images import retinal_image, snellen_e
 
 # Optional: keep JAX compilations on disk (as the command line does), so a second session

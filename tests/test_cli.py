@@ -1,5 +1,10 @@
-"""`lfjax reproduce`: end-to-end quick run, outputs complete and finite, bad input, notebook."""
+"""The command line: `lfjax reproduce` end to end (quick run, outputs complete and finite),
+bad input, the parameter↔flag table every subcommand names library errors through, the
+notebook."""
 
+import argparse
+import dataclasses
+import inspect
 import os
 import subprocess
 import sys
@@ -8,8 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lfjax.cli import main as cli
+from lfjax import cli
 from lfjax import reproduce as rep
+from lfjax.base.errors import ParameterError
+from lfjax.cli import common
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOK = ROOT / "notebooks" / "reproduce_paper.ipynb"
@@ -19,7 +26,7 @@ NOTEBOOK_TWIN = ROOT / "notebooks" / "reproduce_paper.py"
 def run_cli(*args, cwd=None, timeout=600):
     """Run the command line in a fresh interpreter (as the console script does)."""
     return subprocess.run(
-        [sys.executable, "-m", "lfjax.cli.main", *args], capture_output=True, text=True,
+        [sys.executable, "-m", "lfjax.cli", *args], capture_output=True, text=True,
         cwd=cwd, timeout=timeout, env={**os.environ, "PYTHONWARNINGS": "ignore"},
     )
 
@@ -198,7 +205,7 @@ def test_failure_mid_run_leaves_nothing(capsys, tmp_path, monkeypatch):
 
     monkeypatch.setattr(rep, "compute_examples", boom)
     monkeypatch.setattr(rep, "run_study", lambda config, options=None, stage=None: None)
-    monkeypatch.setattr(cli, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "new" / "deeper"
     code, _, stderr = run_main(capsys, "reproduce", "--quick", "--no-progress", "--out", str(out))
     assert code == 1
@@ -276,6 +283,125 @@ def test_dof_definition():
     assert not censored and d == pytest.approx(0.8)  # crossings at ±0.4 D
 
 
+# ------------------------------------------------------------------ the parameter↔flag table
+
+
+def _options(command: str) -> set[str]:
+    """Every option string and positional metavar of a subcommand's parser."""
+    parser = cli.build_parser()
+    subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    names = set()
+    for action in subparsers.choices[command]._actions:
+        names.update(action.option_strings or [action.metavar or action.dest])
+    return names
+
+
+def _parameters(call) -> set[str]:
+    if dataclasses.is_dataclass(call):
+        return {f.name for f in dataclasses.fields(call) if f.init}
+    return set(inspect.signature(call).parameters)
+
+
+def _library_inputs():
+    """Each subcommand's library calls that take flag values, and the parameters of those
+    calls that no flag sets (everything else a check can name must be in the table)."""
+    from lfjax import design, layout_opt, sweep
+    from lfjax.base.files import check_output_folder
+    from lfjax.base.sampling import Sampling
+    from lfjax.sweep.report import sweep_report
+    from lfjax.sweep.run import check_store_target
+
+    return {
+        "reproduce": ([rep.check_reproduce, rep.StudyConfig.quick],
+                      {"config", "changes"}),
+        "optimise": ([layout_opt.OptimisationSettings, layout_opt.optimise_and_save],
+                     {"settings", "progress", "command"}),
+        "sweep": ([check_store_target, sweep.run_sweep],
+                  {"config", "progress", "devices", "on_plan"}),
+        "sweep-report": ([sweep_report], {"sample_size", "dpi", "progress"}),
+        "design": ([check_output_folder, design.design_cdp_D, design.design_panel,
+                    design.DesignConstraints, Sampling, design.check_design],
+                   {"min_gap_fraction", "panel", "n_fft", "transform", "mft_pupil_samples",
+                    "edge_width_samples"}),
+    }
+
+
+def test_the_flag_table_names_flags_that_exist():
+    assert set(common.FLAGS) == set(cli.SUBCOMMANDS)
+    for command, table in common.FLAGS.items():
+        assert set(table.values()) <= _options(command), command
+
+
+def test_the_flag_table_covers_every_parameter_a_check_can_name():
+    """Every parameter of the library calls a subcommand makes with its flags' values is in
+    its table: a library check names one of them, and the command line names the flag."""
+    for command, (calls, not_flags) in _library_inputs().items():
+        for call in calls:
+            missing = _parameters(call) - not_flags - set(common.FLAGS[command])
+            assert not missing, f"{command}: {call.__qualname__} {sorted(missing)}"
+
+
+@pytest.mark.parametrize("command, make", [
+    ("optimise", lambda lo: lo.OptimisationSettings(n_views=5)),
+    ("optimise", lambda lo: lo.OptimisationSettings(lattice="tri")),
+    ("optimise", lambda lo: lo.OptimisationSettings(display_distance_mm=600.0)),
+    ("optimise", lambda lo: lo.OptimisationSettings(display_distance_mm=-1.0)),
+    ("optimise", lambda lo: lo.OptimisationSettings(spectrum="plasma")),
+    ("optimise", lambda lo: lo.OptimisationSettings(pixel_width_arcmin=-1.0)),
+    ("optimise", lambda lo: lo.OptimisationSettings(pupil_diameter_mm=4.0)),
+    ("optimise", lambda lo: lo.OptimisationSettings(depth_range_D=(-1.0, 2.0))),
+    ("optimise", lambda lo: lo.OptimisationSettings(objective={"sharpness": 1.0})),
+    ("optimise", lambda lo: lo.OptimisationSettings(front=3, test_eyes=0)),
+    ("optimise", lambda lo: lo.OptimisationSettings(wavelengths_nm=(380.0, 550.0))),
+    ("optimise", lambda lo: lo.OptimisationSettings(freq_step_cpd=0.0)),
+    ("optimise", lambda lo: lo.OptimisationSettings(max_diameter_mm=3.5)),
+])
+def test_a_refused_optimisation_names_a_parameter_of_the_table(command, make):
+    from lfjax import layout_opt
+
+    with pytest.raises(ParameterError) as err:
+        make(layout_opt)
+    assert set(err.value.parameters) <= set(common.FLAGS[command]), err.value.parameters
+
+
+@pytest.mark.parametrize("make", [
+    lambda d: d.design_panel("near-eye", 1.5, distance_mm=800.0),
+    lambda d: d.design_panel("near-eye", 1.5, distance_mm=-1.0),
+    lambda d: d.design_panel("near-eye", 1.5, pixel_pitch_mm=0.0),
+    lambda d: d.design_panel("near-eye", 1.5, pixel_count=(0, 5)),
+    lambda d: d.design_cdp_D((1.0, 2.0), 3.0),
+    lambda d: d.DesignConstraints(distance_range_mm=(100.0, 50.0)),
+    lambda d: d.DesignConstraints(min_f_number=3.0, max_f_number=2.0),
+    lambda d: d.check_design(d.design_panel("near-eye", 1.5), (1.0, 2.0), views_per_side=(9,)),
+    lambda d: d.check_design(d.design_panel("near-eye", 1.5), (1.0, 2.0), wavelengths_nm=(800.0,)),
+])
+def test_a_refused_design_names_a_parameter_of_the_table(make):
+    from lfjax import design
+
+    with pytest.raises(ParameterError) as err:
+        make(design)
+    assert set(err.value.parameters) <= set(common.FLAGS["design"]), err.value.parameters
+
+
+def test_a_library_caller_reads_the_library_name_and_the_command_line_the_flag(capsys, tmp_path):
+    from lfjax import layout_opt
+
+    with pytest.raises(ValueError, match=r"^front needs held-out eyes \(test_eyes >= 1\)$"):
+        layout_opt.OptimisationSettings(front=3, test_eyes=0)
+    code = cli.main(["optimise", "--front", "3", "--test-eyes", "0", "--out", str(tmp_path / "x")])
+    assert code == 2
+    assert capsys.readouterr().err == ("lfjax optimise: error: --front needs held-out eyes "
+                                       "(--test-eyes >= 1)\n")
+
+
+def test_the_sweep_report_names_its_store_and_out(capsys, tmp_path):
+    assert cli.main(["sweep-report", str(tmp_path / "none")]) == 2
+    assert "error: STORE " in capsys.readouterr().err
+    (tmp_path / "file").write_text("")
+    assert cli.main(["sweep-report", str(tmp_path / "none"), "--out", str(tmp_path / "file")]) == 2
+    assert "error: STORE " in capsys.readouterr().err  # the store is checked first
+
+
 # ------------------------------------------------------------------ notebook
 
 
@@ -342,13 +468,12 @@ def test_notebook_executes(tmp_path):
 def test_an_unforeseen_error_is_one_line_and_lfjax_debug_shows_it(monkeypatch, tmp_path, capsys):
     """An exception no check foresaw ends the command with one line on stderr (type and
     message, whitespace folded) and status 1; LFJAX_DEBUG=1 lets it through."""
-    from lfjax.cli import main as cli
+    from lfjax.cli import sweep_report as command
 
     def broken(*args, **kwargs):
         raise RuntimeError("the\n  unexpected")
 
-    monkeypatch.setattr(cli, "is_store", lambda path: True)
-    monkeypatch.setattr(cli, "sweep_report", broken)
+    monkeypatch.setattr(command, "sweep_report", broken)
     monkeypatch.delenv("LFJAX_DEBUG", raising=False)
     assert cli.main(["sweep-report", str(tmp_path / "store"), "--out", str(tmp_path / "r")]) == 1
     err = capsys.readouterr().err.strip().splitlines()

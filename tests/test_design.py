@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import helpers as H
-from lfjax.cli import main as cli
+from lfjax import cli
 from lfjax.design.fit import (
     DesignConstraints,
     design_loss,
@@ -140,7 +140,7 @@ TINY = ["design", "--panel", "near-eye", "--depths", "1", "2", "--n-depths", "2"
 
 
 def test_cli_design_tiny_case(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr(cli, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "design"
     code = cli.main([*TINY, "--out", str(out)])
     captured = capsys.readouterr()
@@ -179,10 +179,10 @@ def test_cli_design_tiny_case(capsys, tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("args, message", [
     (["--depths", "1", "2", "--cdp", "3"], "outside the depth range"),
-    (["--depths", "2", "1"], "0 <= LOW < HIGH"),
+    (["--depths", "2", "1"], "--depths must satisfy 0 <= low < high"),
     (["--depths", "1", "2", "--views", "9"], "--views"),
     (["--depths", "1", "2", "--min-fill", "0"], "--min-fill"),
-    (["--depths", "1", "2", "--distance", "800"], "--panel near-eye"),
+    (["--depths", "1", "2", "--distance", "800"], "display at --distance = 800 mm"),
 ])
 def test_cli_design_bad_input_one_line_exit_2(capsys, tmp_path, args, message):
     code = cli.main(["design", *args, "--out", str(tmp_path / "x")])

@@ -299,7 +299,7 @@ def test_display_study_config_rejects_what_it_cannot_model():
 
 
 def test_reproduce_display_eyes_beyond_the_study_is_refused(capsys, tmp_path):
-    from lfjax.cli import main as cli
+    from lfjax import cli
 
     out = tmp_path / "never"
     code = cli.main(["reproduce", "--quick", "--display-effects", "--display-eyes", "5",

@@ -200,3 +200,26 @@ def test_accommodation_grids_without_allowed_states():
 def test_unknown_metric_name(natural_tf):
     with pytest.raises(ValueError, match="metric must be"):
         natural_tf.predicted_accommodation_D("mtf")
+
+
+# ----------------------------------------------------------------------------- the error type
+
+
+def test_a_parameter_error_names_the_parameter_and_renders_other_names():
+    import pickle
+
+    from lfjax.base.errors import ParameterError
+
+    err = ParameterError("front", "{front} needs held-out eyes ({test_eyes} >= {n})", n=1)
+    assert isinstance(err, ValueError) and err.parameter == "front"
+    assert str(err) == "front needs held-out eyes (test_eyes >= 1)"
+    assert err.parameters == ("front", "test_eyes")
+    assert err.naming({"front": "--front", "test_eyes": "--test-eyes"}) == \
+        "--front needs held-out eyes (--test-eyes >= 1)"
+    assert err.naming({"front": "--front"}) == "--front needs held-out eyes (test_eyes >= 1)"
+    # values are shown, never parsed as names; an owner qualifies library names only
+    odd = ParameterError("fill", "{fill} must be in (0, 1], got {got}", owner="Panel", got="{x}")
+    assert str(odd) == "Panel.fill must be in (0, 1], got {x}" and odd.parameters == ("fill",)
+    assert odd.naming({"fill": "--fill"}) == "--fill must be in (0, 1], got {x}"
+    back = pickle.loads(pickle.dumps(odd))
+    assert type(back) is ParameterError and str(back) == str(odd) and back.owner == "Panel"

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import lfjax
-from lfjax.cli import main as cli
+from lfjax import cli
 from lfjax import layout_opt as lo
 from lfjax.layout_opt import _feasible as feasible_maps
 
@@ -487,7 +487,7 @@ TINY_CLI = ["optimise", "--train-eyes", "1", "--test-eyes", "2", "--wavelengths"
 
 
 def test_cli_optimise_tiny_case(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr(cli, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "fit"
     code = cli.main([*TINY_CLI, "--out", str(out)])
     captured = capsys.readouterr()

@@ -140,7 +140,7 @@ def test_the_sweep_never_imports_the_reproduction():
 
 LAYOUT_OPT = LFJAX / "layout_opt"
 LAYOUT_OPT_ORDER = ("_params", "_feasible", "_problem", "_objectives", "_evaluation", "_solver",
-                    "_files", "__init__")
+                    "_files", "_run", "__init__")
 """lfjax.layout_opt: each private part imports only the parts before it; the face imports all."""
 
 

@@ -74,7 +74,7 @@ def subprocess_env(**extra) -> dict:
 def persistent_compilation_cache():
     """The command line's compilation cache, here too: the subprocesses below compile the
     same programs as this process, and load them from it instead."""
-    from lfjax.cli.main import enable_compilation_cache
+    from lfjax.cli import enable_compilation_cache
 
     enable_compilation_cache()
 
@@ -292,7 +292,7 @@ def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_
     log = tmp_path / "killed.log"
     with open(log, "w") as log_file:
         proc = subprocess.run(
-            [sys.executable, "-m", "lfjax.cli.main", "sweep", str(toml), "--out", str(store),
+            [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out", str(store),
              "--no-progress"],
             env=subprocess_env(LFJAX_TEST_ABORT_AFTER_CHUNK="0",
                                LFJAX_TEST_ABORT_SIGNAL=signal.Signals(sig).name[3:]),
@@ -313,7 +313,7 @@ def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_
 
 
 def test_cli_max_chunks_then_resume(reference, tmp_path, capsys):
-    from lfjax.cli.main import main
+    from lfjax.cli import main
 
     config, ref_path, _ = reference
     toml = write_toml(tmp_path / "tiny.toml", config)
@@ -356,7 +356,7 @@ def test_store_opens_consolidated_and_records_its_provenance(reference):
 
 
 def test_a_second_writer_is_refused_and_a_stale_lock_taken_over(reference, tmp_path, capsys):
-    from lfjax.cli.main import main
+    from lfjax.cli import main
 
     config, ref_path, _ = reference
     store = tmp_path / "locked.zarr"
@@ -389,7 +389,7 @@ def test_a_second_writer_is_refused_and_a_stale_lock_taken_over(reference, tmp_p
 
 def test_verify_finds_missing_and_truncated_chunks_and_resume_recomputes_them(
         reference, tmp_path, capsys):
-    from lfjax.cli.main import main
+    from lfjax.cli import main
 
     config, ref_path, _ = reference
     store = tmp_path / "damaged.zarr"
@@ -499,7 +499,7 @@ def test_readme_two_process_distributed_command_writes_the_one_process_store(ref
     store = tmp_path / "two_processes.zarr"
     port = _free_port()
     procs = [subprocess.Popen(
-        [sys.executable, "-m", "lfjax.cli.main", "sweep", str(toml), "--out", str(store),
+        [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out", str(store),
          "--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2",
          "--process-id", str(pid), "--no-progress"],
         env=subprocess_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -569,7 +569,7 @@ def test_a_full_disk_keeps_the_finished_chunks_and_says_how_to_resume(reference,
                                                                        capsys, monkeypatch):
     import errno
 
-    from lfjax.cli.main import main
+    from lfjax.cli import main
     from lfjax.sweep import run as sweep_run
 
     config, ref_path, _ = reference

@@ -171,7 +171,7 @@ def test_the_time_estimate_counts_the_states_continuous_peaks_add():
 
 
 def test_a_frequency_step_that_cannot_fit_is_refused_before_any_store(tmp_path, capsys):
-    from lfjax.cli.main import main
+    from lfjax.cli import main
 
     toml = tmp_path / "fine.toml"
     toml.write_text(toml_text(one_eye(sampling={"freq_step_cpd": 1e-4})))
@@ -200,7 +200,7 @@ def test_a_failed_start_leaves_no_store(tmp_path, monkeypatch):
 
 
 def test_dry_run_prints_the_plan_and_writes_nothing(tmp_path, capsys):
-    from lfjax.cli.main import main
+    from lfjax.cli import main
 
     toml = tmp_path / "plan.toml"
     toml.write_text(toml_text(one_eye()))
@@ -214,7 +214,7 @@ def test_dry_run_prints_the_plan_and_writes_nothing(tmp_path, capsys):
 
 
 def test_template_writes_every_key_with_its_default(tmp_path, capsys):
-    from lfjax.cli.main import main
+    from lfjax.cli import main
     from lfjax.sweep.config import _SCHEMA
 
     text = config_template()
@@ -237,7 +237,7 @@ def test_a_killed_reproduce_leaves_no_hidden_folder_after_the_next_run(tmp_path,
     import subprocess
     import sys
 
-    from lfjax.cli import main as cli
+    from lfjax import cli
     from lfjax import reproduce as rep
 
     gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
@@ -251,7 +251,7 @@ def test_a_killed_reproduce_leaves_no_hidden_folder_after_the_next_run(tmp_path,
 
     monkeypatch.setattr(rep, "compute_examples", boom)
     monkeypatch.setattr(rep, "run_study", lambda config, options=None, stage=None: None)
-    monkeypatch.setattr(cli, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
     code = cli.main(["reproduce", "--quick", "--no-progress", "--out", str(tmp_path / "res")])
     assert code == 1
     assert "removed 1 folder(s) left by an interrupted lfjax reproduce" in capsys.readouterr().err

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from lfjax.cli import main as cli
+from lfjax import cli
 from lfjax.vision.claims import evaluate_claims
 from lfjax.sweep import config_from_dict, open_store, run_sweep, study_view
 from lfjax.sweep import report as sr

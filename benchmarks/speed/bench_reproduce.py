@@ -139,7 +139,7 @@ def run_cli(cache_dir: Path, extra: list[str],
     out = Path(tempfile.mkdtemp()) / "study"
     env = dict(os.environ, LFJAX_CACHE_DIR=str(cache_dir))
     env.pop("XLA_FLAGS", None)
-    cmd = [sys.executable, "-m", "lfjax.cli.main", "reproduce", "--out", str(out), "--no-progress",
+    cmd = [sys.executable, "-m", "lfjax.cli", "reproduce", "--out", str(out), "--no-progress",
            *extra]
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)

@@ -8,7 +8,7 @@ So, in a fresh process:
 * programs compiled = backend compile events − cache hits;
 * with an empty cache folder (cold), every event is a compilation.
 
-The run is ``lfjax reproduce --quick`` through :func:`lfjax.cli.main.main` (the command line in
+The run is ``lfjax reproduce --quick`` through :func:`lfjax.cli.main` (the command line in
 this process); ``--alternatives`` runs the same quick study with the modelling alternatives
 switched on (``StudyConfig.quick(alternatives=True)``; the command line's ``--quick`` leaves
 them out), and ``--full`` the default study (``lfjax reproduce``, alternatives included). The cache folder is ``--cache`` (pass a new empty folder for a cold run, the same
@@ -63,14 +63,14 @@ def main(argv=None) -> int:
 
     t0 = time.perf_counter()
     if args.alternatives:
-        from lfjax.cli.main import enable_compilation_cache
+        from lfjax.cli import enable_compilation_cache
         from lfjax.reproduce import StudyConfig, reproduce
 
         enable_compilation_cache()
         reproduce(args.out, StudyConfig.quick(alternatives=True), force=True, progress=False)
         rc = 0
     else:
-        from lfjax.cli.main import main as cli_main
+        from lfjax.cli import main as cli_main
 
         quick = [] if args.full else ["--quick"]
         accuracy = [] if args.accuracy is None else ["--accuracy", args.accuracy]

@@ -17,7 +17,7 @@ export PYTHONPATH="$SRC${PYTHONPATH:+:$PYTHONPATH}" JAX_PLATFORMS=cpu PYTHONUNBU
 pin=()
 [ -n "$CPUS" ] && pin=(taskset -c "$CPUS")
 start=$(date +%s)
-"${pin[@]}" /usr/bin/time -v -o "$OUTDIR/time.txt" "${PYTHON:-python3}" -m lfjax.cli.main reproduce --quick \
+"${pin[@]}" /usr/bin/time -v -o "$OUTDIR/time.txt" "${PYTHON:-python3}" -m lfjax.cli reproduce --quick \
     --display-effects --display-eyes 1 --no-progress --force --out "$OUTDIR/report" \
     >"$OUTDIR/log" 2>&1 &
 pid=$!

@@ -29,7 +29,7 @@ import jax
 import numpy as np
 
 import lfjax.layout_opt as lo
-from lfjax.cli import main as cli
+from lfjax import cli
 from lfjax.model.eyes import sample_eyes
 
 

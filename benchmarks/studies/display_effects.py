@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from lfjax.studies import display_effects as de
-from lfjax.cli.main import enable_compilation_cache
+from lfjax.cli import enable_compilation_cache
 from lfjax.model.eyes import append_average_eye, sample_eyes
 
 

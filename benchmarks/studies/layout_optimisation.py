@@ -243,7 +243,7 @@ def summary_lines(scan, fits):
 def main(argv=None):
     args = parse(argv)
     import lfjax
-    from lfjax.cli.main import enable_compilation_cache
+    from lfjax.cli import enable_compilation_cache
 
     enable_compilation_cache()
     t_all = time.perf_counter()

@@ -27,7 +27,7 @@ sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _co
 from _common import header  # noqa: E402
 
 from lfjax.studies import tradeoff as to
-from lfjax.cli.main import enable_compilation_cache  # noqa: E402
+from lfjax.cli import enable_compilation_cache  # noqa: E402
 from lfjax.display.panel import PRESETS  # noqa: E402
 from lfjax.sweep.store import completed_chunks, is_store  # noqa: E402
 

@@ -136,7 +136,7 @@ def main(argv=None) -> int:
     import matplotlib.pyplot as plt
     import pandas as pd
 
-    from lfjax.cli.main import enable_compilation_cache
+    from lfjax.cli import enable_compilation_cache
     from lfjax.model.eyes import append_average_eye, sample_eyes
 
     enable_compilation_cache()

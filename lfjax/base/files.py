@@ -4,6 +4,8 @@ A folder built before it is renamed into place (a sweep store, a reproduction's 
 named ``PREFIX-HOST-PID-RANDOM``. A SIGKILL leaves it behind; :func:`remove_orphans` later
 removes those whose process ran on this host and is gone, and leaves a live process's, or
 another host's (whose processes cannot be checked from here), alone.
+
+:func:`check_output_folder` checks, before any work, a folder a result will be written into.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ import socket
 import sys
 import tempfile
 from pathlib import Path
+
+from lfjax.base.errors import ParameterError
 
 
 def pid_alive(pid: int) -> bool:
@@ -47,3 +51,17 @@ def remove_orphans(parent, prefix: str, what: str) -> list[Path]:
         print(f"lfjax: removed {len(removed)} folder(s) left by {what}: "
               f"{', '.join(p.name for p in removed)}", file=sys.stderr)
     return removed
+
+
+def check_output_folder(out_dir, force: bool = False) -> Path:
+    """``out_dir`` as a Path if a result may be written into it: a new folder, an empty one,
+    or (``force``) one with files in it (files of the same names are then replaced).
+    Otherwise a :class:`~lfjax.base.errors.ParameterError` naming ``out_dir``. Reads the
+    folder only: call it before any work."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ParameterError("out_dir", "{out_dir} {path} exists and is not a folder", path=out)
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise ParameterError("out_dir", "{out_dir} {path} is not empty (use {force} to write into it)",
+                             path=out)
+    return out

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
 from lfjax.base.zernike import zernike_basis
 
@@ -78,7 +79,8 @@ class Sampling:
 
     def __post_init__(self):
         if not (self.freq_step_cpd > 0 and math.isfinite(self.freq_step_cpd)):
-            raise ValueError(f"freq_step_cpd must be > 0 cpd, got {self.freq_step_cpd}")
+            raise ParameterError("freq_step_cpd", "{freq_step_cpd} must be > 0 cpd, got {got}",
+                                 got=self.freq_step_cpd)
         if self.n_fft is not None and (int(self.n_fft) != self.n_fft or self.n_fft < 8):
             raise ValueError(f"n_fft must be an integer >= 8, got {self.n_fft}")
         if self.transform not in ("fft", "mft"):

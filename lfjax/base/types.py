@@ -12,6 +12,8 @@ import jax
 import jaxtyping
 import jax.numpy as jnp
 
+from lfjax.base.errors import ParameterError
+
 FULL = jax.lax.Precision.HIGHEST
 """Precision of every matrix product in lfjax. JAX's default lets accelerators round float32
 products' inputs (TF32, a 10-bit mantissa, on NVIDIA GPUs since Ampere; bfloat16 passes on
@@ -104,17 +106,27 @@ def shape_checked(fn):
 
 
 def finite_scalar(name: str, value, lo: float | None = None, hi: float | None = None,
-                  lo_open: bool = False) -> float:
-    """Host check of one scalar parameter: finite and inside [lo, hi] (or (lo, hi]); the
-    error names ``name`` and the allowed range."""
+                  lo_open: bool = False, *, parameter: str | None = None) -> float:
+    """Host check of one scalar parameter: finite and inside [lo, hi] (or (lo, hi]); a
+    :class:`~lfjax.base.errors.ParameterError` names ``name`` and the allowed range.
+
+    ``parameter``: the parameter the value belongs to when ``name`` is a part of it
+    (``finite_scalar("low end", low, 0.0, parameter="depth_range_D")``); the message then
+    reads ``"depth_range_D: low end must be …"``. Default: ``name`` itself."""
+    if parameter is None or parameter == name:
+        parameter, subject = name, "{" + name + "}"
+    else:
+        subject = "{" + parameter + "}: " + name.replace("{", "{{").replace("}", "}}")
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
+        raise ParameterError(parameter, subject + " must be a number, got {value!r}",
+                             value=value) from None
     bad_lo = lo is not None and (x <= lo if lo_open else x < lo)
     bad_hi = hi is not None and x > hi
     if not math.isfinite(x) or bad_lo or bad_hi:
         left = "(" if lo_open else "["
         rng = f"{left}{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
-        raise ValueError(f"{name} must be finite and in {rng}, got {value!r}")
+        raise ParameterError(parameter, subject + f" must be finite and in {rng}, got {{value!r}}",
+                             value=value)
     return x

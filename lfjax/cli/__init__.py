@@ -1,1 +1,62 @@
-"""The ``lfjax`` command line; the entry point is :func:`lfjax.cli.main.main`."""
+"""The ``lfjax`` command line (:func:`main`): one module per subcommand, each parsing its
+flags, calling the library and printing what it did.
+
+``lfjax reproduce`` (:mod:`~lfjax.cli.reproduce`: the paper's study: results, tables,
+figures, report), ``lfjax optimise`` (:mod:`~lfjax.cli.optimise`: fit a subaperture layout
+to virtual eyes, report it on held-out eyes), ``lfjax sweep`` (:mod:`~lfjax.cli.sweep`: a
+population sweep into a resumable Zarr store), ``lfjax sweep-report``
+(:mod:`~lfjax.cli.sweep_report`: its distributions, percentiles and what ten eyes cannot
+tell) and ``lfjax design`` (:mod:`~lfjax.cli.design`: a buildable lenslet display fitted to
+a panel and eyes). What they share — flags declared once, argument types, the
+parameter↔flag table, the error and exit conventions, the compilation cache — is in
+:mod:`~lfjax.cli.common`.
+
+Usage errors print one line and exit with status 2; failures during the run print one line
+and exit with status 1, leaving no partial output.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from lfjax._version import __version__
+from lfjax.cli import common, design, optimise, reproduce, sweep, sweep_report
+from lfjax.cli.common import enable_compilation_cache
+
+SUBCOMMANDS = {module.COMMAND: module for module in (reproduce, optimise, sweep, sweep_report, design)}
+"""Each subcommand's module: ``add_parser(sub)`` declares its flags, ``run(args)`` runs it."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = common.OneLineParser(
+        prog=common.PROG,
+        description="lfjax: wave-optics model of aberrated human eyes viewing a light-field "
+                    "display (Miyanishi, Sahin & Gotchev).",
+    )
+    parser.add_argument("--version", action="version", version=f"lfjax {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND",
+                                parser_class=common.OneLineParser)
+    for module in SUBCOMMANDS.values():
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``lfjax`` console script; returns the exit status."""
+    t_start = time.perf_counter()
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help/--version (0) or a usage error (2)
+        return int(exc.code or 0)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    args.argv = list(sys.argv[1:] if argv is None else argv)
+    args.t_start = t_start
+    return SUBCOMMANDS[args.command].run(args)
+
+
+__all__ = ["main", "build_parser", "enable_compilation_cache", "SUBCOMMANDS"]

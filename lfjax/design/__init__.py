@@ -7,11 +7,14 @@ from lfjax.design import fit
 from lfjax.design.fit import (
     DesignConstraints,
     DesignResult,
+    check_design,
+    design_cdp_D,
+    design_panel,
     fig_design,
     fit_design,
     panel_specification,
     save_design,
 )
 
-__all__ = ["fit", "DesignConstraints", "DesignResult", "fig_design", "fit_design",
-           "panel_specification", "save_design"]
+__all__ = ["fit", "DesignConstraints", "DesignResult", "check_design", "design_cdp_D",
+           "design_panel", "fig_design", "fit_design", "panel_specification", "save_design"]

@@ -56,9 +56,12 @@ import numpy as np
 from lfjax._version import __version__
 from lfjax.display.lenslets import DisplayOptics, lenslets_for_layout
 from lfjax.model.eyes import Eyes
+from lfjax.base.errors import ParameterError
+from lfjax.base.types import finite_scalar
 from lfjax.layout_opt import (
     Constraints,
     Objective,
+    check_depth_range,
     depth_grid,
     evaluate_layout,
     layout_loss,
@@ -68,24 +71,13 @@ from lfjax.layout_opt import (
 from lfjax.model.options import ModelOptions
 from lfjax.model.layout_files import jsonable
 from lfjax.model.layout_plots import draw_layout
-from lfjax.display.panel import Panel
+from lfjax.display.panel import PRESETS, Panel
+from lfjax.model.spectral import make_spectrum
 from lfjax.vision.resolution import perceivable_cutoff_cpd
 from lfjax.kernel.pipeline import retinal_metrics
 from lfjax.kernel.scene import Accommodation
 
 DESIGN_FORMAT = "lfjax-design/1"
-
-
-def _check(name: str, value, lo: float, hi: float = math.inf, lo_open: bool = False) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    ok = (x > lo if lo_open else x >= lo) and x <= hi and math.isfinite(x)
-    if not ok:
-        rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
-        raise ValueError(f"{name} must be finite and in {rng}, got {value!r}")
-    return x
 
 
 @dataclass(frozen=True)
@@ -115,15 +107,15 @@ class DesignConstraints:
     min_gap_fraction: float = 0.75
 
     def __post_init__(self):
-        _check("min_gap_fraction", self.min_gap_fraction, 0.0, 1.0, lo_open=True)
-        _check("min_eye_box_mm", self.min_eye_box_mm, 0.0, lo_open=True)
-        _check("min_fill", self.min_fill, 0.0, 1.0, lo_open=True)
-        lo = _check("min_f_number", self.min_f_number, 0.0, lo_open=True)
-        _check("max_f_number", self.max_f_number, lo)
+        finite_scalar("min_gap_fraction", self.min_gap_fraction, 0.0, 1.0, lo_open=True)
+        finite_scalar("min_eye_box_mm", self.min_eye_box_mm, 0.0, lo_open=True)
+        finite_scalar("min_fill", self.min_fill, 0.0, 1.0, lo_open=True)
+        lo = finite_scalar("min_f_number", self.min_f_number, 0.0, lo_open=True)
+        finite_scalar("max_f_number", self.max_f_number, lo)
         if self.distance_range_mm is not None:
             a, b = (float(v) for v in self.distance_range_mm)
-            _check("distance_range_mm low end", a, 0.0, lo_open=True)
-            _check("distance_range_mm high end", b, a)
+            finite_scalar("low end", a, 0.0, lo_open=True, parameter="distance_range_mm")
+            finite_scalar("high end", b, a, parameter="distance_range_mm")
             object.__setattr__(self, "distance_range_mm", (a, b))
 
     def as_dict(self) -> dict:
@@ -434,6 +426,78 @@ def _solve(x0, problem, template, n, constraints, steps: int, tol: float):
     return jnp.asarray(result.x, dtype), history
 
 
+def design_cdp_D(depth_range_D, cdp_D: float | None = None) -> float:
+    """The CDP (D) of a design rendering depths in ``depth_range_D`` (low, high), D: ``cdp_D``
+    when given, else the range's dioptric middle. A
+    :class:`~lfjax.base.errors.ParameterError` names ``depth_range_D`` for a range that is
+    not 0 ≤ low < high, and ``cdp_D`` for a CDP outside it: depths on one side of the CDP
+    only would be rendered far from it, where the views' defocus and the sampling limit are
+    worst."""
+    lo, hi = check_depth_range(depth_range_D)
+    if cdp_D is None:
+        return 0.5 * (lo + hi)
+    return _cdp_within(finite_scalar("cdp_D", cdp_D, 0.0), lo, hi)
+
+
+def _cdp_within(cdp: float, lo: float, hi: float) -> float:
+    if not (lo - 1e-6 <= cdp <= hi + 1e-6):
+        raise ParameterError(
+            "cdp_D", "{cdp_D} = {cdp:.4g} D lies outside the depth range [{lo:g}, {hi:g}] D: depths on "
+            "one side of the CDP only would be rendered far from it, where the views' defocus and "
+            "the sampling limit are worst; choose {cdp_D} within the range (e.g. its dioptric "
+            "middle, {middle:g} D) or widen the range", cdp=cdp, lo=lo, hi=hi, middle=0.5 * (lo + hi))
+    return cdp
+
+
+def design_panel(preset: str, cdp_D: float, *, distance_mm: float | None = None,
+                 pixel_pitch_mm: float | None = None, pixel_count=None,
+                 diffraction: str = "fresnel") -> Panel:
+    """The starting panel of a design: the preset ``preset`` of
+    :data:`lfjax.display.panel.PRESETS` (``"near-eye"``, ``"phone"``) with its CDP at
+    ``cdp_D`` (D; :func:`design_cdp_D`) and, when given, another viewing distance (mm),
+    pixel pitch (mm) or pixel count (horizontal, vertical); lenslet diffraction
+    ``diffraction``. The panel's checks name the parameter
+    (:class:`~lfjax.base.errors.ParameterError`)."""
+    if preset not in PRESETS:
+        raise ParameterError("preset", "{preset} must be one of {allowed}, got {got!r}",
+                             allowed=", ".join(PRESETS), got=preset)
+    panel = PRESETS[preset](cdp_D=cdp_D, **({} if distance_mm is None else {"distance_mm": distance_mm}))
+    changes = {}
+    if pixel_pitch_mm is not None:
+        changes["pixel_pitch_mm"] = pixel_pitch_mm
+    if pixel_count is not None:
+        changes["pixel_count"] = tuple(pixel_count)
+    return dataclasses.replace(panel, diffraction=diffraction, **changes)
+
+
+def check_design(panel: Panel, depth_range_D, n_depths: int = 3, cdp_D: float | None = None,
+                 views_per_side=(1, 2, 3, 4), wavelengths_nm=(550.0,), steps: int = 10,
+                 report_accuracy: str = "full"):
+    """:func:`fit_design`'s checks of its arguments (of the same names), on the host and
+    before anything is traced; :func:`fit_design` makes them first. Returns (depths_D,
+    cdp_D, counts). A refused value is a :class:`~lfjax.base.errors.ParameterError` naming
+    the parameter."""
+    if not isinstance(panel, Panel):
+        raise ParameterError("panel", "{panel} must be lfjax.display.panel.Panel, got {got}",
+                             got=type(panel).__name__)
+    if report_accuracy not in ("full", "fit"):
+        raise ParameterError("report_accuracy", "{report_accuracy} must be 'full' or 'fit', got {got!r}",
+                             got=report_accuracy)
+    lo, hi = check_depth_range(depth_range_D, allow_empty=True)
+    depths = depth_grid(lo, hi, n_depths)
+    cdp = _cdp_within(float(panel.cdp_D) if cdp_D is None else finite_scalar("cdp_D", cdp_D, 0.0),
+                      lo, hi)
+    counts = [int(n) for n in views_per_side]
+    if not counts or any(n != v or not 1 <= n <= 8 for n, v in zip(counts, views_per_side)):
+        raise ParameterError("views_per_side", "{views_per_side} must be integers in [1, 8], got {got}",
+                             got=list(views_per_side))
+    if isinstance(steps, bool) or int(steps) != steps or steps < 0:
+        raise ParameterError("steps", "{steps} must be an integer >= 0, got {got!r}", got=steps)
+    make_spectrum(np.atleast_1d(np.asarray(wavelengths_nm, float)),
+                  ModelOptions(vsotf_reference="open_pupil"))  # checks them
+    return depths, cdp, counts
+
+
 def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes | None = None,
                n_depths: int = 3, cdp_D: float | None = None, views_per_side=(1, 2, 3, 4),
                constraints: DesignConstraints = DesignConstraints(), objective=None,  # noqa: B008
@@ -460,32 +524,18 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
     sampling : a :class:`~lfjax.base.sampling.Sampling` for both settings (default: planned by
         the layout optimiser's aliasing guard for the widest pixel blur of each count's box)
 
-    Refuses (``ValueError``, before anything is traced) a CDP outside the depth range and
-    counts outside 1 … 8. Reported refused, with the reason, without fitting: a count no
+    Refuses (:func:`check_design`: a :class:`~lfjax.base.errors.ParameterError` naming the
+    parameter, before anything is traced) a CDP outside the depth range, counts outside
+    1 … 8 and wavelengths the model has no data for. Reported refused, with the reason, without fitting: a count no
     panel of these pixels can make, and 1×1 (one view: no light field); after fitting: a
     design whose accommodation does not follow the rendered depth (gain < 0.5) or whose eye
     box falls short.
     """
-    if not isinstance(panel, Panel):
-        raise ValueError(f"panel must be lfjax.display.panel.Panel, got {type(panel).__name__}")
-    if report_accuracy not in ("full", "fit"):
-        raise ValueError(f"report_accuracy must be 'full' or 'fit', got {report_accuracy!r}")
+    depths, cdp, counts = check_design(panel, depth_range_D, n_depths, cdp_D, views_per_side,
+                                       wavelengths_nm, steps, report_accuracy)
     lo, hi = (float(v) for v in depth_range_D)
-    depths = depth_grid(lo, hi, n_depths)
-    cdp = float(panel.cdp_D) if cdp_D is None else _check("cdp_D", cdp_D, 0.0)
-    if not (lo - 1e-6 <= cdp <= hi + 1e-6):
-        raise ValueError(
-            f"cdp_D = {cdp:.4g} D lies outside the depth range [{lo:g}, {hi:g}] D: depths on one "
-            f"side of the CDP only would be rendered far from it, where the views' defocus "
-            f"and the sampling limit are worst; choose cdp_D within the range (e.g. its "
-            f"dioptric middle, {0.5 * (lo + hi):g} D) or widen the range")
-    counts = [int(n) for n in views_per_side]
-    if not counts or any(n != v or not 1 <= n <= 8 for n, v in zip(counts, views_per_side)):
-        raise ValueError(f"views_per_side must be integers in [1, 8], got {list(views_per_side)}")
     objective = Objective.parse(objective) if objective is not None else Objective()
     steps = int(steps)
-    if steps < 0:
-        raise ValueError(f"steps must be >= 0, got {steps}")
     planning = train_eyes if test_eyes is None else Eyes(
         np.concatenate([np.asarray(train_eyes.zernike_um), np.asarray(test_eyes.zernike_um)]),
         train_eyes.measured_pupil_mm)
@@ -698,6 +748,9 @@ __all__ = [
     "design_loss",
     "perceivable_resolution",
     "design_notes",
+    "design_cdp_D",
+    "design_panel",
+    "check_design",
     "fit_design",
     "panel_specification",
     "save_design",

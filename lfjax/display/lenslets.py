@@ -53,6 +53,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.types import as_real_array
 from lfjax.base.types import is_concrete as _concrete
 from lfjax.base.apertures import aperture_edge_distance as aperture_edge_distance
@@ -108,7 +109,9 @@ class DisplayOptics(eqx.Module):
             if not (np.isfinite(z) and z > 0):
                 raise ValueError(f"fresnel_distance_mm must be finite and > 0 mm, got {float(z)}")
             if not (np.isfinite(w) and w >= 0):
-                raise ValueError(f"pixel_width_arcmin must be finite and >= 0 arcmin, got {float(w)}")
+                raise ParameterError("pixel_width_arcmin",
+                                     "{pixel_width_arcmin} must be finite and >= 0 arcmin, got {got}",
+                                     got=float(w))
 
     @property
     def diffracts(self) -> bool:
@@ -316,13 +319,15 @@ def display_optics_at(distance_mm: float, cdp_D: float, pixel_width_arcmin: floa
     pitch, so one DisplayOptics serves every layout such an array can make (the layout
     optimiser's and the sweep's). ``pixel_width_arcmin``: the emitters' angular width."""
     if not (math.isfinite(distance_mm) and distance_mm > 0):
-        raise ValueError(f"display distance must be > 0 mm, got {distance_mm}")
+        raise ParameterError("distance_mm", "{distance_mm} (the display distance) must be > 0 mm, "
+                             "got {got}", got=distance_mm)
     if not (math.isfinite(cdp_D) and cdp_D >= 0):
-        raise ValueError(f"cdp_D must be >= 0 D, got {cdp_D}")
+        raise ParameterError("cdp_D", "{cdp_D} must be >= 0 D, got {got}", got=cdp_D)
     if cdp_D * distance_mm >= 1000.0:
-        raise ValueError(
-            f"a display at {distance_mm:g} mm cannot put its CDP at {cdp_D:g} D: the CDP is a "
-            f"virtual image behind the display, so the distance must be < {1000.0 / cdp_D:.4g} mm")
+        raise ParameterError(
+            "distance_mm", "a display at {distance_mm} = {zm:g} mm cannot put its CDP at {cdp_D} = "
+            "{cdp:g} D: the CDP is a virtual image behind the display, so the distance must be "
+            "< {top:.4g} mm", zm=distance_mm, cdp=cdp_D, top=1000.0 / cdp_D)
     magnification = 1.0 / (1.0 - distance_mm * cdp_D / 1000.0)
     return DisplayOptics(diffraction, aperture, distance_mm * magnification, pixel_width_arcmin)
 

@@ -51,6 +51,7 @@ import numpy as np
 
 from lfjax.display.lenslets import DisplayOptics, LensletArray, check_choices
 from lfjax.model.layouts import Layout
+from lfjax.base.errors import ParameterError
 from lfjax.base.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
 
 MM_PER_INCH = 25.4
@@ -73,7 +74,8 @@ def _scalar(name: str, value, lo: float, hi: float = math.inf, lo_open: bool = T
             allow_inf: bool = False, unit: str = "mm") -> float:
     v = np.asarray(value, float)
     if v.shape != ():
-        raise ValueError(f"Panel.{name} must be a scalar, got shape {v.shape}")
+        raise ParameterError(name, "{%s} must be a scalar, got shape {shape}" % name, owner="Panel",
+                             shape=v.shape)
     x = float(v)
     ok_lo = x > lo if lo_open else x >= lo
     ok = ok_lo and x <= hi and (math.isfinite(x) or (allow_inf and x == math.inf))
@@ -81,7 +83,8 @@ def _scalar(name: str, value, lo: float, hi: float = math.inf, lo_open: bool = T
         left = "(" if lo_open else "["
         right = "inf]" if allow_inf and hi == math.inf else (f"{hi:g}]" if math.isfinite(hi) else "inf)")
         extra = " (inf: a pinhole or barrier array)" if allow_inf else ""
-        raise ValueError(f"Panel.{name} must be in {left}{lo:g}, {right} {unit}{extra}, got {x:g}")
+        raise ParameterError(name, "{%s} must be in {left}{lo:g}, {right} {unit}{extra}, got {x:g}" % name,
+                             owner="Panel", left=left, lo=lo, right=right, unit=unit, extra=extra, x=x)
     return x
 
 
@@ -123,8 +126,8 @@ class Panel(eqx.Module):
         check_choices("Panel", aperture=self.aperture, diffraction=self.diffraction)
         counts = tuple(self.pixel_count)
         if (len(counts) != 2 or any(isinstance(c, bool) or int(c) != c or c < 1 for c in counts)):
-            raise ValueError(f"Panel.pixel_count must be two integers >= 1 (horizontal, vertical), "
-                             f"got {self.pixel_count!r}")
+            raise ParameterError("pixel_count", "{pixel_count} must be two integers >= 1 (horizontal, "
+                                 "vertical), got {got!r}", owner="Panel", got=self.pixel_count)
         pupil = float(self.pupil_diameter_mm)
         if not (math.isfinite(pupil) and pupil > 0):
             raise ValueError(f"Panel.pupil_diameter_mm must be in (0, inf) mm, got {pupil:g}")
@@ -169,10 +172,12 @@ class Panel(eqx.Module):
         :class:`Panel`."""
         cdp, zm = float(cdp_D), float(distance_mm)
         if not (math.isfinite(zm) and zm > 0):
-            raise ValueError(f"distance_mm must be in (0, inf) mm, got {zm:g}")
+            raise ParameterError("distance_mm", "{distance_mm} must be in (0, inf) mm, got {zm:g}", zm=zm)
         if not (math.isfinite(cdp) and 0 <= cdp < 1000.0 / zm):
-            raise ValueError(f"cdp_D must be in [0, {1000.0 / zm:.4g}) D for a display at {zm:g} mm "
-                             f"(the CDP is a virtual image behind the display), got {cdp:g}")
+            raise ParameterError(
+                "cdp_D", "{cdp_D} must be in [0, {top:.4g}) D for a display at {distance_mm} = {zm:g} mm "
+                "(the CDP is a virtual image behind the display), got {cdp:g}",
+                top=1000.0 / zm, zm=zm, cdp=cdp)
         gap = gap_for_cdp_mm(cdp, focal_length_mm, zm)
         return cls(pixel_pitch_mm, lenslet_pitch_mm, fill, focal_length_mm, gap, zm, **kwargs)
 

@@ -83,6 +83,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from lfjax.base.errors import ParameterError
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import Spectrum, _lef_table, _sce_table, make_spectrum
 
@@ -218,7 +219,8 @@ def display_primaries(name: str) -> DisplayPrimaries:
     620/530/460 nm, FWHM 35/35/25 nm (see the module docstring for the sources).
     """
     if name not in DISPLAY_NAMES:
-        raise ValueError(f"display name {name!r} unknown; allowed: {', '.join(DISPLAY_NAMES)}")
+        raise ParameterError("name", "{name} {got!r} is not a built-in display; allowed: {allowed}",
+                             got=name, allowed=", ".join(DISPLAY_NAMES))
     return _builtin(name)
 
 

@@ -115,8 +115,10 @@ The package's parts, each a private module importing only those before it, behin
 public face: ``_params`` (parametrisations), ``_feasible`` (constraints and the feasible
 coordinates a solver moves in), ``_problem`` (the objective and the problem set-up),
 ``_objectives`` (what a layout is scored on, and the loss), ``_evaluation`` (scoring on
-held-out eyes, curves, scans), ``_solver`` (the fit and the trade-off front) and ``_files``
-(JSON). Reading a layout file lives below every application, in :mod:`lfjax.model.layout_files`.
+held-out eyes, curves, scans), ``_solver`` (the fit and the trade-off front), ``_files``
+(JSON) and ``_run`` (a whole optimisation as one call: :class:`OptimisationSettings`, checked
+plain values, and :func:`optimise_and_save`, the fit, its report and its files — what
+``lfjax optimise`` runs). Reading a layout file lives below every application, in :mod:`lfjax.model.layout_files`.
 """
 
 from __future__ import annotations
@@ -169,6 +171,8 @@ from lfjax.layout_opt._problem import FULL_WAVELENGTHS_NM as FULL_WAVELENGTHS_NM
 from lfjax.layout_opt._problem import OBJECTIVES as OBJECTIVES
 from lfjax.layout_opt._problem import LayoutProblem as LayoutProblem
 from lfjax.layout_opt._problem import Objective as Objective
+from lfjax.layout_opt._problem import check_depth_range as check_depth_range
+from lfjax.layout_opt._problem import check_measured_pupil as check_measured_pupil
 from lfjax.layout_opt._problem import depth_grid as depth_grid
 from lfjax.layout_opt._problem import envelope_layout as envelope_layout
 from lfjax.layout_opt._problem import guard_sampling as guard_sampling
@@ -181,6 +185,11 @@ from lfjax.layout_opt._solver import LayoutWarning as LayoutWarning
 from lfjax.layout_opt._solver import layout_value_and_grad as layout_value_and_grad
 from lfjax.layout_opt._solver import optimise_layout as optimise_layout
 from lfjax.layout_opt._solver import trade_off_front as trade_off_front
+from lfjax.layout_opt._run import MEASURED_PUPIL_MM as MEASURED_PUPIL_MM
+from lfjax.layout_opt._run import PARAMETRISATIONS as PARAMETRISATIONS
+from lfjax.layout_opt._run import OptimisationResult as OptimisationResult
+from lfjax.layout_opt._run import OptimisationSettings as OptimisationSettings
+from lfjax.layout_opt._run import optimise_and_save as optimise_and_save
 
 __all__ = [
     "OBJECTIVES",
@@ -208,6 +217,8 @@ __all__ = [
     "ACCURACIES",
     "FULL_WAVELENGTHS_NM",
     "depth_grid",
+    "check_depth_range",
+    "check_measured_pupil",
     "peak_window",
     "predicted_peaks",
     "accommodation_penalty",
@@ -243,4 +254,9 @@ __all__ = [
     "params_from_dict",
     "save_layout_json",
     "load_layout_json",
+    "MEASURED_PUPIL_MM",
+    "PARAMETRISATIONS",
+    "OptimisationSettings",
+    "OptimisationResult",
+    "optimise_and_save",
 ]

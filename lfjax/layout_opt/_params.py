@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.types import as_real_array as _real
 from lfjax.base.types import finite_scalar
 
@@ -45,14 +46,16 @@ def lattice_sites(kind: str, n_views: int) -> np.ndarray:
     angle, so 1, 7, 19, 37 views give whole rings).
     """
     if kind not in LATTICES:
-        raise ValueError(f"kind must be one of {LATTICES}, got {kind!r}")
+        raise ParameterError("kind", "{kind} must be one of {allowed}, got {got!r}", allowed=LATTICES,
+                             got=kind)
     if isinstance(n_views, bool) or int(n_views) != n_views or n_views < 1:
-        raise ValueError(f"n_views must be an integer >= 1, got {n_views!r}")
+        raise ParameterError("n_views", "{n_views} must be an integer >= 1, got {got!r}", got=n_views)
     n_views = int(n_views)
     if kind == "square":
         n = int(round(math.sqrt(n_views)))
         if n * n != n_views:
-            raise ValueError(f"a square lattice needs n_views = n*n (1, 4, 9, 16, ...), got {n_views}")
+            raise ParameterError("n_views", "a square lattice needs {n_views} = n*n (1, 4, 9, 16, ...), "
+                                 "got {got}", got=n_views)
         offsets = np.arange(n) - (n - 1) / 2.0
         xx, yy = np.meshgrid(offsets, offsets)
         return np.stack([xx.ravel(), yy.ravel()], axis=1)

@@ -5,6 +5,7 @@ Part of :mod:`lfjax.layout_opt` (its public names are re-exported there)."""
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import equinox as eqx
@@ -13,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.types import finite_scalar
 from lfjax.display.lenslets import DisplayOptics
 from lfjax.model.eyes import Eyes
@@ -91,10 +93,12 @@ class Objective:
         w = tuple((str(k), float(v)) for k, v in dict(self.weights).items())
         for name, value in w:
             if name not in OBJECTIVES:
-                raise ValueError(f"objective {name!r} unknown; choose from {OBJECTIVES}")
-            finite_scalar(f"weight of {name}", value, 0.0)
+                raise ParameterError("objective", "{objective}: {name!r} unknown; choose from {allowed}",
+                                     name=name, allowed=OBJECTIVES)
+            finite_scalar(f"weight of {name}", value, 0.0, parameter="objective")
         if not any(v > 0 for _, v in w):
-            raise ValueError(f"at least one objective weight must be > 0, got {dict(w)}")
+            raise ParameterError("objective", "{objective}: at least one weight must be > 0, got {got}",
+                                 got=dict(w))
         object.__setattr__(self, "weights", w)
         if self.accommodation_tolerance_D is not None:
             object.__setattr__(self, "accommodation_tolerance_D", finite_scalar(
@@ -114,13 +118,15 @@ class Objective:
             out = cls()
         elif isinstance(objective, str):
             if objective not in OBJECTIVES:
-                raise ValueError(f"objective must be {DEFAULT_OBJECTIVE!r}, one of {OBJECTIVES} or a "
-                                 f"dict of weights, got {objective!r}")
+                raise ParameterError("objective", "{objective} must be {default!r}, one of {allowed} or a "
+                                     "dict of weights, got {got!r}", default=DEFAULT_OBJECTIVE,
+                                     allowed=OBJECTIVES, got=objective)
             out = cls(((objective, 1.0),), accommodation_tolerance_D=None)
         elif isinstance(objective, dict):
             out = cls(tuple(objective.items()), accommodation_tolerance_D=None)
         else:
-            raise ValueError(f"objective must be a name, a dict of weights or an Objective, got {objective!r}")
+            raise ParameterError("objective", "{objective} must be a name, a dict of weights or an "
+                                 "Objective, got {got!r}", got=objective)
         if accommodation_tolerance_D != "default":
             out = dataclasses.replace(out, accommodation_tolerance_D=accommodation_tolerance_D)
         return out
@@ -247,19 +253,51 @@ class LayoutProblem(eqx.Module):
 
 def depth_grid(low_D: float, high_D: float, n_depths: int) -> np.ndarray:
     """``n_depths`` rendered depths evenly spanning [low_D, high_D] (D), validated:
-    0 ≤ low < high, finite; n_depths ≥ 2 (or 1 with low == high)."""
-    lo = finite_scalar("depth range low end (D)", low_D, 0.0)
-    hi = finite_scalar("depth range high end (D)", high_D, 0.0)
+    0 ≤ low < high, finite; n_depths ≥ 2 (or 1 with low == high). A refused range is a
+    :class:`~lfjax.base.errors.ParameterError` naming ``depth_range_D`` (the pair
+    (low_D, high_D), as :func:`lfjax.design.fit_design` and :class:`OptimisationSettings`
+    take it); a refused count names ``n_depths``."""
+    lo, hi = check_depth_range((low_D, high_D), allow_empty=True)
     if isinstance(n_depths, bool) or int(n_depths) != n_depths or n_depths < 1:
-        raise ValueError(f"n_depths must be an integer >= 1, got {n_depths!r}")
+        raise ParameterError("n_depths", "{n_depths} must be an integer >= 1, got {got!r}", got=n_depths)
     if n_depths == 1 and hi == lo:
         return np.array([lo])
-    if not hi > lo:
-        raise ValueError(f"depth range must satisfy 0 <= low < high (D); got low = {lo:g}, "
-                         f"high = {hi:g} ({'empty' if hi == lo else 'inverted'})")
+    check_depth_range((lo, hi))
     if n_depths < 2:
-        raise ValueError(f"n_depths must be >= 2 for a depth range, got {n_depths}")
+        raise ParameterError("n_depths", "{n_depths} must be >= 2 for a depth range, got {got}",
+                             got=n_depths)
     return np.linspace(lo, hi, int(n_depths))
+
+
+def check_depth_range(depth_range_D, allow_empty: bool = False) -> tuple[float, float]:
+    """(low, high) of a rendered depth range in D, finite with 0 ≤ low < high (low == high
+    too with ``allow_empty``); a :class:`~lfjax.base.errors.ParameterError` naming
+    ``depth_range_D`` otherwise."""
+    try:
+        lo, hi = (float(v) for v in depth_range_D)
+    except (TypeError, ValueError):
+        raise ParameterError("depth_range_D", "{depth_range_D} must be two numbers (low, high) in D, "
+                             "got {got!r}", got=depth_range_D) from None
+    for end, value in (("low", lo), ("high", hi)):
+        if not (math.isfinite(value) and value >= 0):
+            raise ParameterError("depth_range_D", "{depth_range_D}: the {end} end must be finite and "
+                                 ">= 0 D (0 D is optical infinity; allowed [0, inf]), got {got!r}",
+                                 end=end, got=value)
+    if hi < lo or (hi == lo and not allow_empty):
+        raise ParameterError("depth_range_D", "{depth_range_D} must satisfy 0 <= low < high (D); got "
+                             "low = {lo:g}, high = {hi:g} ({how})", lo=lo, hi=hi,
+                             how="empty" if hi == lo else "inverted")
+    return lo, hi
+
+
+def check_measured_pupil(pupil_diameter_mm: float, measured_pupil_mm: float) -> None:
+    """The calculation pupil must not exceed the pupil the eyes were measured on (their
+    Zernike coefficients are defined over it); a :class:`~lfjax.base.errors.ParameterError`
+    naming ``pupil_diameter_mm`` otherwise."""
+    if measured_pupil_mm < pupil_diameter_mm - 1e-12:
+        raise ParameterError("pupil_diameter_mm", "{pupil_diameter_mm} = {pupil:g} exceeds the eyes' "
+                             "measured pupil {measured:g} mm", pupil=pupil_diameter_mm,
+                             measured=measured_pupil_mm)
 
 
 def _check_depths(depths_D) -> np.ndarray:
@@ -436,9 +474,7 @@ def make_problem(
         raise ValueError(f"eyes must be lfjax.Eyes, got {type(eyes).__name__}")
     if not np.all(np.isfinite(np.asarray(eyes.zernike_um))):
         raise ValueError("eyes.zernike_um contains non-finite values (NaN or inf)")
-    if eyes.measured_pupil_mm < constraints.pupil_diameter_mm - 1e-12:
-        raise ValueError(f"pupil_diameter_mm = {constraints.pupil_diameter_mm:g} exceeds the eyes' "
-                         f"measured pupil {eyes.measured_pupil_mm:g} mm")
+    check_measured_pupil(constraints.pupil_diameter_mm, eyes.measured_pupil_mm)
     depths = _check_depths(depths_D)
     cdp = finite_scalar("cdp_D", cdp_D, 0.0)
     objective = Objective.parse(objective)

@@ -15,6 +15,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.types import as_real_array
 from lfjax.model.options import ModelOptions, ModelParameters, model_numbers
 
@@ -40,9 +41,8 @@ def lef_range_nm() -> tuple[float, float]:
 def _check_range(name: str, wavelengths_nm: np.ndarray, lo: float, hi: float, what: str):
     bad = (wavelengths_nm < lo) | (wavelengths_nm > hi) | ~np.isfinite(wavelengths_nm)
     if np.any(bad):
-        raise ValueError(
-            f"{name} must lie in {lo:g}–{hi:g} nm ({what}); got {wavelengths_nm[bad].tolist()}"
-        )
+        raise ParameterError(name, "{%s} must lie in {lo:g}–{hi:g} nm ({what}); got {got}" % name,
+                             lo=lo, hi=hi, what=what, got=wavelengths_nm[bad].tolist())
 
 
 def luminous_efficiency(wavelengths_nm) -> np.ndarray:
@@ -160,9 +160,11 @@ def make_spectrum(
         wavelengths_nm = np.arange(400.0, 701.0, 10.0)
     wl = np.atleast_1d(np.asarray(wavelengths_nm, float))
     if wl.ndim != 1 or wl.size < 1:
-        raise ValueError(f"wavelengths_nm must be a 1-D array of >= 1 values, got shape {wl.shape}")
+        raise ParameterError("wavelengths_nm", "{wavelengths_nm} must be a 1-D array of >= 1 values, "
+                             "got shape {shape}", shape=wl.shape)
     if wl.size > 1 and np.any(np.diff(wl) <= 0):
-        raise ValueError("wavelengths_nm must be strictly increasing")
+        raise ParameterError("wavelengths_nm", "{wavelengths_nm} must be strictly increasing, got {got}",
+                             got=wl.tolist())
     v = luminous_efficiency(wl)
     if weights is None:
         if wl.size == 1:

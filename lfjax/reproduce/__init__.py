@@ -19,7 +19,7 @@ The parts, each importing only those listed before it:
   (:class:`Claim`);
 * this module — :func:`reproduce` writes results file, CSV tables, figures and ``REPORT.md``
   into a folder (through a temporary folder moved into place at the end), and re-exports
-  the public names of the parts. ``lfjax reproduce`` is its command line (:mod:`lfjax.cli.main`).
+  the public names of the parts. ``lfjax reproduce`` is its command line (:mod:`lfjax.cli.reproduce`).
   Given a population sweep store (``--population``), the report adds "What ten eyes cannot
   tell" (:mod:`lfjax.sweep.ten_eyes`; the sweep reads the claims from :mod:`lfjax.vision.claims`,
   never from this package, so the two import in one direction).
@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.files import owned_temp_dir, remove_orphans
 from lfjax.base.tables import printable
 from lfjax.vision.claims import Claim, dof_D, evaluate_claims
@@ -124,8 +125,9 @@ def _display_effects(config: StudyConfig, n_eyes: int, stage, note=None):
 # ----------------------------------------------------------------------------- output folder
 
 
-class OutputError(ValueError):
-    """The output folder cannot be used (exists, not empty, not writable)."""
+class OutputError(ParameterError):
+    """The output folder cannot be used (exists, not empty, not writable): a
+    :class:`~lfjax.base.errors.ParameterError` naming ``out``."""
 
 
 def _nearest_existing(path: Path) -> Path:
@@ -142,22 +144,23 @@ def check_output_dir(out, force: bool = False) -> Path:
     out = Path(out).expanduser().absolute()
     if out.exists():
         if not out.is_dir():
-            raise OutputError(f"--out {out} exists and is not a folder")
+            raise OutputError("out", "{out} {path} exists and is not a folder", path=out)
         if any(out.iterdir()):
             if not force:
-                raise OutputError(f"--out {out} is not empty; use --force to replace it")
+                raise OutputError("out", "{out} {path} is not empty; use {force} to replace it", path=out)
             if not (out / MARKER_FILE).exists():
                 raise OutputError(
-                    f"--out {out} is not empty and was not written by lfjax reproduce; "
-                    "refusing to replace it even with --force (choose another folder)"
-                )
+                    "out", "{out} {path} is not empty and was not written by lfjax reproduce; "
+                    "refusing to replace it even with {force} (choose another folder)", path=out)
         anchor = out.parent
     else:
         anchor = _nearest_existing(out.parent)
         if not anchor.is_dir():
-            raise OutputError(f"cannot create --out {out}: {anchor} is not a folder")
+            raise OutputError("out", "cannot create {out} {path}: {anchor} is not a folder", path=out,
+                              anchor=anchor)
     if not os.access(anchor, os.W_OK | os.X_OK):
-        raise OutputError(f"--out {out} is not writable (no write permission in {anchor})")
+        raise OutputError("out", "{out} {path} is not writable (no write permission in {anchor})",
+                          path=out, anchor=anchor)
     return out
 
 
@@ -185,7 +188,26 @@ def check_population(population_store, config: StudyConfig) -> float:
         return check_population_store(population_store, sample_size=config.n_eyes,
                                       prefer_pupil_mm=config.pupil_diameter_mm)
     except ValueError as err:
-        raise ValueError(f"--population: {err}") from None
+        raise ParameterError("population_store", "{population_store}: {problem}",
+                             problem=str(err)) from None
+
+
+def check_reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # noqa: B008
+                    population_store=None, display_effects_eyes: int | None = None) -> Path:
+    """:func:`reproduce`'s checks of its arguments (of the same names), before any work
+    (it makes them first): the output folder (:func:`check_output_dir`), the population
+    store (:func:`check_population`) and the display-effects eyes (0 … the study's eyes).
+    Returns the output folder's absolute path; a refused value is a
+    :class:`~lfjax.base.errors.ParameterError` naming the parameter."""
+    out = check_output_dir(out, force)
+    if population_store is not None:
+        check_population(population_store, config)
+    if display_effects_eyes is not None and not (
+            isinstance(display_effects_eyes, (int, np.integer)) and not isinstance(display_effects_eyes, bool)
+            and 0 <= display_effects_eyes <= config.n_eyes):
+        raise ParameterError("display_effects_eyes", "{display_effects_eyes} must be in 0 ... {n} (the "
+                             "study's eyes), got {got!r}", n=config.n_eyes, got=display_effects_eyes)
+    return out
 
 
 def population_section(population_store, config: StudyConfig, claims: list[Claim],
@@ -248,9 +270,7 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
     from tqdm.auto import tqdm
 
     t_start = time.perf_counter()
-    out = check_output_dir(out, force)
-    if population_store is not None:
-        check_population(population_store, config)
+    out = check_reproduce(out, config, force, population_store, display_effects_eyes)
     anchor = out.parent if out.parent.exists() else _nearest_existing(out.parent)
     layouts = list(config.layouts)
     stages = ["eyes"] + [f"through-focus {n}" for n in layouts] + ["examples: natural view"]
@@ -364,6 +384,7 @@ __all__ = [
     "alternatives_table",
     "check_output_dir",
     "check_population",
+    "check_reproduce",
     "claims_table",
     "compute_examples",
     "cutoff_table",

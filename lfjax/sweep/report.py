@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.tables import printable
 from lfjax.model.layout_plots import draw_layout
 from lfjax.model.layouts import LF_LAYOUTS
@@ -417,7 +418,7 @@ def _ten_eye_reason(ds, sample_size: int) -> str | None:
 
 def _positive_int(name: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name} must be a whole number >= 1, got {value!r}")
+        raise ParameterError(name, "{%s} must be a whole number >= 1, got {got!r}" % name, got=value)
     return int(value)
 
 
@@ -436,19 +437,20 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
     """
     store = Path(store_path)
     if not is_store(store):
-        raise ValueError(f"store_path: {store} is not an lfjax sweep store (a folder written by "
-                         f"`lfjax sweep`)")
+        raise ParameterError("store_path", "{store_path} {store} is not an lfjax sweep store (a folder "
+                             "written by `lfjax sweep`)", store=store)
     draws = _positive_int("draws", draws)
     sample_size = _positive_int("sample_size", sample_size)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a whole number >= 0, got {seed!r}")
+        raise ParameterError("seed", "{seed} must be a whole number >= 0, got {got!r}", got=seed)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
-        raise ValueError(f"out_dir: {out} exists and is not a folder")
+        raise ParameterError("out_dir", "{out_dir} {out} exists and is not a folder", out=out)
 
     ds = open_store(store, complete_only=True)
     if ds.sizes["eye"] == 0 or not np.any(~ds.is_average.values):
-        raise ValueError(f"store_path: {store} has no complete chunk of virtual eyes yet")
+        raise ParameterError("store_path", "{store_path} {store} has no complete chunk of virtual eyes yet",
+                             store=store)
     out.mkdir(parents=True, exist_ok=True)
     files = {key: out / name for key, name in FILES.items()}
 

@@ -130,6 +130,18 @@ def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | 
     return eyes, is_average, spectrum, tasks, est
 
 
+def check_store_target(store, resume: bool = False) -> bool:
+    """Whether the store ``store`` exists; a ``FileExistsError`` when it does and ``resume``
+    is not set (:func:`run_sweep` checks it first; a command line checks it before any
+    work)."""
+    exists = Path(store).exists()
+    if exists and not resume:
+        raise FileExistsError(
+            f"{store} already exists: pass --resume (resume=True) to complete it, or choose "
+            f"another --out")
+    return exists
+
+
 def run_sweep(
     config: SweepConfig,
     store,
@@ -165,11 +177,7 @@ def run_sweep(
     started = _now()
     store = Path(store)
     pid, nproc = _process()
-    exists = store.exists()
-    if exists and not resume:
-        raise FileExistsError(
-            f"{store} already exists: pass --resume (resume=True) to complete it, or choose "
-            f"another --out")
+    exists = check_store_target(store, resume)
     lock = None
     if exists:
         check_store_matches(store, config)
@@ -285,4 +293,4 @@ def _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progr
     return run
 
 
-__all__ = ["SweepRun", "plan_sweep", "run_sweep", "peak_rss_mb"]
+__all__ = ["SweepRun", "plan_sweep", "check_store_target", "run_sweep", "peak_rss_mb"]

@@ -1,0 +1,129 @@
+"""``lfjax design``: a buildable lenslet display fitted to a panel and eyes
+(:func:`lfjax.design.fit_design`, :func:`lfjax.design.save_design`)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from lfjax.base.files import check_output_folder
+from lfjax.base.sampling import Sampling
+from lfjax.cli import common
+from lfjax.design import (
+    DesignConstraints,
+    check_design,
+    design_cdp_D,
+    design_panel,
+    fit_design,
+    save_design,
+)
+from lfjax.display.lenslets import DIFFRACTION_MODES
+from lfjax.display.panel import PRESETS
+from lfjax.model.eyes import sample_eyes
+
+COMMAND = "design"
+
+
+def add_parser(sub) -> None:
+    des = sub.add_parser(
+        COMMAND,
+        help="fit a buildable lenslet display to a panel and virtual eyes; design.json, design.png",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Design a light-field display a maker can build (lfjax.design.fit). Start from a panel\n"
+            "(--panel near-eye: a 0.7-inch 1920x1080 OLED microdisplay, 8.1 um pixels, lenslets\n"
+            "30 mm from the eye; --panel phone: a 460 ppi phone panel at 350 mm; the pixel pitch\n"
+            "and count can be overridden). For each views-per-pupil count (--views, n x n views\n"
+            "across the design pupil) fit the lenslet pitch, fill and gap (the focal length\n"
+            "follows from the gap and the CDP) and, with --distance-range, the viewing distance,\n"
+            "by L-BFGS-B with the layout optimiser's accommodation-aware objective on training\n"
+            "eyes (seed S), the panel's lenslet diffraction and pixel blur in the model. Each\n"
+            "design keeps an eye box of at least --min-eye-box mm. Report every count on\n"
+            "held-out eyes (seed S+1) beside its starting array (lenslets_for_layout's tangent\n"
+            "array, f/3): image at each eye's predicted accommodation (VSOTF), the display's\n"
+            "accommodation error, and the perceivable resolution (MTF 0.05 cut-off capped at the\n"
+            "display's sampling limit, cpd; median and 5-95 %). A design whose views collapse\n"
+            "(1x1) or that drives no accommodation is refused with the reason; a CDP outside the\n"
+            "depth range is refused before anything runs.\n\n"
+            "Outputs in DIR: design.json (every count's build specification: pixel pitch,\n"
+            "lenslet pitch, aperture, focal length, gap, distance, with units; derived CDP,\n"
+            "Fresnel number, pixel and lenslet angles, eye box; held-out scores; the chosen\n"
+            "count) and design.png (the chosen lenslet array and its views in the pupil).\n"
+            "Units: mm, dioptres (D), arcmin, cycles per degree (cpd), nm."
+        ),
+    )
+    des.add_argument("--panel", choices=tuple(PRESETS), default="near-eye",
+                     help="starting panel preset (default near-eye)")
+    des.add_argument("--pixel-pitch", metavar="MM", type=common.finite_float, default=None,
+                     help="override the preset's pixel pitch, mm")
+    des.add_argument("--pixel-count", metavar=("W", "H"), nargs=2, type=common.positive_int,
+                     default=None, help="override the preset's pixel count (horizontal, vertical)")
+    des.add_argument("--distance", metavar="MM", type=common.finite_float, default=None,
+                     help="viewing distance, eye pupil to lenslets, mm (default the preset's)")
+    des.add_argument("--distance-range", metavar=("LO", "HI"), nargs=2, type=common.finite_float,
+                     default=None, help="fit the viewing distance too, within LO ... HI mm")
+    common.add_depths(des, None, 3, "rendered depth range in D, 0 <= LOW < HIGH")
+    des.add_argument("--cdp", metavar="D", type=common.finite_float, default=None,
+                     help="central depth plane, D, within the depth range (default: the "
+                          "range's dioptric middle)")
+    des.add_argument("--views", metavar="N", nargs="+", type=common.positive_int,
+                     default=[1, 2, 3, 4],
+                     help="views-per-side counts to design, 1 ... 8 (default 1 2 3 4)")
+    des.add_argument("--min-eye-box", metavar="MM", type=common.finite_float, default=10.0,
+                     help="smallest eye box (viewing zone) allowed, mm (default 10)")
+    des.add_argument("--min-fill", metavar="F", type=common.finite_float, default=0.5,
+                     help="smallest lenslet fill, aperture/pitch in (0, 1] (default 0.5)")
+    des.add_argument("--f-number", metavar=("LO", "HI"), nargs=2, type=common.finite_float,
+                     default=(1.0, 8.0), help="lenslet f-number range (default 1 8)")
+    des.add_argument("--diffraction", choices=DIFFRACTION_MODES, default="fresnel",
+                     help="lenslet diffraction in the model (default fresnel)")
+    common.add_eyes(des, 10, 20, "held-out eyes, >= 0 (default 20; 0: report on the training eyes)")
+    common.add_fit_setting(
+        des, 10, "L-BFGS-B steps per count, >= 0 (default 10)",
+        wavelengths_help="the fit's wavelengths, nm, increasing, 400-700 (default 550)",
+        report_help="setting of the held-out report (default full: 31 wavelengths)",
+        freq_step_help="frequency step, cpd (default: the planner's aliasing guard)")
+    common.add_out(des, "lfjax-design", "output folder; must be new or empty unless --force "
+                                        "(default ./lfjax-design)")
+    common.add_force(des, "write into a non-empty DIR")
+    common.add_no_progress(des, "print no per-count progress")
+
+
+def run(args) -> int:
+    prog = f"{common.PROG} {COMMAND}"
+    try:
+        out = check_output_folder(args.out, args.force)
+        cdp = design_cdp_D(args.depths, args.cdp)
+        panel = design_panel(args.panel, cdp, distance_mm=args.distance,
+                             pixel_pitch_mm=args.pixel_pitch, pixel_count=args.pixel_count,
+                             diffraction=args.diffraction)
+        constraints = DesignConstraints(
+            min_eye_box_mm=args.min_eye_box, min_fill=args.min_fill,
+            min_f_number=args.f_number[0], max_f_number=args.f_number[1],
+            distance_range_mm=None if args.distance_range is None else tuple(args.distance_range))
+        sampling = None if args.freq_step is None else Sampling(args.freq_step)
+        fit = dict(depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
+                   views_per_side=tuple(args.views), wavelengths_nm=tuple(args.wavelengths),
+                   steps=args.steps, report_accuracy=args.report_accuracy)
+        check_design(panel, **fit)
+    except ValueError as err:
+        return common.refuse(prog, err, COMMAND)
+    common.enable_compilation_cache()
+    try:
+        result = fit_design(
+            panel, train_eyes=sample_eyes(args.seed, args.train_eyes),
+            test_eyes=sample_eyes(args.seed + 1, args.test_eyes) if args.test_eyes > 0 else None,
+            constraints=constraints, sampling=sampling, progress=not args.no_progress, **fit)
+        result.provenance["seed_train"] = args.seed
+        result.provenance["panel_preset"] = args.panel
+        files = save_design(result, out, command=common.command_line(args.argv))
+    except KeyboardInterrupt:
+        return common.interrupted(prog)
+    except ValueError as err:
+        return common.refuse(prog, err, COMMAND, fold=True)
+    except Exception as err:  # one line, no traceback
+        return common.unexpected_error(prog, err)
+    print(result.summary())
+    print(f"{prog}: wrote {len(files)} files to {out} in "
+          f"{time.perf_counter() - args.t_start:.1f} s")
+    return 0
