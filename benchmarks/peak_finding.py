@@ -326,14 +326,14 @@ def _direct_fn():
     import jax
     import jax.numpy as jnp
     from lfjax.vision.peaks import refine_peak, single_state_metric
-    from lfjax.kernel.pipeline import _eye_coefficients, reference_normalisers
+    from lfjax.kernel.pipeline import eye_coefficients, reference_normalisers
 
     @eqx.filter_jit
     def direct(eyes, scene, spectrum, acc, config, lower, upper, start, metric, method):
         reference = reference_normalisers(scene, spectrum, acc, config)
         value_fn = single_state_metric(eyes.measured_pupil_mm, scene, spectrum, acc, config,
                                        reference, metric)
-        coefficients = _eye_coefficients(eyes, config)
+        coefficients = eye_coefficients(eyes, config)
         shape = (coefficients.shape[0], scene.depths_D.shape[0])
         z = jnp.broadcast_to(coefficients[:, None, :], shape + coefficients.shape[-1:])
         b = lambda x: jnp.broadcast_to(jnp.asarray(x)[None, :], shape)  # noqa: E731

@@ -83,7 +83,8 @@ def ncsf(fx_cpd, fy_cpd, model: str = "watson_ahumada_2005"):
 # ----------------------------------------------------------------------------- grids
 
 
-def _half_plane_weights_np(n_fft: int) -> np.ndarray:
+def half_plane_weights_np(n_fft: int) -> np.ndarray:
+    """:func:`half_plane_weights` as a float64 NumPy array (host planning)."""
     w = np.full(n_fft // 2 + 1, 2.0)
     w[0] = 1.0
     if n_fft % 2 == 0:
@@ -94,7 +95,7 @@ def _half_plane_weights_np(n_fft: int) -> np.ndarray:
 def half_plane_weights(n_fft: int):
     """Multiplicity of each half-plane column in a full-plane sum: 1 at f_x = 0 (and at the
     Nyquist column of even L), 2 elsewhere."""
-    return jnp.asarray(_half_plane_weights_np(n_fft))
+    return jnp.asarray(half_plane_weights_np(n_fft))
 
 
 def half_plane_frequencies(n_fft: int, freq_step_cpd: float):
@@ -153,7 +154,7 @@ def strehl_ratio(otf_half, reference_otf_half, n_fft: int, freq_step_cpd: float,
 
 
 @lru_cache(maxsize=32)
-def _radial_bins(n_fft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def radial_bins(n_fft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ring k = 0 … L/2 of the half-plane grid as a padded gather: ``index`` (n_bins,
     max_ring) int32 positions in the flattened (L, L//2+1) plane and ``weights`` (n_bins,
     max_ring) their share of the ring mean (half-plane multiplicity / the ring's full-plane
@@ -163,7 +164,7 @@ def _radial_bins(n_fft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     fy = np.fft.fftfreq(n_fft, 1.0 / n_fft)
     fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft)
     ring = np.rint(np.hypot(fx[None, :], fy[:, None])).astype(np.int64).ravel()
-    mult = np.broadcast_to(_half_plane_weights_np(n_fft)[None, :],
+    mult = np.broadcast_to(half_plane_weights_np(n_fft)[None, :],
                            (n_fft, n_fft // 2 + 1)).ravel()
     n_bins = n_fft // 2 + 1
     keep = np.flatnonzero(ring < n_bins)  # the corners beyond L/2 belong to no ring
@@ -185,7 +186,7 @@ def radial_mtf(otf_half, n_fft: int, freq_step_cpd: float):
 
     Returns (radial_mtf (…, L//2+1), frequencies_cpd (L//2+1,)). Memory O(L²) per OTF.
     """
-    index, weights, k = _radial_bins(n_fft)
+    index, weights, k = radial_bins(n_fft)
     mod = jnp.abs(otf_half).reshape(otf_half.shape[:-2] + (-1,))
     rings = mod[..., jnp.asarray(index)]  # (…, n_bins, max_ring)
     return (jnp.sum(rings * jnp.asarray(weights, mod.dtype), axis=-1),
@@ -223,6 +224,8 @@ __all__ = [
     "ncsf_campbell_green_2004",
     "ncsf_half_plane",
     "half_plane_weights",
+    "half_plane_weights_np",
+    "radial_bins",
     "half_plane_frequencies",
     "vsotf",
     "vsotf_numerator",

@@ -36,8 +36,8 @@ from lfjax.layout_opt._problem import (
     DEFAULT_WAVELENGTHS_NM,
     FULL_WAVELENGTHS_NM,
     LayoutProblem,
-    _check_depths,
-    _evaluated_pairs,
+    check_depths,
+    evaluated_pairs,
     guard_sampling,
     make_problem,
 )
@@ -235,7 +235,7 @@ def diameter_scan(eyes: Eyes, n_per_side: int, pitch_mm: float, diameters_mm, de
     smallest diameter on this grid.
     """
     d = np.atleast_1d(np.asarray(diameters_mm, float))
-    depths = _check_depths(depths_D)
+    depths = check_depths(depths_D)
     options = options.replace(vsotf_reference=reference)
     sites = lattice_sites("square", int(n_per_side) ** 2)
     centres = float(pitch_mm) * sites
@@ -280,7 +280,7 @@ def natural_evaluation(problem: LayoutProblem, eyes: Eyes | None = None) -> dict
                           problem.spectrum.wavelengths_nm, float))
     sampling = min((guard_sampling(open_constraints, [d], float(d), wl, np.asarray(eyes.zernike_um),
                                    eyes.measured_pupil_mm, problem.window_D, problem.options, None,
-                                   None, pairs=_evaluated_pairs(np.array([d]), float(d),
+                                   None, pairs=evaluated_pairs(np.array([d]), float(d),
                                                                 problem.peak_step_D,
                                                                 problem.peak_margin_D))
                     for d in depths), key=lambda smp: smp.freq_step_cpd)

@@ -262,7 +262,8 @@ def depth_grid(low_D: float, high_D: float, n_depths: int) -> np.ndarray:
     return np.linspace(lo, hi, int(n_depths))
 
 
-def _check_depths(depths_D) -> np.ndarray:
+def check_depths(depths_D) -> np.ndarray:
+    """Rendered depths (D) as a 1-D float array; non-empty, finite and ≥ 0 D, or a ValueError."""
     d = np.atleast_1d(np.asarray(depths_D, float))
     if d.ndim != 1 or d.size < 1:
         raise ValueError(f"depths_D must be a non-empty 1-D array, got shape {d.shape}")
@@ -279,7 +280,7 @@ def peak_window(depths_D, cdp_D: float, step_D: float, margin_D: float):
     are multiples of ``step_D`` from 0 D. Returns (states_D (n_k,), index (n_depth, n_k),
     allowed (n_depth, n_k) bool); every state is seen by at least one depth.
     """
-    depths = _check_depths(depths_D)
+    depths = check_depths(depths_D)
     step = finite_scalar("peak_step_D", step_D, 0.0, 1.0, lo_open=True)
     margin = finite_scalar("peak_margin_D", margin_D, 0.0, 5.0)
     lo = np.maximum(np.minimum(depths, cdp_D) - margin, 0.0)
@@ -334,7 +335,7 @@ def guard_sampling(constraints: Constraints, depths_D, cdp_D: float, wavelengths
     planner's guard (``estimate_accuracy=False``) on :func:`envelope_layout`, for
     accommodation within ±``window_D`` of each depth, or for the (accommodation D, depth D)
     ``pairs`` when given."""
-    depths = _check_depths(depths_D)
+    depths = check_depths(depths_D)
     extra = {}
     if pairs is not None:
         extra = dict(pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)),
@@ -350,7 +351,7 @@ def guard_sampling(constraints: Constraints, depths_D, cdp_D: float, wavelengths
     return plan.sampling
 
 
-def _evaluated_pairs(depths, cdp: float, step_D: float, margin_D: float):
+def evaluated_pairs(depths, cdp: float, step_D: float, margin_D: float):
     """Every (accommodation D, depth D) pair a problem evaluates: the peak grid (rendered
     depths and the CDP) and the correct focus."""
     peak_depths = np.append(depths, cdp)
@@ -439,7 +440,7 @@ def make_problem(
     if eyes.measured_pupil_mm < constraints.pupil_diameter_mm - 1e-12:
         raise ValueError(f"pupil_diameter_mm = {constraints.pupil_diameter_mm:g} exceeds the eyes' "
                          f"measured pupil {eyes.measured_pupil_mm:g} mm")
-    depths = _check_depths(depths_D)
+    depths = check_depths(depths_D)
     cdp = finite_scalar("cdp_D", cdp_D, 0.0)
     objective = Objective.parse(objective)
     window_D = finite_scalar("window_D", window_D, 0.0, None, lo_open=True)
@@ -455,7 +456,7 @@ def make_problem(
                                          setting["peak_margin_D"])
     if sampling is None:
         plan_eyes = eyes if planning_eyes is None else planning_eyes
-        pairs = _evaluated_pairs(depths, cdp, setting["peak_step_D"], setting["peak_margin_D"])
+        pairs = evaluated_pairs(depths, cdp, setting["peak_step_D"], setting["peak_margin_D"])
         sampling = guard_sampling(constraints, depths, cdp, wl, np.asarray(plan_eyes.zernike_um),
                                   plan_eyes.measured_pupil_mm, window_D, options, display,
                                   np.asarray(spectrum.weights), pairs=pairs)

@@ -60,7 +60,7 @@ import scipy.fft as sfft
 
 from lfjax.display.lenslets import DisplayOptics
 from lfjax.model.layouts import Layout, open_pupil
-from lfjax.kernel.metrics import _half_plane_weights_np, _radial_bins, ncsf
+from lfjax.kernel.metrics import half_plane_weights_np, ncsf, radial_bins
 from lfjax.kernel.optics import field_radius_arcmin, pupil_window_size, sa_parameters
 from lfjax.model.options import ModelOptions
 from lfjax.base.sampling import EDGE_EXTENT_SCALES, EYE_BLOCK, Sampling, next_fast_size, wavelength_bands
@@ -508,7 +508,7 @@ def _ncsf_half(n_fft: int, step_cpd: float, model: str) -> np.ndarray:
     fy = np.fft.fftfreq(n_fft, 1.0 / n_fft) * step_cpd
     fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft) * step_cpd
     weights = np.asarray(ncsf(fx[None, :], fy[:, None], model), float)
-    return weights * _half_plane_weights_np(n_fft)[None, :]
+    return weights * half_plane_weights_np(n_fft)[None, :]
 
 
 class _Proxy:
@@ -673,7 +673,7 @@ class _Proxy:
         psf = self._psf(rendered, n_fft)
         otf = sfft.rfft2(np.fft.ifftshift(psf, axes=(-2, -1)), workers=-1)
         modulus = np.abs(otf) / np.abs(otf[:, :1, :1])
-        index, weights, k = _radial_bins(n_fft)
+        index, weights, k = radial_bins(n_fft)
         radial = np.sum(modulus.reshape(modulus.shape[0], -1)[:, index] * weights, axis=-1)
         return num / den, _first_crossing(radial, k * df_cpd, threshold)
 

@@ -30,7 +30,7 @@ from lfjax.model.eyes import Eyes, append_average_eye, sample_eyes
 from lfjax.model.layout_files import load_layout_json
 from lfjax.model.layouts import Layout, paper_layouts
 from lfjax.kernel.metrics import cutoff_frequency
-from lfjax.kernel.optics import _field_check, _validate_coefficients
+from lfjax.kernel.optics import field_check, validate_coefficients
 from lfjax.vision.peaks import METRICS, peaks_from_grid
 from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
 from lfjax.planner.cache import cached_plan_sampling
@@ -174,7 +174,7 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
     guard still refuses it.
     """
     spectrum = sweep_spectrum(config) if spectrum is None else spectrum
-    _validate_coefficients(np.asarray(eyes.zernike_um))
+    validate_coefficients(np.asarray(eyes.zernike_um))
     all_depths = config.depths_D
     cdp_slot = int(np.argmin(np.abs(all_depths - config.cdp_D)))
     tasks = []
@@ -193,7 +193,7 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
                 sampling = _plan(config, eyes, layout, pupil, depths, pairs, spectrum)
                 for _ in range(16):
                     try:
-                        _field_check(np.asarray(eyes.zernike_um), eyes.measured_pupil_mm, pupil,
+                        field_check(np.asarray(eyes.zernike_um), eyes.measured_pupil_mm, pupil,
                                      config.cdp_D, grid_used, depths, layout, spectrum, sampling,
                                      pairs=pairs, display=config.display_optics())
                         break

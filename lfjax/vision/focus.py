@@ -23,7 +23,7 @@ from lfjax.display.lenslets import DisplayOptics
 from lfjax.model.eyes import Eyes, check_eyes
 from lfjax.model.layouts import Layout, open_pupil
 from lfjax.kernel.metrics import cutoff_frequency
-from lfjax.kernel.optics import _field_check, _validate_coefficients, validate_pupil, validate_states
+from lfjax.kernel.optics import field_check, validate_coefficients, validate_pupil, validate_states
 from lfjax.model.options import STATIC_CHOICES, ModelOptions, stack_parameters
 from lfjax.vision.peaks import METRICS, PEAK_METHODS, Peaks, peaks_from_grid
 from lfjax.kernel.pipeline import (
@@ -364,13 +364,13 @@ def _prepare(eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, 
         # true state of every entry, also those beyond the hyperopic limit (not computed)
         absolute = np.where(allowed, grid[index], depths[:, None] + offsets[None, :])
     grid, index = _used_states(grid, index, allowed)
-    _validate_coefficients(eyes.zernike_um)
+    validate_coefficients(eyes.zernike_um)
     pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
     if sampling is None:
         sampling = _planned_sampling(eyes, layout, depths, pairs, pupil_diameter_mm, cdp_D,
                                      spectrum, options, display)
     elif check_aliasing:
-        _field_check(
+        field_check(
             eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D, grid, depths,
             layout, spectrum, sampling, pairs=pairs, display=display,
         )
@@ -584,7 +584,7 @@ def metrics_at(
     check_eyes(eyes)
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
     validate_states(accommodation_D, depths_D, cdp_D)
-    _validate_coefficients(eyes.zernike_um)
+    validate_coefficients(eyes.zernike_um)
     concrete = _is_concrete(pupil_diameter_mm, cdp_D, depths_D, accommodation_D)
     if np.ndim(accommodation_D) != 2 or np.shape(accommodation_D)[0] != np.size(depths_D):
         raise ValueError(
@@ -600,7 +600,7 @@ def metrics_at(
             sampling = _planned_sampling(eyes, layout, depth, pairs, pupil_diameter_mm, cdp_D,
                                          spectrum, options, display)
         else:
-            _field_check(eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
+            field_check(eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
                          acc.ravel(), depth, layout, spectrum, sampling, pairs=pairs,
                          display=display)
     elif sampling is None:

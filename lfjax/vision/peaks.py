@@ -64,7 +64,7 @@ from lfjax.kernel.pipeline import (
     Accommodation,
     PipelineConfig,
     Scene,
-    _eye_coefficients,
+    eye_coefficients,
     pair_metric,
     reference_normalisers,
     retinal_metrics,
@@ -471,7 +471,7 @@ def peaks_from_grid(
     value_fn = single_state_metric(eyes.measured_pupil_mm, scene, spectrum, grid, config,
                                    reference, metric)
     depths_b = jnp.broadcast_to(scene.depths_D[None, :], values.shape[:2])
-    coefficients = _eye_coefficients(eyes, config)
+    coefficients = eye_coefficients(eyes, config)
     z_b = jnp.broadcast_to(coefficients[:, None, :], values.shape[:2] + coefficients.shape[-1:])
 
     n_candidates = 2 if refine_second else 1

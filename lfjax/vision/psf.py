@@ -37,9 +37,9 @@ from lfjax.base.apertures import soft_disk
 from lfjax.model.eyes import Eyes, check_eyes
 from lfjax.model.layouts import Layout
 from lfjax.kernel.optics import (
-    _field_check,
-    _validate_coefficients,
+    field_check,
     full_plane,
+    validate_coefficients,
     validate_pupil,
     validate_states,
 )
@@ -486,7 +486,7 @@ def polychromatic_otf(
     check_eyes(eyes)
     validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
     validate_states(accommodation_D, depths_D, cdp_D)
-    _validate_coefficients(eyes.zernike_um)
+    validate_coefficients(eyes.zernike_um)
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
     # A traced pupil (under jax.grad) cannot size windows: use the measured pupil as bound.
     pupil_static = (
@@ -500,7 +500,7 @@ def polychromatic_otf(
     depths_D = jnp.atleast_1d(jnp.asarray(cdp_D if depths_D is None else depths_D, float))
     accommodation_D = jnp.atleast_1d(jnp.asarray(accommodation_D, float))
     if check_aliasing:
-        _field_check(
+        field_check(
             eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
             accommodation_D, depths_D, layout, spectrum, sampling, display=display,
         )
