@@ -3,7 +3,7 @@
 :class:`StudyConfig` holds the settings (defaults: the paper's experiment;
 :meth:`~StudyConfig.quick` for tests, :meth:`~StudyConfig.reduced` for the modelling
 alternatives). :func:`study_eyes` draws the virtual eyes plus the average eye.
-``_planned_sampling`` asks :func:`lfjax.planner.plan.plan_sampling` for the frequency step of one
+:func:`planned_sampling` asks :func:`lfjax.planner.plan.plan_sampling` for the frequency step of one
 layout's scene. ``METRICS`` and ``LF_LAYOUTS`` name the metrics and the light-field layouts
 the study reads.
 
@@ -239,7 +239,7 @@ def study_eyes(config: StudyConfig) -> tuple[Eyes, list[str]]:
 # ----------------------------------------------------------------------------- sampling
 
 
-def _planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, np.ndarray]:
+def planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, np.ndarray]:
     """(Sampling, wavelengths in nm) of one layout's scene.
 
     The frequency step is :func:`lfjax.planner.plan.plan_sampling`'s field guard (the largest
@@ -283,5 +283,6 @@ __all__ = [
     "LF_LAYOUTS",
     "METRICS",
     "StudyConfig",
+    "planned_sampling",
     "study_eyes",
 ]

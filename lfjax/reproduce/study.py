@@ -34,7 +34,7 @@ from lfjax.vision.psf import polychromatic_otf
 from lfjax.base.sampling import AliasingError, Sampling, finer_step
 from lfjax.model.spectral import make_spectrum
 from lfjax.vision.focus import ThroughFocus, through_focus, through_focus_variants
-from lfjax.reproduce.config import METRICS, StudyConfig, _planned_sampling, study_eyes
+from lfjax.reproduce.config import METRICS, StudyConfig, planned_sampling, study_eyes
 
 # ----------------------------------------------------------------------------- one layout
 
@@ -57,7 +57,7 @@ def layout_through_focus(
 def _layout_run(eyes, layout, depths_D, config, spectrum=None, options=None):
     """:func:`layout_through_focus`, returning also the wavelengths (nm) it used."""
     options = config.options if options is None else options
-    sampling, wavelengths = _planned_sampling(eyes, layout, depths_D, config, options)
+    sampling, wavelengths = planned_sampling(eyes, layout, depths_D, config, options)
     if spectrum is None:
         spectrum = make_spectrum(wavelengths, options)
     wavelengths = np.asarray(spectrum.wavelengths_nm, float)
@@ -162,12 +162,12 @@ def _layout_run_variants(eyes, layout, depths_D, config, options):
     """:func:`layout_through_focus_variants`, each with the wavelengths (nm) it used: the
     first variant's (the planned spectrum is the baseline's, so every variant is measured
     on the same wavelengths)."""
-    first, wavelengths = _planned_sampling(eyes, layout, depths_D, config, options[0])
+    first, wavelengths = planned_sampling(eyes, layout, depths_D, config, options[0])
     if config.accuracy == "claims" and layout.name not in dict(config.wavelength_steps_nm):
         step = float(wavelengths[1] - wavelengths[0]) if wavelengths.size > 1 else 100.0
         config = config.replace(wavelength_steps_nm=tuple(config.wavelength_steps_nm)
                                 + ((layout.name, step),))
-    samplings = [first] + [_planned_sampling(eyes, layout, depths_D, config, o)[0]
+    samplings = [first] + [planned_sampling(eyes, layout, depths_D, config, o)[0]
                            for o in options[1:]]
     for _ in range(16 * len(options)):
         try:
