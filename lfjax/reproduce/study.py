@@ -31,9 +31,10 @@ from lfjax.model.layouts import Layout, grid_layout, open_pupil, paper_layouts
 from lfjax.kernel.optics import full_plane
 from lfjax.model.options import ModelOptions
 from lfjax.vision.psf import polychromatic_otf
-from lfjax.base.sampling import AliasingError, Sampling, finer_step
+from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import make_spectrum
 from lfjax.vision.focus import ThroughFocus, through_focus, through_focus_variants
+from lfjax.vision.prepare import with_aliasing_retry
 from lfjax.reproduce.config import METRICS, StudyConfig, planned_sampling, study_eyes
 
 # ----------------------------------------------------------------------------- one layout
@@ -61,25 +62,21 @@ def _layout_run(eyes, layout, depths_D, config, spectrum=None, options=None):
     if spectrum is None:
         spectrum = make_spectrum(wavelengths, options)
     wavelengths = np.asarray(spectrum.wavelengths_nm, float)
-    for _ in range(16):
-        try:
-            tf = through_focus(
-                eyes, layout, np.asarray(depths_D, float),
-                accommodation_D=config.accommodation_D, window_D=config.window_D,
-                pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
-                spectrum=spectrum, sampling=sampling, options=options,
-                # claim 2 reads the global VSOTF peak; second peaks stay grid-located. "local"
-                # (three-point refinement, no solver loop) agrees with Newton to ~1e-4 D and
-                # compiles like the grid (Newton's loop added ~25 s per layout).
-                continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
-            )
-            return jax.block_until_ready(tf), sampling, wavelengths
-        except AliasingError as err:
-            sampling = dataclasses.replace(
-                sampling, freq_step_cpd=finer_step(err, sampling.freq_step_cpd)
-            )
-    raise RuntimeError(f"no aliasing-free sampling found for layout {layout.name}")
 
+    def run(sampling):
+        return jax.block_until_ready(through_focus(
+            eyes, layout, np.asarray(depths_D, float),
+            accommodation_D=config.accommodation_D, window_D=config.window_D,
+            pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
+            spectrum=spectrum, sampling=sampling, options=options,
+            # claim 2 reads the global VSOTF peak; second peaks stay grid-located. "local"
+            # (three-point refinement, no solver loop) agrees with Newton to ~1e-4 D and
+            # compiles like the grid (Newton's loop added ~25 s per layout).
+            continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
+        ))
+
+    tf, sampling = with_aliasing_retry(run, sampling, what=f"layout {layout.name}")
+    return tf, sampling, wavelengths
 
 
 # ----------------------------------------------------------------------------- study
@@ -169,22 +166,18 @@ def _layout_run_variants(eyes, layout, depths_D, config, options):
                                 + ((layout.name, step),))
     samplings = [first] + [planned_sampling(eyes, layout, depths_D, config, o)[0]
                            for o in options[1:]]
-    for _ in range(16 * len(options)):
-        try:
-            tfs = through_focus_variants(
-                eyes, layout, np.asarray(depths_D, float), options,
-                accommodation_D=config.accommodation_D, window_D=config.window_D,
-                pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
-                wavelengths_nm=wavelengths, samplings=samplings,
-                continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
-            )
-            return [(tf, sampling, wavelengths)
-                    for tf, sampling in zip(jax.block_until_ready(tfs), samplings)]
-        except AliasingError as err:
-            i = err.variant
-            samplings[i] = dataclasses.replace(
-                samplings[i], freq_step_cpd=finer_step(err, samplings[i].freq_step_cpd))
-    raise RuntimeError(f"no aliasing-free sampling found for layout {layout.name}")
+
+    def run(samplings):
+        return jax.block_until_ready(through_focus_variants(
+            eyes, layout, np.asarray(depths_D, float), options,
+            accommodation_D=config.accommodation_D, window_D=config.window_D,
+            pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
+            wavelengths_nm=wavelengths, samplings=samplings,
+            continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
+        ))
+
+    tfs, samplings = with_aliasing_retry(run, samplings, what=f"layout {layout.name}")
+    return [(tf, sampling, wavelengths) for tf, sampling in zip(tfs, samplings)]
 
 
 def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool) -> dict:

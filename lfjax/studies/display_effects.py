@@ -40,7 +40,8 @@ from lfjax.model.options import ModelOptions
 from lfjax.vision.peaks import PEAK_METHODS
 from lfjax.planner.plan import plan_sampling
 from lfjax.model.spectral import make_spectrum
-from lfjax.vision.focus import _windowed_grid, through_focus
+from lfjax.vision.focus import through_focus
+from lfjax.vision.prepare import States
 
 STEPS = ("ideal", "+diffraction", "+pixels", "+spectrum")
 LAYOUT_SIZES = {"2x2": 2, "3x3": 3, "4x4": 4}
@@ -160,8 +161,7 @@ def shared_sampling(eyes: Eyes, config: DisplayStudyConfig, layout, display, *sp
     so the steps differ by the display effects only, not by their sampling."""
     depths = config.depths_D
     window = config.window_D if window_D is None else window_D
-    _, _, allowed, absolute = _windowed_grid(config.accommodation_D, depths, window)
-    pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
+    pairs = States.grid(config.accommodation_D, depths, window).pairs
     plans = [plan_sampling(
         layout, config.pupil_diameter_mm, config.cdp_D, depths_D=depths,
         accommodation_window_D=None, wavelengths_nm=np.asarray(spectrum.wavelengths_nm),

@@ -15,7 +15,6 @@ partition an FFT along its batch axis).
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from dataclasses import dataclass
 
@@ -30,13 +29,13 @@ from lfjax.model.eyes import Eyes, append_average_eye, sample_eyes
 from lfjax.model.layout_files import load_layout_json
 from lfjax.model.layouts import Layout, paper_layouts
 from lfjax.kernel.metrics import cutoff_frequency
-from lfjax.kernel.optics import field_check, validate_coefficients
+from lfjax.kernel.optics import validate_coefficients
 from lfjax.vision.peaks import METRICS, peaks_from_grid
 from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
 from lfjax.planner.cache import cached_plan_sampling
-from lfjax.base.sampling import AliasingError, Sampling, finer_step
+from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import Spectrum, make_spectrum
-from lfjax.vision.focus import _used_states, _windowed_grid
+from lfjax.vision.prepare import States, prepare, with_aliasing_retry
 from lfjax.sweep.config import SweepConfig
 
 FREQUENCIES_CPD = np.arange(0.0, 61.0, 1.0)
@@ -183,36 +182,28 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
             layout = resolve_layout(config, entry, pupil)
             slots = (cdp_slot,) if entry == "natural" else tuple(range(all_depths.size))
             depths = all_depths[list(slots)]
-            grid, index, allowed, absolute = _windowed_grid(config.accommodation_D, depths,
-                                                            config.window_D)
-            pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
-            grid_used, index_used = _used_states(grid, index, allowed)
-            if samplings is not None and (pi, li) in samplings:
-                sampling = samplings[(pi, li)]
-            else:
-                sampling = _plan(config, eyes, layout, pupil, depths, pairs, spectrum)
-                for _ in range(16):
-                    try:
-                        field_check(np.asarray(eyes.zernike_um), eyes.measured_pupil_mm, pupil,
-                                     config.cdp_D, grid_used, depths, layout, spectrum, sampling,
-                                     pairs=pairs, display=config.display_optics())
-                        break
-                    except AliasingError as err:
-                        if config.freq_step_cpd is not None:
-                            raise
-                        sampling = dataclasses.replace(
-                            sampling, freq_step_cpd=finer_step(err, sampling.freq_step_cpd))
+            states = States.grid(config.accommodation_D, depths, config.window_D)
+
             # inputs are checked here on the host (config, population, layout files), so the
             # program carries no traced checks: JAX's persistent cache can then keep it for
             # the next process (a resumed sweep, another host)
-            pipeline_config = PipelineConfig.build(
-                spectrum.wavelengths_nm, layout.window_diameter_mm, pupil, sampling,
-                config.options, traced_checks=False, display=config.display_optics())
+            def prepared_at(sampling, check_aliasing=True, layout=layout, states=states,
+                            pupil=pupil):
+                return prepare(eyes, layout, states, pupil_diameter_mm=pupil,
+                               cdp_D=config.cdp_D, spectrum=spectrum, options=config.options,
+                               sampling=sampling, check_aliasing=check_aliasing,
+                               display=config.display_optics(), traced_checks=False)
+
+            if samplings is not None and (pi, li) in samplings:
+                prepared = prepared_at(samplings[(pi, li)], check_aliasing=False)
+            else:
+                prepared, _ = with_aliasing_retry(
+                    prepared_at, _plan(config, eyes, layout, pupil, depths, states.pairs, spectrum),
+                    refine=config.freq_step_cpd is None, what=f"layout {entry} at {pupil:g} mm")
             tasks.append(Task(
-                pi, li, float(pupil), entry, layout, slots, depths, allowed,
-                Scene.from_layout(layout, depths, config.cdp_D, pupil, config.display_optics()),
-                Accommodation.shared(grid_used, index_used, config.options, pupil),
-                sampling, pipeline_config,
+                pi, li, float(pupil), entry, layout, slots, depths, states.allowed,
+                prepared.scene, prepared.accommodation(config.options), prepared.sampling,
+                prepared.config,
             ))
     return tasks
 
