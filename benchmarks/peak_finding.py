@@ -110,10 +110,10 @@ def layout_setup(name: str, zernike_um: np.ndarray, dense: bool = True):
     spec = lfjax.make_spectrum(WAVELENGTHS_NM, opts)
 
     def plan(layout, cdp, depths):
-        return lfjax.planner.plan.plan_sampling(
+        return lfjax.plan_sampling(lfjax.PlanScene(
             layout=layout, pupil_diameter_mm=PUPIL_MM, cdp_D=cdp, depths_D=depths,
             accommodation_D=GRID_D, accommodation_window_D=WINDOW_D,
-            wavelengths_nm=spec.wavelengths_nm, eyes_zernike_um=zernike_um,
+            wavelengths_nm=spec.wavelengths_nm, eyes=lfjax.make_eyes(zernike_um, 3.0)),
             estimate_accuracy=False).sampling
 
     n_coarse = int(round(2 * WINDOW_D / 0.2)) + 1
@@ -963,7 +963,7 @@ def analyse(args):
         scene=dict(pupil_mm=PUPIL_MM, cdp_D=CDP_D, natural_view="cdp_D = rendered depth",
                    window_D=WINDOW_D, grid_D=[0.0, 5.0, 0.2], wavelengths_nm=WAVELENGTHS_NM.tolist(),
                    options="lfjax.ModelOptions() defaults",
-                   sampling="lfjax.planner.plan.plan_sampling(..., estimate_accuracy=False) per layout"),
+                   sampling="lfjax.plan_sampling(..., estimate_accuracy=False) per layout"),
         methods_note=dict(atol_D=ATOL_D, max_steps=MAX_STEPS, silent_threshold_D=SILENT_D),
         reference_seconds=ref_seconds,
         kinds=kinds)

@@ -26,6 +26,7 @@ from lfjax.kernel.pipeline import (
     reference_normalisers,
 )
 from lfjax.planner.plan import plan_sampling
+from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import Spectrum, make_spectrum
 from lfjax.layout_opt._feasible import Constraints
@@ -326,29 +327,28 @@ def envelope_layout(constraints: Constraints) -> Layout:
                        window_diameter_mm=constraints.max_diameter_mm)
 
 
-def guard_sampling(constraints: Constraints, depths_D, cdp_D: float, wavelengths_nm, eyes_zernike_um=None,
-                   measured_pupil_mm: float = 3.0, window_D: float = 0.5,
+def guard_sampling(constraints: Constraints, depths_D, cdp_D: float, wavelengths_nm,
+                   eyes: Eyes | None = None, window_D: float = 0.5,
                    options: ModelOptions = ModelOptions(vsotf_reference="open_pupil"),
                    display: DisplayOptics | None = None, spectral_weights=None,
                    pairs: tuple | None = None) -> Sampling:
     """Frequency sampling whose aliasing guard holds for every feasible layout: the
-    planner's guard (``estimate_accuracy=False``) on :func:`envelope_layout`, for
-    accommodation within ±``window_D`` of each depth, or for the (accommodation D, depth D)
-    ``pairs`` when given."""
+    planner's guard (``estimate_accuracy=False``) on :func:`envelope_layout`, for ``eyes``
+    (None: aberration-free), accommodation within ±``window_D`` of each depth, or for the
+    (accommodation D, depth D) ``pairs`` when given."""
     depths = check_depths(depths_D)
     extra = {}
     if pairs is not None:
         extra = dict(pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)),
                      accommodation_D=np.unique(np.asarray(pairs[0], float)))
-    plan = plan_sampling(
+    scene = PlanScene(
         envelope_layout(constraints), pupil_diameter_mm=constraints.pupil_diameter_mm,
         cdp_D=float(cdp_D), depths_D=depths,
         accommodation_window_D=None if pairs is not None else window_D,
-        wavelengths_nm=np.asarray(wavelengths_nm, float), eyes_zernike_um=eyes_zernike_um,
-        measured_pupil_mm=measured_pupil_mm, options=options, estimate_accuracy=False,
-        display=display, spectral_weights=spectral_weights, **extra,
+        wavelengths_nm=np.asarray(wavelengths_nm, float), spectral_weights=spectral_weights,
+        eyes=eyes, options=options, display=display, **extra,
     )
-    return plan.sampling
+    return plan_sampling(scene, estimate_accuracy=False).sampling
 
 
 def evaluated_pairs(depths, cdp: float, step_D: float, margin_D: float):
@@ -457,9 +457,8 @@ def make_problem(
     if sampling is None:
         plan_eyes = eyes if planning_eyes is None else planning_eyes
         pairs = evaluated_pairs(depths, cdp, setting["peak_step_D"], setting["peak_margin_D"])
-        sampling = guard_sampling(constraints, depths, cdp, wl, np.asarray(plan_eyes.zernike_um),
-                                  plan_eyes.measured_pupil_mm, window_D, options, display,
-                                  np.asarray(spectrum.weights), pairs=pairs)
+        sampling = guard_sampling(constraints, depths, cdp, wl, plan_eyes, window_D, options,
+                                  display, np.asarray(spectrum.weights), pairs=pairs)
     config = PipelineConfig.build(wl, constraints.max_diameter_mm, constraints.pupil_diameter_mm,
                                   sampling, options, eye_chunk, display=display)
     accommodation = Accommodation.per_depth(depths[:, None], options, constraints.pupil_diameter_mm)

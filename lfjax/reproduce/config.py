@@ -24,6 +24,8 @@ from lfjax.model.layouts import LF_LAYOUTS as LF_LAYOUTS
 from lfjax.model.layouts import PAPER_LAYOUTS
 from lfjax.model.options import ModelOptions
 from lfjax.planner.cache import cached_plan_sampling
+from lfjax.planner.plan import Targets
+from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 
 METRICS = ("vsotf", "strehl")
@@ -256,20 +258,19 @@ def planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, n
     start, stop, _ = config.wavelengths_nm
     fixed_step = dict(config.wavelength_steps_nm).get(layout.name)
     spectrum = {"wavelengths_nm": config.wavelength_grid_nm}
+    targets = Targets()
     if config.accuracy == "claims" and fixed_step is not None:
         spectrum = {"wavelengths_nm": np.asarray(_grid(start, stop, fixed_step))}
     elif config.accuracy == "claims":
-        spectrum = {"wavelength_range_nm": (start, stop), "vsotf_tolerance": None,
-                    "peak_tolerance_D": config.peak_tolerance_D,
-                    "cutoff_tolerance_cpd": config.cutoff_tolerance_cpd,
-                    "cutoff_threshold": config.cutoff_threshold}
-    plan = cached_plan_sampling(
+        spectrum = {"wavelength_range_nm": (start, stop)}
+        targets = Targets(vsotf=None, peak_D=config.peak_tolerance_D,
+                          cutoff_cpd=config.cutoff_tolerance_cpd,
+                          cutoff_threshold=config.cutoff_threshold)
+    plan = cached_plan_sampling(PlanScene(
         layout=layout, pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
         depths_D=np.asarray(depths, float), accommodation_D=config.accommodation_D,
-        accommodation_window_D=config.window_D, eyes_zernike_um=np.asarray(eyes.zernike_um),
-        measured_pupil_mm=eyes.measured_pupil_mm, options=options, estimate_accuracy=False,
-        **spectrum,
-    )
+        accommodation_window_D=config.window_D, eyes=eyes, options=options, **spectrum,
+    ), targets, estimate_accuracy=False)
     wavelengths = np.asarray(plan.wavelengths_nm, float)
     mft_samples = dict(config.mft_pupil_samples).get(layout.name)
     if mft_samples is None:

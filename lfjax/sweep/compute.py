@@ -33,6 +33,8 @@ from lfjax.kernel.optics import validate_coefficients
 from lfjax.vision.peaks import METRICS, peaks_from_grid
 from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
 from lfjax.planner.cache import cached_plan_sampling
+from lfjax.planner.plan import Overrides, Targets
+from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import Spectrum, make_spectrum
 from lfjax.vision.prepare import States, prepare, with_aliasing_retry
@@ -120,16 +122,15 @@ def planned_wavelength_step(config: SweepConfig) -> float:
     for pupil in config.pupil_diameters_mm:
         for entry in config.layouts:
             layout = resolve_layout(config, entry, pupil)
-            plan = cached_plan_sampling(
+            plan = cached_plan_sampling(PlanScene(
                 layout=layout, pupil_diameter_mm=pupil, cdp_D=config.cdp_D,
                 depths_D=cdp if entry == "natural" else all_depths,
                 accommodation_D=config.accommodation_D, accommodation_window_D=config.window_D,
-                wavelength_range_nm=(start, stop), vsotf_tolerance=None,
-                peak_tolerance_D=config.peak_tolerance_D,
-                cutoff_tolerance_cpd=config.cutoff_tolerance_cpd,
-                cutoff_threshold=config.cutoff_threshold, options=config.options,
-                estimate_accuracy=False, display=config.display_optics(),
-            )
+                wavelength_range_nm=(start, stop), options=config.options,
+                display=config.display_optics(),
+            ), Targets(vsotf=None, peak_D=config.peak_tolerance_D,
+                       cutoff_cpd=config.cutoff_tolerance_cpd,
+                       cutoff_threshold=config.cutoff_threshold), estimate_accuracy=False)
             wl = plan.wavelengths_nm
             steps.append(float(wl[1] - wl[0]) if len(wl) > 1 else float(stop - start))
     return min(steps)
@@ -150,16 +151,15 @@ def layout_name(entry: str) -> str:
 
 def _plan(config: SweepConfig, eyes: Eyes, layout: Layout, pupil_mm: float, depths, pairs,
           spectrum: Spectrum) -> Sampling:
-    plan = cached_plan_sampling(
+    plan = cached_plan_sampling(PlanScene(
         layout=layout, pupil_diameter_mm=pupil_mm, cdp_D=config.cdp_D,
-        depths_D=np.asarray(depths, float), accommodation_window_D=None,
-        wavelengths_nm=np.asarray(spectrum.wavelengths_nm), eyes_zernike_um=np.asarray(eyes.zernike_um),
-        measured_pupil_mm=eyes.measured_pupil_mm, options=config.options,
+        depths_D=np.asarray(depths, float), accommodation_window_D=None, pairs=pairs,
+        wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
+        spectral_weights=np.asarray(spectrum.weights), eyes=eyes, options=config.options,
+        display=config.display_optics(),
+    ), Targets(vsotf=config.vsotf_tolerance or 1e-3),
         estimate_accuracy=config.vsotf_tolerance is not None,
-        vsotf_tolerance=config.vsotf_tolerance or 1e-3, pairs=pairs,
-        freq_step_cpd=config.freq_step_cpd, display=config.display_optics(),
-        spectral_weights=np.asarray(spectrum.weights),
-    )
+        overrides=Overrides(freq_step_cpd=config.freq_step_cpd))
     return plan.sampling
 
 

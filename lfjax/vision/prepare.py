@@ -44,6 +44,7 @@ from lfjax.model.layouts import Layout, open_pupil
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import Spectrum, make_spectrum
 from lfjax.planner.plan import plan_sampling
+from lfjax.planner.scene import PlanScene
 
 DEFAULT_OFFSETS_D = np.round(np.arange(-5, 6) * 0.2, 9)
 """The paper's through-focus: states −1 … +1 D around each rendered depth in 0.2 D steps."""
@@ -282,14 +283,14 @@ def default_sampling(eyes: Eyes, layout: Layout, states: States, *, pupil_diamet
     pairs = (np.concatenate([np.asarray(pairs[0], float).ravel(), around[keep]]),
              np.concatenate([np.asarray(pairs[1], float).ravel(),
                              np.broadcast_to(depths[:, None], around.shape)[keep]]))
-    return plan_sampling(
+    scene = PlanScene(
         layout=layout, pupil_diameter_mm=float(pupil_diameter_mm), cdp_D=float(cdp_D),
         depths_D=np.asarray(depths, float), accommodation_D=np.unique(np.asarray(pairs[0], float)),
-        accommodation_window_D=None, wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
-        eyes_zernike_um=np.asarray(eyes.zernike_um), measured_pupil_mm=eyes.measured_pupil_mm,
-        options=options, estimate_accuracy=False, spectral_weights=np.asarray(spectrum.weights),
-        pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)), display=display,
-    ).sampling
+        accommodation_window_D=None, pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)),
+        wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
+        spectral_weights=np.asarray(spectrum.weights), eyes=eyes, options=options, display=display,
+    )
+    return plan_sampling(scene, estimate_accuracy=False).sampling
 
 
 def with_aliasing_retry(compute: Callable, sampling: Sampling | Sequence[Sampling], *,
