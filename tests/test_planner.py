@@ -302,7 +302,8 @@ def test_vertex_shift_is_the_error_slope_over_the_curvature():
     assert planner_proxy.peak_shift_D(edge, curve, pairs) == math.inf
 
 
-def test_first_crossing_is_the_pipelines_cutoff_rule():
+def test_the_cutoff_rule_on_numpy_arrays_is_the_pipelines():
+    """The proxy reads its cut-offs with the pipeline's own rule, on NumPy arrays (no JAX)."""
     import jax.numpy as jnp
 
     from lfjax.kernel.metrics import cutoff_frequency
@@ -313,9 +314,10 @@ def test_first_crossing_is_the_pipelines_cutoff_rule():
     radial[:, 0] = 1.0
     radial[5] = np.linspace(1.0, 0.2, 40)  # never reaches the threshold: the last frequency
     for threshold in (0.05, 0.3):
+        host = cutoff_frequency(radial, freqs, threshold)
+        assert isinstance(host, np.ndarray) and host.dtype == np.float64
         np.testing.assert_allclose(
-            planner_proxy._first_crossing(radial, freqs, threshold),
-            np.asarray(cutoff_frequency(jnp.asarray(radial), jnp.asarray(freqs), threshold)),
+            host, np.asarray(cutoff_frequency(jnp.asarray(radial), jnp.asarray(freqs), threshold)),
             atol=1e-5)
 
 

@@ -105,8 +105,19 @@ def half_plane_frequencies(n_fft: int, freq_step_cpd: float):
     return jnp.meshgrid(fx, fy)
 
 
-def ncsf_half_plane(n_fft: int, freq_step_cpd: float, model: str = "watson_ahumada_2005"):
-    """NCSF on the half plane times the Hermitian multiplicity (ready for VSOTF sums)."""
+def ncsf_half_plane(n_fft: int, freq_step_cpd: float, model: str = "watson_ahumada_2005",
+                    host: bool = False):
+    """NCSF on the half plane times the Hermitian multiplicity (ready for VSOTF sums),
+    (L, L//2+1).
+
+    ``host=True``: the same weights as a float64 NumPy array, computed on the host without
+    JAX (the planner's proxy, :mod:`lfjax.planner.proxy`, which compiles nothing); the
+    frequencies are the same host grids either way."""
+    if host:
+        fy = np.fft.fftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd
+        fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd
+        weights = np.asarray(ncsf(fx[None, :], fy[:, None], model), float)
+        return weights * half_plane_weights_np(n_fft)[None, :]
     fx, fy = half_plane_frequencies(n_fft, freq_step_cpd)
     return ncsf(fx, fy, model) * half_plane_weights(n_fft)[None, :]
 
@@ -196,10 +207,13 @@ def radial_mtf(otf_half, n_fft: int, freq_step_cpd: float):
 def cutoff_frequency(radial, frequencies_cpd_, threshold: float = 0.05):
     """First frequency (cpd) where a radial MTF falls to ``threshold`` (linear interpolation).
 
-    Returns the last frequency when the MTF never falls that low.
+    Returns the last frequency when the MTF never falls that low. NumPy arrays in give NumPy
+    out (the planner's proxy reads its cut-offs with this rule); anything else is evaluated
+    with jax.
     """
     if not (0.0 < threshold < 1.0):
         raise ValueError(f"threshold must be in (0, 1), got {threshold}")
+    jnp = _array_module(radial, frequencies_cpd_)
     below = radial[..., 1:] <= threshold
     has = jnp.any(below, axis=-1)
     idx = jnp.argmax(below, axis=-1) + 1  # first index at/below threshold

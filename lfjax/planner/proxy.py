@@ -13,7 +13,7 @@ spectrum to at most :data:`PROXY_WAVELENGTHS` wavelengths.
 
 It runs in float64 numpy on the host and compiles nothing. It shares the metrics' NCSF on
 the half plane, their radial bins and their cut-off rule (:mod:`lfjax.kernel.metrics`, on
-numpy arrays); the apertures' Fresnel propagator it cannot share (see :func:`_fresnel_np`).
+numpy arrays); the apertures' Fresnel propagator it cannot share (``_fresnel_np`` says why).
 
 :class:`Estimates` turns proxy runs into the plan's error estimates: VSOTF errors against a
 converged (Richardson-extrapolated) proxy value, through-focus peak shifts (D) and cut-off
@@ -30,7 +30,8 @@ import scipy.fft as sfft
 from lfjax.base.sampling import EDGE_EXTENT_SCALES, Sampling, next_fast_size, wavelength_bands
 from lfjax.base.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
 from lfjax.display.lenslets import DisplayOptics
-from lfjax.kernel.metrics import half_plane_weights_np, ncsf, radial_bins
+from lfjax.base.parabola import parabola_vertex
+from lfjax.kernel.metrics import cutoff_frequency, ncsf_half_plane, radial_bins
 from lfjax.kernel.optics import pupil_window_size, sa_parameters
 from lfjax.model.spectral import Spectrum
 from lfjax.planner.scene import PlanScene, map_psf
@@ -138,8 +139,9 @@ def _aperture_otfs(view, pupil_mm, defocus_D, sa_c40_um, sa_radius_mm, wavelengt
     return otf
 
 
+# Not apertures.fresnel_propagate: that is float32 JAX compiled per size; the proxy is float64 NumPy
 def _fresnel_np(field, dx_mm, wavelength_mm, distance_mm, extent_mm):
-    """numpy twin of :func:`lfjax.display.lenslets.fresnel_propagate` (the same kernel sampling:
+    """numpy twin of :func:`lfjax.base.apertures.fresnel_propagate` (the same kernel sampling:
     impulse response in the far field, analytic transfer function in the near field)."""
     n = field.shape[-1]
     n_pad = next_fast_size(2 * n)
@@ -163,15 +165,6 @@ def _view_ramps(shifts_rad, fx_cpr, fy_cpr):
     ex = np.exp(-2j * np.pi * shifts_rad[..., 0, None] * fx_cpr).astype(np.complex64)
     ey = np.exp(-2j * np.pi * shifts_rad[..., 1, None] * fy_cpr).astype(np.complex64)
     return np.einsum("pny,pnx->pyx", ey, ex)
-
-
-def _ncsf_half(n_fft: int, step_cpd: float, model: str) -> np.ndarray:
-    """NCSF on the half plane (n_fft, n_fft//2+1) at step ``step_cpd`` cpd times the
-    Hermitian multiplicity, in numpy (as metrics.ncsf_half_plane on the host)."""
-    fy = np.fft.fftfreq(n_fft, 1.0 / n_fft) * step_cpd
-    fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft) * step_cpd
-    weights = np.asarray(ncsf(fx[None, :], fy[:, None], model), float)
-    return weights * half_plane_weights_np(n_fft)[None, :]
 
 
 class Proxy:
@@ -220,7 +213,7 @@ class Proxy:
             dx, step = dx_of(lam), step_of(lam)
             if n_fft_of is not None:
                 n_fft = n_fft_of(lam)
-            wts = _ncsf_half(n_fft, step, scene.options.ncsf) * step**2
+            wts = ncsf_half_plane(n_fft, step, scene.options.ncsf, host=True) * step**2
             fy = np.fft.fftfreq(n_fft, 1.0 / n_fft) * step * DEGREES_PER_RADIAN
             fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft) * step * DEGREES_PER_RADIAN
             pixel = 1.0
@@ -297,7 +290,7 @@ class Proxy:
         wrapped = (folded - psf)[:, c, c].max(axis=(-2, -1)) / psf.max(axis=(-2, -1))
         # Truncated vs periodised field at step df: OTFs from the cropped PSFs, the zero
         # frequency kept at the whole energy (as the pipeline's MFT path sets it).
-        wts = _ncsf_half(h, 2.0 * df_cpd, scene.options.ncsf)
+        wts = ncsf_half_plane(h, 2.0 * df_cpd, scene.options.ncsf, host=True)
 
         def vsotf_of(crop):
             otf = sfft.rfft2(np.fft.ifftshift(crop, axes=(-2, -1)), workers=-1)
@@ -338,18 +331,7 @@ class Proxy:
         modulus = np.abs(otf) / np.abs(otf[:, :1, :1])
         index, weights, k = radial_bins(n_fft)
         radial = np.sum(modulus.reshape(modulus.shape[0], -1)[:, index] * weights, axis=-1)
-        return num / den, _first_crossing(radial, k * df_cpd, threshold)
-
-
-def _first_crossing(radial: np.ndarray, frequencies_cpd: np.ndarray, threshold: float) -> np.ndarray:
-    """numpy twin of :func:`lfjax.kernel.metrics.cutoff_frequency` (…, n_freq) → (…,) cpd."""
-    below = radial[..., 1:] <= threshold
-    idx = np.argmax(below, axis=-1) + 1
-    hi = np.take_along_axis(radial, idx[..., None], -1)[..., 0]
-    lo = np.take_along_axis(radial, (idx - 1)[..., None], -1)[..., 0]
-    frac = np.clip((lo - threshold) / np.where(lo - hi > 0, lo - hi, 1.0), 0.0, 1.0)
-    crossing = frequencies_cpd[idx - 1] + frac * (frequencies_cpd[idx] - frequencies_cpd[idx - 1])
-    return np.where(below.any(axis=-1), crossing, frequencies_cpd[-1])
+        return num / den, cutoff_frequency(radial, k * df_cpd, threshold)
 
 
 def vertex_peaks(values, pairs) -> np.ndarray:
@@ -369,11 +351,7 @@ def vertex_peaks(values, pairs) -> np.ndarray:
         if i == 0 or i == a.size - 1:
             out.append(np.nan)
             continue
-        x0, x1, x2 = a[i - 1:i + 2]
-        y0, y1, y2 = v[i - 1:i + 2]
-        num = (x1 - x0) ** 2 * (y1 - y2) - (x1 - x2) ** 2 * (y1 - y0)
-        den = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0)
-        out.append(x1 - 0.5 * num / den if den != 0 else np.nan)
+        out.append(float(parabola_vertex(a, v, np.asarray(i))))
     return np.asarray(out)
 
 

@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from lfjax._version import __version__
+from lfjax.base.parabola import parabola_vertex
 from lfjax.model.eyes import Eyes, aberration_free_eye
 from lfjax.vision.images import psf_on_grid, retinal_image, snellen_e
 from lfjax.model.layouts import Layout, grid_layout, open_pupil, paper_layouts
@@ -92,19 +93,12 @@ def _interp_last(x_new, x, y):
 
 
 def _parabolic_peak(acc_grid, values, index):
-    """Sub-grid peak position from a parabola through the grid peak and its neighbours."""
+    """Sub-grid peak position from a parabola through the grid peak and its neighbours, on
+    the study's uniform grid (:func:`lfjax.base.parabola.parabola_vertex`)."""
     values = np.asarray(values, float)
-    n = values.shape[-1]
-    i = np.asarray(index)
-    lo, hi = np.clip(i - 1, 0, n - 1), np.clip(i + 1, 0, n - 1)
-    y0 = np.take_along_axis(values, lo[..., None], -1)[..., 0]
-    y1 = np.take_along_axis(values, i[..., None], -1)[..., 0]
-    y2 = np.take_along_axis(values, hi[..., None], -1)[..., 0]
-    step = float(acc_grid[1] - acc_grid[0]) if len(acc_grid) > 1 else 0.0
-    denom = y0 - 2 * y1 + y2
-    ok = np.isfinite(y0) & np.isfinite(y2) & (lo != i) & (hi != i) & (denom < 0)
-    shift = np.where(ok, 0.5 * (y0 - y2) / np.where(ok, denom, 1.0), 0.0)
-    return np.asarray(acc_grid)[i] + np.clip(shift, -0.5, 0.5) * step
+    acc = np.asarray(acc_grid, float)
+    step = float(acc[1] - acc[0]) if len(acc) > 1 else 0.0
+    return parabola_vertex(np.broadcast_to(acc, values.shape), values, np.asarray(index), step)
 
 
 def run_study(
