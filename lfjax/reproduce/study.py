@@ -333,7 +333,7 @@ def study_wavelength_steps(ds) -> dict[str, float]:
 
 
 def study_sampling(ds, layout: str) -> Sampling:
-    """The :class:`~lfjax.Sampling` the study used for ``layout``."""
+    """The :class:`~lfjax.base.sampling.Sampling` the study used for ``layout``."""
     return Sampling(**json.loads(ds.attrs["sampling_json"])[layout])
 
 

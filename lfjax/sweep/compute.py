@@ -167,7 +167,7 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
                 samplings: dict | None = None) -> list[Task]:
     """One :class:`Task` per (pupil, layout), sampling checked against the whole population.
 
-    ``samplings`` maps (pupil_index, layout_index) to a :class:`~lfjax.Sampling` to use
+    ``samplings`` maps (pupil_index, layout_index) to a :class:`~lfjax.base.sampling.Sampling` to use
     instead of planning (a resumed store's); otherwise the planner's field guard (or its
     accuracy target, ``vsotf_tolerance``) picks the step, made finer while the aliasing
     guard still refuses it.

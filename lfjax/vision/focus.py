@@ -175,8 +175,8 @@ def through_focus(
     sampling : Sampling, optional
         Default: the planner's field guard for this scene (the largest frequency step whose
         PSF field holds every blur and display shift; milliseconds,
-        :func:`lfjax.planner.plan.plan_sampling` with ``estimate_accuracy=False``). The result's
-        ``sampling`` says what was used.
+        :func:`lfjax.vision.prepare.default_sampling`). The result's ``sampling`` says what
+        was used.
     continuous_peaks : metrics ("vsotf", "strehl") whose continuous peak is refined from
         the grid in the same compiled call (:mod:`lfjax.vision.peaks`; ``()`` for grid peaks only)
     peak_method : refinement, one of :data:`lfjax.vision.peaks.PEAK_METHODS` ("auto": Newton for
@@ -239,7 +239,7 @@ def _result(prepared: Prepared, metrics, peaks) -> ThroughFocus:
 
 
 def _each_variant(variants, fn) -> list:
-    """``fn(*variant)`` for each variant in order; an :class:`~lfjax.AliasingError` is
+    """``fn(*variant)`` for each variant in order; an :class:`~lfjax.base.sampling.AliasingError` is
     re-raised carrying ``variant``, the index of the variant that raised it."""
     results = []
     for i, variant in enumerate(variants):
@@ -293,7 +293,7 @@ def through_focus_variants(
     hardware to fill, benchmarks/RESULTS.md §17 — and ``"vmap"`` elsewhere, not yet timed
     on an accelerator).
 
-    An :class:`~lfjax.AliasingError` from a variant's sampling check carries ``variant``,
+    An :class:`~lfjax.base.sampling.AliasingError` from a variant's sampling check carries ``variant``,
     its index in ``options``. Other arguments as :func:`through_focus`. Returns one
     :class:`ThroughFocus` per variant, in order.
     """

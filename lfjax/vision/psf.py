@@ -16,7 +16,8 @@ instead of returning NaN). Structural arguments (``measured_pupil_mm``, ``n_pixe
 
 :func:`polychromatic_otf` is the host-side entry point to the pure pipeline's first half
 (:func:`lfjax.kernel.pipeline.otf_stack`): it checks its inputs, builds the ``Scene`` and
-``Accommodation`` pytrees and calls the compiled pipeline once.
+``Accommodation`` pytrees (:func:`lfjax.vision.prepare.prepare`) and calls the compiled
+pipeline once.
 """
 
 from __future__ import annotations
