@@ -963,7 +963,7 @@ def analyse(args):
         scene=dict(pupil_mm=PUPIL_MM, cdp_D=CDP_D, natural_view="cdp_D = rendered depth",
                    window_D=WINDOW_D, grid_D=[0.0, 5.0, 0.2], wavelengths_nm=WAVELENGTHS_NM.tolist(),
                    options="lfjax.ModelOptions() defaults",
-                   sampling="lfjax.plan_sampling(..., estimate_accuracy=False) per layout"),
+                   sampling="lfjax.planner.plan.plan_sampling(..., estimate_accuracy=False) per layout"),
         methods_note=dict(atol_D=ATOL_D, max_steps=MAX_STEPS, silent_threshold_D=SILENT_D),
         reference_seconds=ref_seconds,
         kinds=kinds)

@@ -167,13 +167,15 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
                 samplings: dict | None = None) -> list[Task]:
     """One :class:`Task` per (pupil, layout), sampling checked against the whole population.
 
-    ``samplings`` maps (pupil_index, layout_index) to a :class:`~lfjax.base.sampling.Sampling` to use
-    instead of planning (a resumed store's); otherwise the planner's field guard (or its
-    accuracy target, ``vsotf_tolerance``) picks the step, made finer while the aliasing
-    guard still refuses it.
+    ``samplings`` maps (pupil_index, layout_index) to a
+    :class:`~lfjax.base.sampling.Sampling` to use instead of planning (a resumed store's);
+    otherwise the planner's field guard (or its accuracy target, ``vsotf_tolerance``) picks
+    the step, made finer while the aliasing guard still refuses it
+    (:func:`lfjax.vision.prepare.with_aliasing_retry`). Each task is prepared by
+    :func:`lfjax.vision.prepare.prepare`.
     """
     spectrum = sweep_spectrum(config) if spectrum is None else spectrum
-    validate_coefficients(np.asarray(eyes.zernike_um))
+    validate_coefficients(np.asarray(eyes.zernike_um))  # before planning reads the eyes
     all_depths = config.depths_D
     cdp_slot = int(np.argmin(np.abs(all_depths - config.cdp_D)))
     tasks = []

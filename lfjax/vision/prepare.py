@@ -64,7 +64,8 @@ def _check_states(accommodation_D, depths_D) -> None:
     acc = np.asarray(accommodation_D, float)
     depth = np.asarray(depths_D, float)
     if acc.ndim != 1 or acc.size < 1:
-        raise ValueError(f"accommodation_D must be a 1-D grid of >= 1 states, got shape {acc.shape}")
+        raise ValueError(
+            f"accommodation_D must be a 1-D grid of >= 1 states, got shape {acc.shape}")
     if depth.ndim != 1 or depth.size < 1:
         raise ValueError(f"depths_D must be a 1-D array of >= 1 depths, got shape {depth.shape}")
     if not np.all(np.isfinite(acc)) or not np.all(np.isfinite(depth)):
@@ -286,7 +287,8 @@ def default_sampling(eyes: Eyes, layout: Layout, states: States, *, pupil_diamet
     scene = PlanScene(
         layout=layout, pupil_diameter_mm=float(pupil_diameter_mm), cdp_D=float(cdp_D),
         depths_D=np.asarray(depths, float), accommodation_D=np.unique(np.asarray(pairs[0], float)),
-        accommodation_window_D=None, pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)),
+        accommodation_window_D=None,
+        pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)),
         wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
         spectral_weights=np.asarray(spectrum.weights), eyes=eyes, options=options, display=display,
     )
