@@ -258,18 +258,18 @@ def test_accuracy_plans_the_wavelength_step_per_layout():
     peak and cut-off targets), ``"vsotf"`` keeps the fixed grid, and a step fixed in
     ``wavelength_steps_nm`` is used as given."""
     from lfjax.model.layouts import paper_layouts
-    from lfjax.reproduce.config import _planned_sampling, study_eyes
+    from lfjax.reproduce.config import planned_sampling, study_eyes
 
     config = rep.StudyConfig(n_eyes=1, depth_offsets_D=(-1.0, 0.0, 1.0))
     eyes, _ = study_eyes(config)
     layout = paper_layouts(3.0)["4x4"]
-    _, planned = _planned_sampling(eyes, layout, config.depths_D, config, config.options)
+    _, planned = planned_sampling(eyes, layout, config.depths_D, config, config.options)
     step = planned[1] - planned[0]
     assert 10.0 < step < 50.0 and planned[0] == 400.0 and planned[-1] == 700.0
-    _, fixed = _planned_sampling(eyes, layout, config.depths_D,
+    _, fixed = planned_sampling(eyes, layout, config.depths_D,
                                  config.replace(accuracy="vsotf"), config.options)
     np.testing.assert_allclose(fixed, config.wavelength_grid_nm)
-    sampling, given = _planned_sampling(
+    sampling, given = planned_sampling(
         eyes, layout, config.depths_D, config.replace(wavelength_steps_nm=(("4x4", 50.0),)),
         config.options)
     np.testing.assert_allclose(given, [400.0, 450.0, 500.0, 550.0, 600.0, 650.0, 700.0])

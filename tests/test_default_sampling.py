@@ -27,7 +27,7 @@ def test_aliasing_error_carries_the_safe_step():
     number (callers retry with it; nobody parses the message), and that step passes."""
     import pytest
 
-    from lfjax.kernel.optics import _field_check
+    from lfjax.kernel.optics import field_check
 
     eyes = lfjax.sample_eyes(0, 1)
     layout = lfjax.grid_layout(2, 3.0)
@@ -39,5 +39,5 @@ def test_aliasing_error_carries_the_safe_step():
     assert isinstance(err, ValueError)
     assert err.freq_step_cpd == 5.0 and 0 < err.max_freq_step_cpd < 5.0
     assert err.radius_arcmin > 0.5 * lfjax.Sampling(5.0).field_arcmin
-    _field_check(np.asarray(eyes.zernike_um), 3.0, 3.0, 2.0, [3.0], [0.0], layout, spectrum,
+    field_check(np.asarray(eyes.zernike_um), 3.0, 3.0, 2.0, [3.0], [0.0], layout, spectrum,
                  lfjax.Sampling(err.max_freq_step_cpd * 0.999))  # does not raise

@@ -14,7 +14,8 @@ import scipy.special
 
 import helpers as H
 import lfjax
-from lfjax.planner import plan as planner
+from lfjax.planner import PlanScene, plan_sampling
+from lfjax.planner.proxy import Proxy
 from lfjax.display.lenslets import DisplayOptics, LensletArray, fresnel_propagate, lenslets_for_layout
 from lfjax.vision.psf import polychromatic_otf
 from lfjax.vision.focus import metrics_at, through_focus
@@ -200,11 +201,14 @@ def test_the_field_guard_knows_the_display_blur():
     """Pixels widen the PSF by half their diagonal and diffracted beams defocus over the
     whole pupil: the planner's field guard asks for a finer step than for the ideal display."""
     layout = lfjax.grid_layout(4, 3.0)
-    kwargs = dict(layout=layout, depths_D=[1.0, 3.0], wavelengths_nm=[450.0, 550.0, 650.0],
-                  estimate_accuracy=False)
-    ideal = planner.plan_sampling(**kwargs)
-    pixels = planner.plan_sampling(**kwargs, display=DisplayOptics(pixel_width_arcmin=10.0))
-    diffracted = planner.plan_sampling(**kwargs, display=DisplayOptics("fresnel", fresnel_distance_mm=500.0))
+    def plan(display=None):
+        scene = PlanScene(layout, depths_D=[1.0, 3.0], wavelengths_nm=[450.0, 550.0, 650.0],
+                          display=display)
+        return plan_sampling(scene, estimate_accuracy=False)
+
+    ideal = plan()
+    pixels = plan(DisplayOptics(pixel_width_arcmin=10.0))
+    diffracted = plan(DisplayOptics("fresnel", fresnel_distance_mm=500.0))
     assert pixels.blur_radius_arcmin == pytest.approx(ideal.blur_radius_arcmin + 10.0 / math.sqrt(2))
     assert diffracted.blur_radius_arcmin > ideal.blur_radius_arcmin
     with pytest.raises(ValueError, match="aliasing"):
@@ -229,8 +233,9 @@ def test_proxy_vsotf_equals_the_pipeline_with_display_effects(display):
                        spectrum=spectrum, sampling=lfjax.Sampling(df), check_aliasing=False,
                        display=display)
     acc, dep = np.meshgrid(states, depths)
-    scene = planner._Scene(layout, 3.0, 2.0, acc.ravel(), dep.ravel(), OPTIONS, display)
-    ours = planner._Proxy(scene, spectrum, 0.25).vsotf(df, (acc.ravel(), dep.ravel()))
+    scene = PlanScene(layout, 3.0, 2.0, pairs=(acc.ravel(), dep.ravel()), options=OPTIONS,
+                      display=display)
+    ours = Proxy(scene, spectrum, 0.25).vsotf(df, (acc.ravel(), dep.ravel()))
     np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), atol=1e-5)
 
 

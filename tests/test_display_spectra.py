@@ -131,18 +131,19 @@ def test_bad_spectrum_input_is_named(call, match):
 
 
 def test_the_planner_plans_for_a_display_spectrum_as_weighted():
-    """plan_sampling(spectral_weights=...) guards the blur of the spectrum actually shown
+    """PlanScene(spectral_weights=...) guards the blur of the spectrum actually shown
     (its weights decide which wavelengths may be left out) and hands it back."""
     import lfjax
+    from lfjax.planner import FieldGuard, PlanScene, plan_sampling
 
     layout = lfjax.grid_layout(2, 3.0)
     # violet + green in equal parts: V(λ) would weigh 400 nm at 0.25 % and leave it out
-    kwargs = dict(depths_D=[1.0, 3.0], wavelengths_nm=[400.0, 560.0], estimate_accuracy=False,
-                  wrap_tolerance=0.01)
-    plan = lfjax.planner.plan.plan_sampling(layout, spectral_weights=[0.5, 0.5], **kwargs)
+    scene = dict(depths_D=[1.0, 3.0], wavelengths_nm=[400.0, 560.0])
+    kwargs = dict(estimate_accuracy=False, guard=FieldGuard(wrap_tolerance=0.01))
+    plan = plan_sampling(PlanScene(layout, spectral_weights=[0.5, 0.5], **scene), **kwargs)
     np.testing.assert_allclose(np.asarray(plan.spectrum().weights), [0.5, 0.5])
-    as_v = lfjax.planner.plan.plan_sampling(layout, **kwargs)
+    as_v = plan_sampling(PlanScene(layout, **scene), **kwargs)
     assert plan.blur_radius_arcmin > as_v.blur_radius_arcmin  # 400 nm's LCA blur is guarded
     assert plan.sampling.freq_step_cpd < as_v.sampling.freq_step_cpd
     with pytest.raises(ValueError, match="spectral_weights needs wavelengths_nm"):
-        lfjax.planner.plan.plan_sampling(layout, spectral_weights=[1.0], estimate_accuracy=False)
+        PlanScene(layout, spectral_weights=[1.0])

@@ -8,6 +8,10 @@ imports, those inside functions included, are checked against the layer table be
 * the import graph has no circle (within a layer too);
 * an application never imports a private name (or a private module) of another application:
   what two of them share lives below both;
+* no module imports another module's private name (``_name``; a dunder such as
+  ``__version__`` is public) or reads one as an attribute (``module._name``), and a private
+  module (``_params``) is imported only inside its own package: what two modules share is a
+  public name of the one that owns it;
 * an import inside a function body is allowed only for the heavy optional dependencies in
   ``DEFERRED_OK``, each with its reason.
 
@@ -222,6 +226,66 @@ def test_applications_use_no_private_name_of_another():
     assert not wrong, "\n".join(wrong)
 
 
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def private_name_uses(path: Path, name: str, known: set[str]) -> list[str]:
+    """Every use in ``path`` (module ``name``) of another module's private name: imported
+    (``from m import _x``), read as an attribute of an imported module (``m._x``), or a
+    private module imported from outside its own package."""
+    found = []
+    for target, names, line, _ in imports(path, name, known):
+        if not target.startswith("lfjax"):
+            continue
+        parts = target.split(".")
+        for depth, part in enumerate(parts):
+            if _private(part):
+                owner = ".".join(parts[:depth])  # the package the private module belongs to
+                if not (name == owner or name.startswith(owner + ".")):
+                    found.append(f"{name}:{line} imports the private module {target}")
+                break
+        if target != name:
+            found += [f"{name}:{line} imports {target}.{n}" for n in names if _private(n)]
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    bound: dict[str, str] = {}  # local name → the lfjax module it is bound to
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("lfjax"):
+                    bound[alias.asname or alias.name.split(".")[0]] = (
+                        alias.name if alias.asname else alias.name.split(".")[0])
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            for alias in node.names:
+                if f"{target}.{alias.name}" in known:
+                    bound[alias.asname or alias.name] = f"{target}.{alias.name}"
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Attribute) and _private(node.attr)):
+            continue
+        chain, value = [], node.value
+        while isinstance(value, ast.Attribute):
+            chain.append(value.attr)
+            value = value.value
+        if isinstance(value, ast.Name) and value.id in bound:
+            module = ".".join([bound[value.id], *reversed(chain)])
+            if module in known and module != name:
+                found.append(f"{name}:{node.lineno} reads {module}.{node.attr}")
+    return found
+
+
+def test_no_module_uses_another_modules_private_name():
+    mods = modules()
+    known = set(mods)
+    wrong = [use for name, path in mods.items() for use in private_name_uses(path, name, known)]
+    assert not wrong, "\n".join(wrong)
+
+
 def test_imports_inside_functions_only_for_heavy_optional_dependencies():
     mods = modules()
     known = set(mods)
@@ -247,6 +311,25 @@ def test_the_checks_see_what_they_must(tmp_path):
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": set()}) is None
     assert layer_of("lfjax.sweep.store") == LAYERS["lfjax.sweep"]
+    other = tmp_path / "lfjax" / "sweep"
+    other.mkdir(parents=True)
+    (other / "run.py").write_text(
+        "from lfjax.vision.focus import _grid, public\n"
+        "from lfjax.layout_opt import _params\n"
+        "from lfjax import _version\n"
+        "from lfjax._version import __version__\n"
+        "from lfjax.kernel import optics\n"
+        "optics._field_check(optics.public, optics.__name__)\n")
+    known = {"lfjax.vision.focus", "lfjax.layout_opt", "lfjax.layout_opt._params", "lfjax._version",
+             "lfjax.kernel", "lfjax.kernel.optics"}
+    uses = private_name_uses(other / "run.py", "lfjax.sweep.run", known)
+    assert uses == ["lfjax.sweep.run:1 imports lfjax.vision.focus._grid",
+                    "lfjax.sweep.run:2 imports the private module lfjax.layout_opt._params",
+                    "lfjax.sweep.run:6 reads lfjax.kernel.optics._field_check"], uses
+    inside = tmp_path / "lfjax" / "layout_opt"
+    inside.mkdir(parents=True)
+    (inside / "_solver.py").write_text("from lfjax.layout_opt._params import FreeParams\n")
+    assert private_name_uses(inside / "_solver.py", "lfjax.layout_opt._solver", known) == []
     assert folder_of("lfjax.kernel.optics") == "lfjax.kernel"
     assert application_of("lfjax.layout_opt._solver") == "lfjax.layout_opt"
 

@@ -16,7 +16,8 @@ import lfjax
 from lfjax.planner import plan as planner
 from lfjax.kernel.optics import psf_from_otf
 from lfjax.vision.psf import polychromatic_otf
-from lfjax.planner.plan import plan_sampling
+from lfjax.planner import Overrides, FieldGuard, PlanScene, Targets, plan_sampling
+from lfjax.planner import proxy as planner_proxy
 from lfjax.vision.focus import through_focus
 
 WAVELENGTHS = [450.0, 550.0, 650.0]
@@ -83,9 +84,9 @@ def _measured_wrap(scene, df):
 def planned(request):
     scene = SCENES[request.param]
     layout, depths, pupil, window = scene
-    plan = plan_sampling(layout, pupil, 2.0, depths_D=depths, accommodation_D=ACCOMMODATION,
-                         accommodation_window_D=window, wavelengths_nm=WAVELENGTHS,
-                         vsotf_tolerance=TOLERANCE, measured_pupil_mm=max(pupil, 3.0))
+    plan = plan_sampling(PlanScene(layout, pupil, 2.0, depths_D=depths,
+                                   accommodation_D=ACCOMMODATION, accommodation_window_D=window,
+                                   wavelengths_nm=WAVELENGTHS), Targets(vsotf=TOLERANCE))
     return request.param, scene, plan
 
 
@@ -132,8 +133,8 @@ def test_ladder():
 def test_plan_passes_guard_and_aliasing_is_detected():
     layout = lfjax.grid_layout(2, 3.0)
     depths = [1.0, 2.0, 3.0]
-    plan = plan_sampling(layout, depths_D=depths, accommodation_D=ACCOMMODATION,
-                         accommodation_window_D=1.0, wavelengths_nm=WAVELENGTHS)
+    plan = plan_sampling(PlanScene(layout, depths_D=depths, accommodation_D=ACCOMMODATION,
+                                   accommodation_window_D=1.0, wavelengths_nm=WAVELENGTHS))
     eye = lfjax.model.eyes.aberration_free_eye()
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
     through_focus(eye, layout, depths, ACCOMMODATION, window_D=1.0, spectrum=spectrum,
@@ -146,26 +147,26 @@ def test_plan_passes_guard_and_aliasing_is_detected():
 
 def test_override_that_aliases_is_refused():
     with pytest.raises(ValueError, match="freq_step_cpd"):
-        plan_sampling(lfjax.grid_layout(2, 3.0), depths_D=[0.0, 4.0], freq_step_cpd=5.0,
-                      wavelengths_nm=WAVELENGTHS)
+        plan_sampling(PlanScene(lfjax.grid_layout(2, 3.0), depths_D=[0.0, 4.0],
+                                wavelengths_nm=WAVELENGTHS), overrides=Overrides(freq_step_cpd=5.0))
 
 
 def test_overrides_are_kept():
     layout = lfjax.grid_layout(2, 3.0)
-    plan = plan_sampling(layout, depths_D=[2.0], wavelengths_nm=WAVELENGTHS, transform="mft",
-                         mft_pupil_samples=48)
+    scene = PlanScene(layout, depths_D=[2.0], wavelengths_nm=WAVELENGTHS)
+    plan = plan_sampling(scene, overrides=Overrides(transform="mft", mft_pupil_samples=48))
     assert plan.sampling.transform == "mft" and plan.sampling.mft_pupil_samples == 48
-    plan = plan_sampling(layout, depths_D=[2.0], wavelengths_nm=WAVELENGTHS, freq_step_cpd=1.0)
+    plan = plan_sampling(scene, overrides=Overrides(freq_step_cpd=1.0))
     assert plan.sampling.freq_step_cpd == 1.0
     assert "cost" not in plan.errors and set(plan.cost_s) >= {"fft"}
 
 
 def test_absolute_accommodation_range_widens_the_field():
     layout = lfjax.grid_layout(2, 3.0)
-    narrow = plan_sampling(layout, depths_D=[2.0], accommodation_D=(1.5, 2.5),
-                           accommodation_window_D=None, wavelengths_nm=WAVELENGTHS)
-    wide = plan_sampling(layout, depths_D=[2.0], accommodation_D=(0.0, 5.0),
-                         accommodation_window_D=None, wavelengths_nm=WAVELENGTHS)
+    narrow = plan_sampling(PlanScene(layout, depths_D=[2.0], accommodation_D=(1.5, 2.5),
+                                     accommodation_window_D=None, wavelengths_nm=WAVELENGTHS))
+    wide = plan_sampling(PlanScene(layout, depths_D=[2.0], accommodation_D=(0.0, 5.0),
+                                   accommodation_window_D=None, wavelengths_nm=WAVELENGTHS))
     assert wide.blur_radius_arcmin > narrow.blur_radius_arcmin
     assert wide.guard_freq_step_cpd < narrow.guard_freq_step_cpd
 
@@ -173,8 +174,9 @@ def test_absolute_accommodation_range_widens_the_field():
 def test_wavelength_step_choice_rejects_coarse_steps():
     """With only a range, the planner picks the step; 50 nm is rejected (it moves the
     through-focus peak or exceeds its share of the target)."""
-    plan = plan_sampling(lfjax.grid_layout(2, 3.0), depths_D=[2.0], accommodation_window_D=0.6,
-                         wavelength_range_nm=(400.0, 700.0), vsotf_tolerance=TOLERANCE)
+    plan = plan_sampling(PlanScene(lfjax.grid_layout(2, 3.0), depths_D=[2.0],
+                                   accommodation_window_D=0.6, wavelength_range_nm=(400.0, 700.0)),
+                         Targets(vsotf=TOLERANCE))
     wl = np.asarray(plan.wavelengths_nm)
     step = wl[1] - wl[0]
     assert step < 50.0
@@ -185,36 +187,42 @@ def test_wavelength_step_choice_rejects_coarse_steps():
 
 def test_zernike_order_follows_the_eyes():
     eyes = np.asarray(lfjax.sample_eyes(0, 3).zernike_um)
-    full = plan_sampling(depths_D=[2.0], wavelengths_nm=WAVELENGTHS, eyes_zernike_um=eyes)
+    full = plan_sampling(PlanScene(depths_D=[2.0], wavelengths_nm=WAVELENGTHS,
+                                   eyes=lfjax.make_eyes(eyes, 3.0)))
     assert full.max_zernike_order == 4  # the Thibos eyes' 4th order matters at 1e-3
     tiny = eyes.copy()
     tiny[:, 10:] *= 1e-3  # 4th order 1000× smaller: Maréchal change ≪ 10 % of the target
-    cut = plan_sampling(depths_D=[2.0], wavelengths_nm=WAVELENGTHS, eyes_zernike_um=tiny)
+    cut = plan_sampling(PlanScene(depths_D=[2.0], wavelengths_nm=WAVELENGTHS,
+                                  eyes=lfjax.make_eyes(tiny, 3.0)))
     assert cut.max_zernike_order == 3
     assert cut.truncate(tiny).shape[-1] == 10
     assert cut.errors["zernike"] < 1e-4
 
 
 @pytest.mark.parametrize(
-    "kwargs, match",
+    "make, match",
     [
-        (dict(vsotf_tolerance=0.0), "vsotf_tolerance"),
-        (dict(psf_tolerance=2.0), "psf_tolerance"),
-        (dict(margin=0.5), "margin"),
-        (dict(transform="dft"), "transform"),
-        (dict(wavelength_step_nm=-5.0), "wavelength_step_nm"),
-        (dict(pupil_diameter_mm=0.0), "pupil_diameter_mm"),
+        (lambda: Targets(vsotf=0.0), "Targets.vsotf"),
+        (lambda: Targets(psf=2.0), "Targets.psf"),
+        (lambda: FieldGuard(margin=0.5), "margin"),
+        (lambda: Overrides(transform="dft"), "transform"),
+        (lambda: Overrides(wavelength_step_nm=-5.0), "wavelength_step_nm"),
+        (lambda: PlanScene(depths_D=[2.0], pupil_diameter_mm=0.0), "pupil_diameter_mm"),
+        (lambda: PlanScene(depths_D=[-1.0]), "depths must be >= 0"),
+        (lambda: PlanScene(wavelength_range_nm=(700.0, 400.0)), "wavelength_range_nm"),
+        (lambda: PlanScene(eyes=np.zeros((1, 15))), "eyes must be lfjax.Eyes"),
     ],
 )
-def test_bad_input_names_the_parameter(kwargs, match):
+def test_bad_input_names_the_parameter(make, match):
+    """Each object checks its own fields when it is built, naming the one at fault."""
     with pytest.raises(ValueError, match=match):
-        plan_sampling(depths_D=[2.0], wavelengths_nm=WAVELENGTHS, **kwargs)
+        make()
 
 
 def test_proxy_aperture_is_area_exact_and_matches_the_pipeline():
     """The planner's numpy aperture transmits π r² (the area-exact edge) like the pipeline,
     and its in-focus OTF agrees with the pipeline's to float32 round-off."""
-    from lfjax.planner.plan import _aperture_otfs
+    from lfjax.planner.proxy import _aperture_otfs
     from lfjax.base.units import DEGREES_PER_RADIAN
 
     df = 1.5
@@ -246,8 +254,8 @@ def test_proxy_vsotf_equals_the_pipeline(layout, pupil):
     tf = through_focus(eye, layout, depths, states, pupil_diameter_mm=pupil, spectrum=spectrum,
                        sampling=lfjax.Sampling(df), check_aliasing=False)
     acc, dep = np.meshgrid(states, depths)
-    scene = planner._Scene(layout, pupil, 2.0, acc.ravel(), dep.ravel(), lfjax.ModelOptions())
-    proxy = planner._Proxy(scene, spectrum, 0.25)
+    scene = PlanScene(layout, pupil, 2.0, pairs=(acc.ravel(), dep.ravel()))
+    proxy = planner_proxy.Proxy(scene, spectrum, 0.25)
     assert len(proxy.groups) < layout.n_subapertures  # views do share transforms
     ours = proxy.vsotf(df, (acc.ravel(), dep.ravel()))
     np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), rtol=0, atol=1e-6)
@@ -266,8 +274,8 @@ def test_proxy_mft_equals_the_pipeline_mft():
                        pupil_diameter_mm=3.0, spectrum=spectrum, sampling=sampling,
                        check_aliasing=False)
     acc, dep = np.meshgrid(states, depths)
-    scene = planner._Scene(layout, 3.0, 2.0, acc.ravel(), dep.ravel(), lfjax.ModelOptions())
-    ours = planner._Proxy(scene, spectrum, 0.25).vsotf(
+    scene = PlanScene(layout, 3.0, 2.0, pairs=(acc.ravel(), dep.ravel()))
+    ours = planner_proxy.Proxy(scene, spectrum, 0.25).vsotf(
         df, (acc.ravel(), dep.ravel()), transform="mft", mft_samples=samples)
     np.testing.assert_allclose(ours, np.asarray(tf.vsotf)[0].ravel(), rtol=0, atol=1e-6)
 
@@ -283,18 +291,19 @@ def test_vertex_shift_is_the_error_slope_over_the_curvature():
     pairs = (acc, np.full(acc.size, 2.0))
     kappa, top = 1.6, 2.07  # 1/D², D
     curve = 0.5 - 0.5 * kappa * (acc - top) ** 2
-    assert planner._vertex_peaks(curve, pairs)[0] == pytest.approx(top, abs=1e-12)
+    assert planner_proxy.vertex_peaks(curve, pairs)[0] == pytest.approx(top, abs=1e-12)
     for slope in (-3e-3, 1e-3, 4e-3):
         shifted = curve + slope * (acc - 2.0)
-        assert planner._peak_shift_D(shifted, curve, pairs) == pytest.approx(
+        assert planner_proxy.peak_shift_D(shifted, curve, pairs) == pytest.approx(
             abs(slope) / kappa, rel=1e-9)
     # a peak at the end of the states has no vertex: a shift there cannot be judged small
     edge = 0.5 - 0.5 * kappa * (acc - 3.2) ** 2
-    assert np.isnan(planner._vertex_peaks(edge, pairs)[0])
-    assert planner._peak_shift_D(edge, curve, pairs) == math.inf
+    assert np.isnan(planner_proxy.vertex_peaks(edge, pairs)[0])
+    assert planner_proxy.peak_shift_D(edge, curve, pairs) == math.inf
 
 
-def test_first_crossing_is_the_pipelines_cutoff_rule():
+def test_the_cutoff_rule_on_numpy_arrays_is_the_pipelines():
+    """The proxy reads its cut-offs with the pipeline's own rule, on NumPy arrays (no JAX)."""
     import jax.numpy as jnp
 
     from lfjax.kernel.metrics import cutoff_frequency
@@ -305,9 +314,10 @@ def test_first_crossing_is_the_pipelines_cutoff_rule():
     radial[:, 0] = 1.0
     radial[5] = np.linspace(1.0, 0.2, 40)  # never reaches the threshold: the last frequency
     for threshold in (0.05, 0.3):
+        host = cutoff_frequency(radial, freqs, threshold)
+        assert isinstance(host, np.ndarray) and host.dtype == np.float64
         np.testing.assert_allclose(
-            planner._first_crossing(radial, freqs, threshold),
-            np.asarray(cutoff_frequency(jnp.asarray(radial), jnp.asarray(freqs), threshold)),
+            host, np.asarray(cutoff_frequency(jnp.asarray(radial), jnp.asarray(freqs), threshold)),
             atol=1e-5)
 
 
@@ -324,8 +334,8 @@ def test_proxy_cutoffs_equal_the_pipeline():
                        check_aliasing=False)
     expected = np.asarray(cutoff_frequency(tf.radial_mtf[0], tf.radial_freq_cpd, 0.05)).ravel()
     acc, dep = np.meshgrid(states, depths)
-    scene = planner._Scene(layout, 3.0, 2.0, acc.ravel(), dep.ravel(), lfjax.ModelOptions())
-    vs, cut = planner._Proxy(scene, spectrum, 0.25).vsotf_and_cutoffs(
+    scene = PlanScene(layout, 3.0, 2.0, pairs=(acc.ravel(), dep.ravel()))
+    vs, cut = planner_proxy.Proxy(scene, spectrum, 0.25).vsotf_and_cutoffs(
         df, (acc.ravel(), dep.ravel()), 0.05)
     np.testing.assert_allclose(cut, expected, atol=1e-3)
     np.testing.assert_allclose(vs, np.asarray(tf.vsotf)[0].ravel(), atol=1e-6)
@@ -335,11 +345,12 @@ def test_peak_and_cutoff_targets_choose_the_wavelength_step():
     """With targets in D and cpd the wavelength step is the coarsest whose proxy peaks and
     cut-offs stay within half of each target; a tighter peak target never picks a coarser
     step, and the plan reports what it measured."""
-    scene = dict(layout=lfjax.grid_layout(2, 3.0), depths_D=[1.0, 2.0],
-                 accommodation_window_D=0.6, wavelength_range_nm=(400.0, 700.0),
-                 vsotf_tolerance=None, estimate_accuracy=False)
-    loose = plan_sampling(peak_tolerance_D=0.05, cutoff_tolerance_cpd=1.0, **scene)
-    tight = plan_sampling(peak_tolerance_D=2e-4, cutoff_tolerance_cpd=0.05, **scene)
+    scene = PlanScene(lfjax.grid_layout(2, 3.0), depths_D=[1.0, 2.0], accommodation_window_D=0.6,
+                      wavelength_range_nm=(400.0, 700.0))
+    loose = plan_sampling(scene, Targets(vsotf=None, peak_D=0.05, cutoff_cpd=1.0),
+                          estimate_accuracy=False)
+    tight = plan_sampling(scene, Targets(vsotf=None, peak_D=2e-4, cutoff_cpd=0.05),
+                          estimate_accuracy=False)
     def step(plan):
         return plan.wavelengths_nm[1] - plan.wavelengths_nm[0]
 
@@ -352,18 +363,23 @@ def test_peak_and_cutoff_targets_choose_the_wavelength_step():
 
 
 @pytest.mark.parametrize(
-    "kwargs, match",
+    "targets, match",
     [
-        (dict(vsotf_tolerance=None), "accuracy target"),
-        (dict(vsotf_tolerance=None, peak_tolerance_D=0.0), "peak_tolerance_D"),
-        (dict(cutoff_tolerance_cpd=-1.0), "cutoff_tolerance_cpd"),
-        (dict(cutoff_threshold=1.5), "cutoff_threshold"),
-        (dict(vsotf_tolerance=None, peak_tolerance_D=0.01, transform="mft"), "vsotf_tolerance"),
+        (dict(vsotf=None), "accuracy target"),
+        (dict(vsotf=None, peak_D=0.0), "Targets.peak_D"),
+        (dict(cutoff_cpd=-1.0), "Targets.cutoff_cpd"),
+        (dict(cutoff_threshold=1.5), "Targets.cutoff_threshold"),
     ],
 )
-def test_bad_targets_name_the_parameter(kwargs, match):
+def test_bad_targets_name_the_parameter(targets, match):
     with pytest.raises(ValueError, match=match):
-        plan_sampling(depths_D=[2.0], wavelengths_nm=WAVELENGTHS, **kwargs)
+        Targets(**targets)
+
+
+def test_an_mft_plan_needs_a_vsotf_target():
+    with pytest.raises(ValueError, match="Targets.vsotf"):
+        plan_sampling(PlanScene(depths_D=[2.0], wavelengths_nm=WAVELENGTHS),
+                      Targets(vsotf=None, peak_D=0.01), overrides=Overrides(transform="mft"))
 
 
 def test_plans_are_remembered_by_value_in_memory_and_on_disk(tmp_path, monkeypatch):
@@ -379,31 +395,37 @@ def test_plans_are_remembered_by_value_in_memory_and_on_disk(tmp_path, monkeypat
 
     calls = []
 
-    def counted(**kwargs):
-        calls.append(kwargs)
-        return plan_sampling(**kwargs)
+    def counted(scene, *args, **kwargs):
+        calls.append(scene)
+        return plan_sampling(scene, *args, **kwargs)
 
     monkeypatch.setattr(_plan_cache, "plan_sampling", counted)
     _plan_cache.clear_memory()
     assert _plan_cache.enable_plan_cache(tmp_path / "plans") == tmp_path / "plans"
     try:
-        args = dict(layout=lfjax.grid_layout(2, pupil_diameter_mm=3.0), depths_D=np.array([1.0, 2.0]),
-                    wavelengths_nm=np.arange(450.0, 651.0, 50.0), estimate_accuracy=False)
-        first = _plan_cache.cached_plan_sampling(**args)
-        assert len(calls) == 1 and same(first, plan_sampling(**args))
-        assert _plan_cache.cached_plan_sampling(**args) is first and len(calls) == 1
+        scene = dict(layout=lfjax.grid_layout(2, pupil_diameter_mm=3.0),
+                     depths_D=np.array([1.0, 2.0]), wavelengths_nm=np.arange(450.0, 651.0, 50.0))
+        args = (PlanScene(**scene),)
+        first = _plan_cache.cached_plan_sampling(*args, estimate_accuracy=False)
+        assert len(calls) == 1 and same(first, plan_sampling(*args, estimate_accuracy=False))
+        again = _plan_cache.cached_plan_sampling(PlanScene(**scene), Targets(),  # equal values,
+                                                 estimate_accuracy=False)  # defaults given
+        assert again is first and len(calls) == 1
         _plan_cache.clear_memory()  # as a new process would start
-        again = _plan_cache.cached_plan_sampling(**args)
+        again = _plan_cache.cached_plan_sampling(*args, estimate_accuracy=False)
         assert same(again, first) and again is not first and len(calls) == 1
         (file,) = (tmp_path / "plans").glob("*.pkl")
-        moved = dict(args, depths_D=np.array([1.0, 2.5]))
-        _plan_cache.cached_plan_sampling(**moved)
-        assert len(calls) == 2 and calls[-1]["depths_D"][1] == 2.5  # planned, not looked up
-        assert _plan_cache.plan_key(**args) != _plan_cache.plan_key(
-            **dict(args, wavelengths_nm=np.array([450.0, 500.0, 550.0, 600.0, 649.0])))
+        moved = PlanScene(**dict(scene, depths_D=np.array([1.0, 2.5])))
+        _plan_cache.cached_plan_sampling(moved, estimate_accuracy=False)
+        assert len(calls) == 2 and calls[-1].depths_D[1] == 2.5  # planned, not looked up
+        assert _plan_cache.plan_key(*args) != _plan_cache.plan_key(PlanScene(
+            **dict(scene, wavelengths_nm=np.array([450.0, 500.0, 550.0, 600.0, 649.0]))))
+        assert _plan_cache.plan_key(*args) != _plan_cache.plan_key(*args, Targets(vsotf=2e-3))
+        assert _plan_cache.plan_key(*args) != _plan_cache.plan_key(*args, estimate_accuracy=False)
         file.write_bytes(b"not a plan")
         _plan_cache.clear_memory()
-        assert same(_plan_cache.cached_plan_sampling(**args), first) and len(calls) == 3
+        assert same(_plan_cache.cached_plan_sampling(*args, estimate_accuracy=False), first)
+        assert len(calls) == 3
     finally:
         _plan_cache.enable_plan_cache(None)
         _plan_cache.clear_memory()

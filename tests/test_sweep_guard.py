@@ -268,7 +268,7 @@ def test_radial_mtf_bins_in_memory_of_the_plane_not_its_cube():
 
     from lfjax.kernel import metrics
 
-    index, weights, _ = metrics._radial_bins(1458)
+    index, weights, _ = metrics.radial_bins(1458)
     assert index.nbytes + weights.nbytes < 64 * 2**20
     n = 33
     fy = np.fft.fftfreq(n, 1.0 / n)

@@ -225,7 +225,7 @@ def test_array_likes_are_converted_on_construction_and_default_sampling_is_plann
     fail deep inside with "'numpy.ndarray' object has no attribute 'at'"); with no sampling
     given, through_focus plans one with the field guard and reports it."""
     from lfjax.model.layouts import Layout
-    from lfjax.kernel.optics import _field_check
+    from lfjax.kernel.optics import field_check
     from lfjax.model.spectral import Spectrum
     from lfjax.vision.focus import through_focus
 
@@ -242,7 +242,7 @@ def test_array_likes_are_converted_on_construction_and_default_sampling_is_plann
                       sampling=lfjax.Sampling())
     tf = through_focus(eyes, layout, [0.0, 4.0], acc, cdp_D=2.0, spectrum=spectrum)
     assert tf.sampling is not None and tf.sampling.freq_step_cpd < 1.0
-    _field_check(eyes.zernike_um, 3.0, 3.0, 2.0, acc, [0.0, 4.0], layout, spectrum, tf.sampling)
+    field_check(eyes.zernike_um, 3.0, 3.0, 2.0, acc, [0.0, 4.0], layout, spectrum, tf.sampling)
     assert np.all(np.isfinite(np.asarray(tf.vsotf)))
     with pytest.raises(ValueError, match="Spectrum.weights must have the shape"):
         Spectrum(np.array([500.0, 600.0]), np.array([1.0]), np.zeros(2), np.zeros(2))

@@ -43,10 +43,10 @@ def main(argv=None):
     layout = lfjax.grid_layout(2, 3.0)
     depths = np.array([1.0, 3.0])
     acc = np.array([[1.0], [3.0]])
-    plan = lfjax.planner.plan.plan_sampling(
+    plan = lfjax.plan_sampling(lfjax.PlanScene(
         layout=layout, depths_D=depths, accommodation_D=acc.ravel(), accommodation_window_D=None,
-        wavelengths_nm=spectrum.wavelengths_nm, eyes_zernike_um=np.asarray(eyes.zernike_um),
-        estimate_accuracy=False, pairs=(acc.ravel(), depths))
+        pairs=(acc.ravel(), depths), wavelengths_nm=spectrum.wavelengths_nm, eyes=eyes),
+        estimate_accuracy=False)
     config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm, 3.0,
                                   plan.sampling, options)
     print(f"sampling: {plan.sampling.freq_step_cpd:.3g} cpd, bands {config.bands}")

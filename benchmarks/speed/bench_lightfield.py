@@ -158,11 +158,11 @@ def main(argv=None):
           f"accepts for all layouts{' and the grid' if len(calls) > 1 else ''}; "
           f"probing + warm-up took {time.perf_counter() - t0:.0f} s")
     try:
-        from lfjax.planner.plan import plan_sampling
+        from lfjax.planner import PlanScene, plan_sampling
 
         for name in LAYOUT_ORDER:
-            plan = plan_sampling(layouts[name], 3.0, 2.0, depths_D=GRID_DEPTHS,
-                                 accommodation_window_D=1.0, eyes_zernike_um=np.asarray(eyes11.zernike_um))
+            plan = plan_sampling(PlanScene(layouts[name], 3.0, 2.0, depths_D=GRID_DEPTHS,
+                                           accommodation_window_D=1.0, eyes=eyes11))
             print(f"  (lfjax.planner.plan.plan_sampling for the grid, {name}: df = "
                   f"{plan.sampling.freq_step_cpd:g} cpd, bands {plan.bands})")
     except Exception as err:  # planner absent or changed: informational only

@@ -84,7 +84,7 @@ def _study_floor(config, label: str, repeat: int = 1, peaks: bool = True
     and, with ``peaks``, the peak states), on each layout's own spectrum (planned for the
     claims, or fixed by the config). Returns (seconds, {layout: wavelength step nm}, lines)."""
     import lfjax
-    from lfjax.reproduce.config import _planned_sampling, study_eyes
+    from lfjax.reproduce.config import planned_sampling, study_eyes
     from lfjax.base.sampling import wavelength_bands
 
     eyes, _ = study_eyes(config)
@@ -92,7 +92,7 @@ def _study_floor(config, label: str, repeat: int = 1, peaks: bool = True
     for name, layout in lfjax.model.layouts.paper_layouts(config.pupil_diameter_mm).items():
         depths = (np.array([config.cdp_D]) if name == "natural"
                   else np.asarray(config.depths_D, float))
-        sampling, wavelengths = _planned_sampling(eyes, layout, depths, config, config.options)
+        sampling, wavelengths = planned_sampling(eyes, layout, depths, config, config.options)
         steps[name] = float(wavelengths[1] - wavelengths[0]) if wavelengths.size > 1 else 100.0
         mft = sampling.mft_pupil_samples if sampling.transform == "mft" else None
         grid = np.asarray(config.accommodation_D, float)

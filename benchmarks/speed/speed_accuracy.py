@@ -75,16 +75,15 @@ def child(args):
 
 def main():
     import lfjax
-    from lfjax.planner.plan import plan_sampling
+    from lfjax.planner import PlanScene, Targets, plan_sampling
 
     eyes = lfjax.sample_eyes(1, 2)
     zernike = np.concatenate([np.asarray(eyes.zernike_um), np.asarray(lfjax.average_eye().zernike_um)])
-    plan = plan_sampling(
+    plan = plan_sampling(PlanScene(
         lfjax.grid_layout(2, 3.0), depths_D=[1.0, 2.0, 3.0],
         accommodation_D=np.round(np.arange(0.0, 4.01, 0.2), 9), accommodation_window_D=1.0,
-        wavelengths_nm=np.arange(400.0, 700.1, 10.0), eyes_zernike_um=zernike,
-        vsotf_tolerance=1e-3,
-    )
+        wavelengths_nm=np.arange(400.0, 700.1, 10.0), eyes=lfjax.make_eyes(zernike, 3.0),
+    ), Targets(vsotf=1e-3))
     df0 = plan.sampling.freq_step_cpd
     print(plan.summary())
     # (name, df, wavelength step, x64, edge, transform, mft samples, Zernike order)

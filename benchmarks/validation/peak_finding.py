@@ -111,10 +111,10 @@ def layout_setup(name: str, zernike_um: np.ndarray, dense: bool = True):
     spec = lfjax.make_spectrum(WAVELENGTHS_NM, opts)
 
     def plan(layout, cdp, depths):
-        return lfjax.planner.plan.plan_sampling(
+        return lfjax.plan_sampling(lfjax.PlanScene(
             layout=layout, pupil_diameter_mm=PUPIL_MM, cdp_D=cdp, depths_D=depths,
             accommodation_D=GRID_D, accommodation_window_D=WINDOW_D,
-            wavelengths_nm=spec.wavelengths_nm, eyes_zernike_um=zernike_um,
+            wavelengths_nm=spec.wavelengths_nm, eyes=lfjax.make_eyes(zernike_um, 3.0)),
             estimate_accuracy=False).sampling
 
     n_coarse = int(round(2 * WINDOW_D / 0.2)) + 1
@@ -327,14 +327,14 @@ def _direct_fn():
     import jax
     import jax.numpy as jnp
     from lfjax.vision.peaks import refine_peak, single_state_metric
-    from lfjax.kernel.pipeline import _eye_coefficients, reference_normalisers
+    from lfjax.kernel.pipeline import eye_coefficients, reference_normalisers
 
     @eqx.filter_jit
     def direct(eyes, scene, spectrum, acc, config, lower, upper, start, metric, method):
         reference = reference_normalisers(scene, spectrum, acc, config)
         value_fn = single_state_metric(eyes.measured_pupil_mm, scene, spectrum, acc, config,
                                        reference, metric)
-        coefficients = _eye_coefficients(eyes, config)
+        coefficients = eye_coefficients(eyes, config)
         shape = (coefficients.shape[0], scene.depths_D.shape[0])
         z = jnp.broadcast_to(coefficients[:, None, :], shape + coefficients.shape[-1:])
         b = lambda x: jnp.broadcast_to(jnp.asarray(x)[None, :], shape)  # noqa: E731

@@ -20,7 +20,7 @@ sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _co
 from _common import header  # noqa: E402
 
 import lfjax
-from lfjax.planner.plan import plan_sampling
+from lfjax.planner import PlanScene, Targets, plan_sampling
 from lfjax.vision.focus import through_focus
 from lfjax.kernel.optics import psf_from_otf
 from lfjax.vision.psf import polychromatic_otf
@@ -56,7 +56,7 @@ for name,(lay,depths,pupil,win) in scenes.items():
     eye = lfjax.model.eyes.aberration_free_eye(measured_pupil_mm=max(pupil,3.0))
     acc=np.round(np.arange(0,4.01,0.2),9)
     t=time.time()
-    plan=plan_sampling(lay, pupil, 2.0, depths_D=depths, accommodation_D=acc, accommodation_window_D=win, wavelengths_nm=WL, vsotf_tolerance=tol, measured_pupil_mm=max(pupil,3.0))
+    plan=plan_sampling(PlanScene(lay, pupil, 2.0, depths_D=depths, accommodation_D=acc, accommodation_window_D=win, wavelengths_nm=WL), Targets(vsotf=tol))
     tp=time.time()-t
     s=plan.sampling
     # one converged reference for the plan and its neighbours: Richardson (order 2) from

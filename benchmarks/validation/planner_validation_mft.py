@@ -17,7 +17,7 @@ sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _co
 from _common import header  # noqa: E402
 
 import lfjax
-from lfjax.planner.plan import plan_sampling
+from lfjax.planner import Overrides, PlanScene, Targets, plan_sampling
 from lfjax.vision.focus import through_focus
 
 WL = [450.0, 550.0, 650.0]
@@ -41,10 +41,10 @@ def main():
     header(f"planner_validation_mft: forced MFT plans for VSOTF error <= {tol:g} (issue #5)")
     for name, (layout, depths, pupil, window) in SCENES.items():
         eye = lfjax.model.eyes.aberration_free_eye(measured_pupil_mm=3.0)
-        kw = dict(depths_D=depths, accommodation_D=ACC, accommodation_window_D=window,
-                  wavelengths_nm=WL, vsotf_tolerance=tol)
-        plan = plan_sampling(layout, pupil, 2.0, transform="mft", **kw)
-        df_fft = plan_sampling(layout, pupil, 2.0, **kw).sampling.freq_step_cpd
+        scene = PlanScene(layout, pupil, 2.0, depths_D=depths, accommodation_D=ACC,
+                          accommodation_window_D=window, wavelengths_nm=WL)
+        plan = plan_sampling(scene, Targets(vsotf=tol), overrides=Overrides(transform="mft"))
+        df_fft = plan_sampling(scene, Targets(vsotf=tol)).sampling.freq_step_cpd
         half, allowed = vsotf(eye, layout, depths, window, lfjax.Sampling(df_fft / 2), pupil)
         quarter, _ = vsotf(eye, layout, depths, window, lfjax.Sampling(df_fft / 4), pupil)
         ref = quarter + (quarter - half) / 3

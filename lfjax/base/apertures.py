@@ -20,7 +20,7 @@ import numpy as np
 from lfjax.base.sampling import next_fast_size
 
 
-def _safe_sqrt(x):
+def safe_sqrt(x):
     """sqrt with a finite (zero) gradient at 0 (double-where)."""
     positive = x > 0
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
@@ -33,8 +33,8 @@ def disk_edge_distance(r2_mm2, radius_mm, edge_scale_mm):
     covered area exactly π·radius², so results are continuous and differentiable in centre
     and diameter with no area bias.
     """
-    r = _safe_sqrt(r2_mm2)
-    return _safe_sqrt(radius_mm**2 - (math.pi**2 / 3.0) * edge_scale_mm**2) - r
+    r = safe_sqrt(r2_mm2)
+    return safe_sqrt(radius_mm**2 - (math.pi**2 / 3.0) * edge_scale_mm**2) - r
 
 
 def soft_disk(r2_mm2, radius_mm, edge_scale_mm):
@@ -111,6 +111,7 @@ def fresnel_propagate(field, dx_mm, wavelength_mm, distance_mm, extent_mm=None):
 
 
 __all__ = [
+    "safe_sqrt",
     "disk_edge_distance",
     "soft_disk",
     "aperture_edge_distance",

@@ -85,7 +85,7 @@ import numpy as np
 
 from lfjax.base.errors import ParameterError
 from lfjax.model.options import ModelOptions
-from lfjax.model.spectral import Spectrum, _lef_table, _sce_table, make_spectrum
+from lfjax.model.spectral import Spectrum, lef_data, lef_range_nm, make_spectrum, sce_rho_data
 
 CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
 D65_XY = (0.3127, 0.3290)
@@ -165,7 +165,7 @@ def gaussian_primaries(peaks_nm, fwhm_nm, name: str = "gaussian", source: str = 
 
     Sampled on 390–830 nm with step min(1 nm, min(FWHM)/10); unit peak each.
     """
-    lo, hi = _lef_range()
+    lo, hi = lef_range_nm()
     peaks = np.asarray(peaks_nm, float)
     if peaks.shape != (3,):
         raise ValueError(f"peaks_nm must have shape (3,) (R, G, B), got {peaks.shape}")
@@ -224,17 +224,12 @@ def display_primaries(name: str) -> DisplayPrimaries:
     return _builtin(name)
 
 
-def _lef_range() -> tuple[float, float]:
-    wl, _ = _lef_table()
-    return float(wl[0]), float(wl[-1])
-
-
 def computed_range_nm(options: ModelOptions = ModelOptions()) -> tuple[float, float]:
     """Wavelength range (nm) the model can compute: the LEF data (390–830 nm), and the
     Stiles–Crawford ρ(λ) table (400–700 nm) unless ``options.sce == "off"``."""
-    lo, hi = _lef_range()
+    lo, hi = lef_range_nm()
     if options.sce != "off":
-        wl, _ = _sce_table(options.sce_table)
+        wl, _ = sce_rho_data(options.sce_table)
         lo, hi = max(lo, float(wl[0])), min(hi, float(wl[-1]))
     return lo, hi
 
@@ -423,7 +418,7 @@ def resample_weights(
 
 
 def _fine_weights(wl: np.ndarray, emission: np.ndarray) -> np.ndarray:
-    lef_wl, lef_v = _lef_table()
+    lef_wl, lef_v = lef_data()
     v = np.interp(wl, lef_wl, lef_v, left=0.0, right=0.0)
     return emission * v * _cell_widths(wl)
 

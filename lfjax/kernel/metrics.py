@@ -83,7 +83,8 @@ def ncsf(fx_cpd, fy_cpd, model: str = "watson_ahumada_2005"):
 # ----------------------------------------------------------------------------- grids
 
 
-def _half_plane_weights_np(n_fft: int) -> np.ndarray:
+def half_plane_weights_np(n_fft: int) -> np.ndarray:
+    """:func:`half_plane_weights` as a float64 NumPy array (host planning)."""
     w = np.full(n_fft // 2 + 1, 2.0)
     w[0] = 1.0
     if n_fft % 2 == 0:
@@ -94,7 +95,7 @@ def _half_plane_weights_np(n_fft: int) -> np.ndarray:
 def half_plane_weights(n_fft: int):
     """Multiplicity of each half-plane column in a full-plane sum: 1 at f_x = 0 (and at the
     Nyquist column of even L), 2 elsewhere."""
-    return jnp.asarray(_half_plane_weights_np(n_fft))
+    return jnp.asarray(half_plane_weights_np(n_fft))
 
 
 def half_plane_frequencies(n_fft: int, freq_step_cpd: float):
@@ -104,8 +105,19 @@ def half_plane_frequencies(n_fft: int, freq_step_cpd: float):
     return jnp.meshgrid(fx, fy)
 
 
-def ncsf_half_plane(n_fft: int, freq_step_cpd: float, model: str = "watson_ahumada_2005"):
-    """NCSF on the half plane times the Hermitian multiplicity (ready for VSOTF sums)."""
+def ncsf_half_plane(n_fft: int, freq_step_cpd: float, model: str = "watson_ahumada_2005",
+                    host: bool = False):
+    """NCSF on the half plane times the Hermitian multiplicity (ready for VSOTF sums),
+    (L, L//2+1).
+
+    ``host=True``: the same weights as a float64 NumPy array, computed on the host without
+    JAX (the planner's proxy, :mod:`lfjax.planner.proxy`, which compiles nothing); the
+    frequencies are the same host grids either way."""
+    if host:
+        fy = np.fft.fftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd
+        fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft) * freq_step_cpd
+        weights = np.asarray(ncsf(fx[None, :], fy[:, None], model), float)
+        return weights * half_plane_weights_np(n_fft)[None, :]
     fx, fy = half_plane_frequencies(n_fft, freq_step_cpd)
     return ncsf(fx, fy, model) * half_plane_weights(n_fft)[None, :]
 
@@ -153,7 +165,7 @@ def strehl_ratio(otf_half, reference_otf_half, n_fft: int, freq_step_cpd: float,
 
 
 @lru_cache(maxsize=32)
-def _radial_bins(n_fft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def radial_bins(n_fft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ring k = 0 … L/2 of the half-plane grid as a padded gather: ``index`` (n_bins,
     max_ring) int32 positions in the flattened (L, L//2+1) plane and ``weights`` (n_bins,
     max_ring) their share of the ring mean (half-plane multiplicity / the ring's full-plane
@@ -163,7 +175,7 @@ def _radial_bins(n_fft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     fy = np.fft.fftfreq(n_fft, 1.0 / n_fft)
     fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft)
     ring = np.rint(np.hypot(fx[None, :], fy[:, None])).astype(np.int64).ravel()
-    mult = np.broadcast_to(_half_plane_weights_np(n_fft)[None, :],
+    mult = np.broadcast_to(half_plane_weights_np(n_fft)[None, :],
                            (n_fft, n_fft // 2 + 1)).ravel()
     n_bins = n_fft // 2 + 1
     keep = np.flatnonzero(ring < n_bins)  # the corners beyond L/2 belong to no ring
@@ -185,7 +197,7 @@ def radial_mtf(otf_half, n_fft: int, freq_step_cpd: float):
 
     Returns (radial_mtf (…, L//2+1), frequencies_cpd (L//2+1,)). Memory O(L²) per OTF.
     """
-    index, weights, k = _radial_bins(n_fft)
+    index, weights, k = radial_bins(n_fft)
     mod = jnp.abs(otf_half).reshape(otf_half.shape[:-2] + (-1,))
     rings = mod[..., jnp.asarray(index)]  # (…, n_bins, max_ring)
     return (jnp.sum(rings * jnp.asarray(weights, mod.dtype), axis=-1),
@@ -195,10 +207,13 @@ def radial_mtf(otf_half, n_fft: int, freq_step_cpd: float):
 def cutoff_frequency(radial, frequencies_cpd_, threshold: float = 0.05):
     """First frequency (cpd) where a radial MTF falls to ``threshold`` (linear interpolation).
 
-    Returns the last frequency when the MTF never falls that low.
+    Returns the last frequency when the MTF never falls that low. NumPy arrays in give NumPy
+    out (the planner's proxy reads its cut-offs with this rule); anything else is evaluated
+    with jax.
     """
     if not (0.0 < threshold < 1.0):
         raise ValueError(f"threshold must be in (0, 1), got {threshold}")
+    jnp = _array_module(radial, frequencies_cpd_)
     below = radial[..., 1:] <= threshold
     has = jnp.any(below, axis=-1)
     idx = jnp.argmax(below, axis=-1) + 1  # first index at/below threshold
@@ -223,6 +238,8 @@ __all__ = [
     "ncsf_campbell_green_2004",
     "ncsf_half_plane",
     "half_plane_weights",
+    "half_plane_weights_np",
+    "radial_bins",
     "half_plane_frequencies",
     "vsotf",
     "vsotf_numerator",

@@ -20,7 +20,7 @@ import numpy as np
 from jax.ad_checkpoint import checkpoint_name
 
 from lfjax.base.types import FULL, is_concrete
-from lfjax.base.apertures import _safe_sqrt, aperture_edge_distance, disk_edge_distance, fresnel_propagate
+from lfjax.base.apertures import aperture_edge_distance, disk_edge_distance, fresnel_propagate, safe_sqrt
 from lfjax.base.apertures import soft_disk as soft_disk
 from lfjax.model.layouts import Layout
 from lfjax.base.sampling import (
@@ -75,7 +75,7 @@ def _pupil_parts(
         )
         intensity = jnp.real(beam) ** 2 + jnp.imag(beam) ** 2
         if display.diffraction == "modulus":  # the paper's Eq. 2: |Fr[...]| only
-            beam = _safe_sqrt(intensity)
+            beam = safe_sqrt(intensity)
         coverage = jax.nn.sigmoid(pupil_inside / edge)
         amp = coverage * sce * beam
         # The zero-frequency term, as in the geometric branch, counts the soft edge's
@@ -403,7 +403,8 @@ def validate_states(accommodation_D=None, depths_D=None, cdp_D=None) -> None:
             raise ValueError(f"{name} must be >= 0 D ({what}); got {v[v < 0].tolist()}")
 
 
-def _validate_coefficients(zernike_um) -> None:
+def validate_coefficients(zernike_um) -> None:
+    """Concrete Zernike coefficients must be finite (traced ones pass through)."""
     # numpy, not jnp: under an outer jit a jnp reduction of a concrete array is a tracer
     if _is_concrete(zernike_um) and not np.all(np.isfinite(np.asarray(zernike_um))):
         raise ValueError("zernike_um contains non-finite values (NaN or inf)")
@@ -443,7 +444,7 @@ def field_radius_arcmin(
     )
 
 
-def _field_check(
+def field_check(
     eyes_zernike, measured_pupil_mm, pupil_diameter_mm, cdp_D, accommodation_D, depths_D,
     layout: Layout, spectrum: Spectrum, sampling: Sampling, pairs=None,
     wrap_tolerance: float = 1e-3, display=None,
@@ -497,5 +498,7 @@ __all__ = [
     "psf_from_otf",
     "validate_pupil",
     "validate_states",
+    "validate_coefficients",
     "field_radius_arcmin",
+    "field_check",
 ]

@@ -160,7 +160,9 @@ def checked_inputs(eyes: Eyes, scene: Scene, accommodation: Accommodation):
     )
 
 
-def _eye_coefficients(eyes: Eyes, config: PipelineConfig):
+def eye_coefficients(eyes: Eyes, config: PipelineConfig):
+    """The eyes' Zernike coefficients (…, n_modes) µm as the pipeline uses them: piston and
+    tilt zeroed when ``config.zero_piston_tilt``."""
     z = eyes.zernike_um
     return z.at[..., :3].set(0.0) if config.zero_piston_tilt else z
 
@@ -244,7 +246,7 @@ def otf_stack(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accom
                                    accommodation, config.bands, config.sampling)
         return render(elemental, scene, accommodation.pair_index, config.n_fft, config.freq_step_cpd)
 
-    return jax.lax.map(one_eye, _eye_coefficients(eyes, config), batch_size=config.eye_chunk)
+    return jax.lax.map(one_eye, eye_coefficients(eyes, config), batch_size=config.eye_chunk)
 
 
 @eqx.filter_jit
@@ -286,7 +288,7 @@ def retinal_metrics(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation:
             radial_mtf=radial_mtf(otf, n_fft, df)[0],
         )
 
-    return jax.lax.map(one_eye, _eye_coefficients(eyes, config), batch_size=config.eye_chunk)
+    return jax.lax.map(one_eye, eye_coefficients(eyes, config), batch_size=config.eye_chunk)
 
 
 def pair_metric(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
@@ -330,4 +332,5 @@ __all__ = [
     "elemental_otfs",
     "render",
     "checked_inputs",
+    "eye_coefficients",
 ]

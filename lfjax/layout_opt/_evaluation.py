@@ -21,6 +21,7 @@ from lfjax.kernel.pipeline import (
     retinal_metrics,
 )
 from lfjax.planner.plan import plan_sampling
+from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import make_spectrum
 from lfjax.layout_opt._feasible import Constraints, to_layout
@@ -36,8 +37,8 @@ from lfjax.layout_opt._problem import (
     DEFAULT_WAVELENGTHS_NM,
     FULL_WAVELENGTHS_NM,
     LayoutProblem,
-    _check_depths,
-    _evaluated_pairs,
+    check_depths,
+    evaluated_pairs,
     guard_sampling,
     make_problem,
 )
@@ -235,7 +236,7 @@ def diameter_scan(eyes: Eyes, n_per_side: int, pitch_mm: float, diameters_mm, de
     smallest diameter on this grid.
     """
     d = np.atleast_1d(np.asarray(diameters_mm, float))
-    depths = _check_depths(depths_D)
+    depths = check_depths(depths_D)
     options = options.replace(vsotf_reference=reference)
     sites = lattice_sites("square", int(n_per_side) ** 2)
     centres = float(pitch_mm) * sites
@@ -246,10 +247,9 @@ def diameter_scan(eyes: Eyes, n_per_side: int, pitch_mm: float, diameters_mm, de
         envelope = make_layout(np.concatenate([centres, centres[:1]]),
                                np.concatenate([np.full(len(centres), d.max()), [d.min()]]), pupil,
                                window_diameter_mm=window)
-        sampling = plan_sampling(envelope, pupil_diameter_mm=pupil, cdp_D=cdp_D, depths_D=depths,
-                                 accommodation_window_D=0.5, wavelengths_nm=wl,
-                                 eyes_zernike_um=np.asarray(eyes.zernike_um),
-                                 measured_pupil_mm=eyes.measured_pupil_mm, options=options,
+        sampling = plan_sampling(PlanScene(envelope, pupil_diameter_mm=pupil, cdp_D=cdp_D,
+                                           depths_D=depths, accommodation_window_D=0.5,
+                                           wavelengths_nm=wl, eyes=eyes, options=options),
                                  estimate_accuracy=False).sampling
     config = PipelineConfig.build(wl, window, pupil, sampling, options)
     spectrum = make_spectrum(wl, options)
@@ -278,11 +278,11 @@ def natural_evaluation(problem: LayoutProblem, eyes: Eyes | None = None) -> dict
     wl = (np.asarray(problem.spectrum.wavelengths_nm, float) if problem.spectrum_given
           else np.asarray(FULL_WAVELENGTHS_NM if problem.accuracy == "full" else
                           problem.spectrum.wavelengths_nm, float))
-    sampling = min((guard_sampling(open_constraints, [d], float(d), wl, np.asarray(eyes.zernike_um),
-                                   eyes.measured_pupil_mm, problem.window_D, problem.options, None,
-                                   None, pairs=_evaluated_pairs(np.array([d]), float(d),
-                                                                problem.peak_step_D,
-                                                                problem.peak_margin_D))
+    sampling = min((guard_sampling(open_constraints, [d], float(d), wl, eyes, problem.window_D,
+                                   problem.options, None, None,
+                                   pairs=evaluated_pairs(np.array([d]), float(d),
+                                                         problem.peak_step_D,
+                                                         problem.peak_margin_D))
                     for d in depths), key=lambda smp: smp.freq_step_cpd)
     for d in depths:
         sub = make_problem(eyes, [d], open_constraints, problem.objective, cdp_D=float(d),

@@ -11,19 +11,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from lfjax.base.apertures import safe_sqrt
 from lfjax.base.types import finite_scalar
 from lfjax.model.layouts import Layout, make_layout
 from lfjax.layout_opt._params import (
-    _EPS,
-    _ROTATION_RANGE,
     CONTAINMENTS,
     TOL_MM,
     FreeParams,
     LatticeParams,
-    _safe_sqrt,
     free_params,
     tangent_lattice,
 )
+
+_ROTATION_RANGE = {"square": math.pi / 4.0, "hex": math.pi / 6.0}
+"""Half the range of a lattice's rotation in box coordinates, rad (its symmetry's period / 2)."""
+
+_EPS = 1e-6  # fraction clip for the unconstrained (logit / artanh) starting point
 
 
 @dataclass(frozen=True)
@@ -170,7 +173,7 @@ def _disc_to_square(q: np.ndarray) -> np.ndarray:
 def _plane_to_disc(u):
     """tanh-radial map of the plane onto the open unit disc: tanh(|u|)·u/|u| (smooth at 0)."""
     r2 = jnp.sum(u * u, axis=-1, keepdims=True)
-    r = _safe_sqrt(r2)
+    r = safe_sqrt(r2)
     small = r2 < 1e-12
     scale = jnp.where(small, 1.0 - r2 / 3.0, jnp.tanh(r) / jnp.where(small, 1.0, r))
     return u * scale
@@ -189,7 +192,7 @@ def _diameter_caps(centres, constraints: Constraints):
     (:func:`_soft_nearest_distance`) when views must not overlap."""
     cap = jnp.full(centres.shape[:1], constraints.max_diameter_mm, centres.dtype)
     if constraints.containment == "contained":
-        r = _safe_sqrt(jnp.sum(centres * centres, axis=-1))
+        r = safe_sqrt(jnp.sum(centres * centres, axis=-1))
         cap = jnp.minimum(cap, 2.0 * (constraints.radius_mm - r))
     if constraints.non_overlap and centres.shape[0] > 1:
         cap = jnp.minimum(cap, _soft_nearest_distance(centres))
@@ -260,7 +263,8 @@ def _free_disc_points(params: FreeParams, constraints: Constraints) -> np.ndarra
     return q / np.maximum(np.hypot(q[:, 0], q[:, 1]), 1.0)[:, None]
 
 
-def _check_finite_params(params) -> None:
+def check_finite_params(params) -> None:
+    """Every leaf of a layout's parameters must be finite (a ValueError naming it)."""
     if isinstance(params, LatticeParams):
         for name in ("pitch_mm", "diameter_mm", "rotation_rad"):
             finite_scalar(name, np.asarray(getattr(params, name)))
@@ -309,7 +313,7 @@ def feasible_start(params, constraints: Constraints, margin: float = 0.0):
     its centre. ``margin`` ∈ [0, 0.5) keeps every fraction in [margin, 1 − margin]: starts
     for ``method="bfgs"``, whose sigmoid coordinates saturate on a bound (a start there
     cannot move)."""
-    _check_finite_params(params)
+    check_finite_params(params)
     margin = finite_scalar("margin", margin, 0.0, 0.49)
     if isinstance(params, LatticeParams):
         d_lo, d_hi, rho = _lattice_bounds(params, constraints)
@@ -345,7 +349,7 @@ def to_box(params, constraints: Constraints):
     Raises ``ValueError`` naming the parameter and its allowed range when ``params`` is not
     feasible. Every point of the box maps back (:func:`from_box`) to a feasible layout.
     """
-    _check_finite_params(params)
+    check_finite_params(params)
     dtype = jnp.result_type(float)
     if isinstance(params, LatticeParams):
         a, b = _lattice_fractions(params, constraints)
@@ -384,7 +388,7 @@ def _logit(p):
 def to_unconstrained(params, constraints: Constraints):
     """Unconstrained coordinates (any real values) of a feasible layout; raises like
     :func:`to_box`. Fractions become logits, centres the inverse tanh-radial map."""
-    _check_finite_params(params)
+    check_finite_params(params)
     dtype = jnp.result_type(float)
     if isinstance(params, LatticeParams):
         a, b = _lattice_fractions(params, constraints)

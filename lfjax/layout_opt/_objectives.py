@@ -8,13 +8,13 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from lfjax.base.apertures import safe_sqrt
 from lfjax.vision.peaks import Peaks, peaks_from_grid
 from lfjax.kernel.pipeline import (
     RetinalMetrics,
     Scene,
     retinal_metrics,
 )
-from lfjax.layout_opt._params import _safe_sqrt
 from lfjax.layout_opt._problem import MAXIMISED, LayoutProblem, Objective
 
 
@@ -126,7 +126,7 @@ def accommodation_penalty(relative_mse_D2, objective: Objective):
     accommodation errors relative to each eye's own error on the CDP (D)."""
     if objective.accommodation_tolerance_D is None:
         return 0.0
-    excess = jax.nn.relu(_safe_sqrt(relative_mse_D2) - objective.accommodation_tolerance_D)
+    excess = jax.nn.relu(safe_sqrt(relative_mse_D2) - objective.accommodation_tolerance_D)
     return objective.penalty_per_D2 * excess**2
 
 

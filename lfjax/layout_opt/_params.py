@@ -21,20 +21,8 @@ LATTICES = ("square", "hex")
 CONTAINMENTS = ("centre", "contained")
 
 
-_ROTATION_RANGE = {"square": math.pi / 4.0, "hex": math.pi / 6.0}
-
-
 TOL_MM = 1e-6
 """Lengths within this many mm of a constraint's bound count as on it (float32 round-off)."""
-
-
-_EPS = 1e-6  # fraction clip for the unconstrained (logit / artanh) starting point
-
-
-def _safe_sqrt(x):
-    """sqrt with a finite (zero) gradient at 0 (double-where)."""
-    positive = x > 0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
 
 
 def lattice_sites(kind: str, n_views: int) -> np.ndarray:

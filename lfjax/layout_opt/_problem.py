@@ -28,6 +28,7 @@ from lfjax.kernel.pipeline import (
     reference_normalisers,
 )
 from lfjax.planner.plan import plan_sampling
+from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import Spectrum, make_spectrum
 from lfjax.layout_opt._feasible import Constraints
@@ -300,7 +301,8 @@ def check_measured_pupil(pupil_diameter_mm: float, measured_pupil_mm: float) -> 
                              measured=measured_pupil_mm)
 
 
-def _check_depths(depths_D) -> np.ndarray:
+def check_depths(depths_D) -> np.ndarray:
+    """Rendered depths (D) as a 1-D float array; non-empty, finite and ≥ 0 D, or a ValueError."""
     d = np.atleast_1d(np.asarray(depths_D, float))
     if d.ndim != 1 or d.size < 1:
         raise ValueError(f"depths_D must be a non-empty 1-D array, got shape {d.shape}")
@@ -317,7 +319,7 @@ def peak_window(depths_D, cdp_D: float, step_D: float, margin_D: float):
     are multiples of ``step_D`` from 0 D. Returns (states_D (n_k,), index (n_depth, n_k),
     allowed (n_depth, n_k) bool); every state is seen by at least one depth.
     """
-    depths = _check_depths(depths_D)
+    depths = check_depths(depths_D)
     step = finite_scalar("peak_step_D", step_D, 0.0, 1.0, lo_open=True)
     margin = finite_scalar("peak_margin_D", margin_D, 0.0, 5.0)
     lo = np.maximum(np.minimum(depths, cdp_D) - margin, 0.0)
@@ -363,32 +365,31 @@ def envelope_layout(constraints: Constraints) -> Layout:
                        window_diameter_mm=constraints.max_diameter_mm)
 
 
-def guard_sampling(constraints: Constraints, depths_D, cdp_D: float, wavelengths_nm, eyes_zernike_um=None,
-                   measured_pupil_mm: float = 3.0, window_D: float = 0.5,
+def guard_sampling(constraints: Constraints, depths_D, cdp_D: float, wavelengths_nm,
+                   eyes: Eyes | None = None, window_D: float = 0.5,
                    options: ModelOptions = ModelOptions(vsotf_reference="open_pupil"),
                    display: DisplayOptics | None = None, spectral_weights=None,
                    pairs: tuple | None = None) -> Sampling:
     """Frequency sampling whose aliasing guard holds for every feasible layout: the
-    planner's guard (``estimate_accuracy=False``) on :func:`envelope_layout`, for
-    accommodation within ±``window_D`` of each depth, or for the (accommodation D, depth D)
-    ``pairs`` when given."""
-    depths = _check_depths(depths_D)
+    planner's guard (``estimate_accuracy=False``) on :func:`envelope_layout`, for ``eyes``
+    (None: aberration-free), accommodation within ±``window_D`` of each depth, or for the
+    (accommodation D, depth D) ``pairs`` when given."""
+    depths = check_depths(depths_D)
     extra = {}
     if pairs is not None:
         extra = dict(pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)),
                      accommodation_D=np.unique(np.asarray(pairs[0], float)))
-    plan = plan_sampling(
+    scene = PlanScene(
         envelope_layout(constraints), pupil_diameter_mm=constraints.pupil_diameter_mm,
         cdp_D=float(cdp_D), depths_D=depths,
         accommodation_window_D=None if pairs is not None else window_D,
-        wavelengths_nm=np.asarray(wavelengths_nm, float), eyes_zernike_um=eyes_zernike_um,
-        measured_pupil_mm=measured_pupil_mm, options=options, estimate_accuracy=False,
-        display=display, spectral_weights=spectral_weights, **extra,
+        wavelengths_nm=np.asarray(wavelengths_nm, float), spectral_weights=spectral_weights,
+        eyes=eyes, options=options, display=display, **extra,
     )
-    return plan.sampling
+    return plan_sampling(scene, estimate_accuracy=False).sampling
 
 
-def _evaluated_pairs(depths, cdp: float, step_D: float, margin_D: float):
+def evaluated_pairs(depths, cdp: float, step_D: float, margin_D: float):
     """Every (accommodation D, depth D) pair a problem evaluates: the peak grid (rendered
     depths and the CDP) and the correct focus."""
     peak_depths = np.append(depths, cdp)
@@ -475,7 +476,7 @@ def make_problem(
     if not np.all(np.isfinite(np.asarray(eyes.zernike_um))):
         raise ValueError("eyes.zernike_um contains non-finite values (NaN or inf)")
     check_measured_pupil(constraints.pupil_diameter_mm, eyes.measured_pupil_mm)
-    depths = _check_depths(depths_D)
+    depths = check_depths(depths_D)
     cdp = finite_scalar("cdp_D", cdp_D, 0.0)
     objective = Objective.parse(objective)
     window_D = finite_scalar("window_D", window_D, 0.0, None, lo_open=True)
@@ -491,10 +492,9 @@ def make_problem(
                                          setting["peak_margin_D"])
     if sampling is None:
         plan_eyes = eyes if planning_eyes is None else planning_eyes
-        pairs = _evaluated_pairs(depths, cdp, setting["peak_step_D"], setting["peak_margin_D"])
-        sampling = guard_sampling(constraints, depths, cdp, wl, np.asarray(plan_eyes.zernike_um),
-                                  plan_eyes.measured_pupil_mm, window_D, options, display,
-                                  np.asarray(spectrum.weights), pairs=pairs)
+        pairs = evaluated_pairs(depths, cdp, setting["peak_step_D"], setting["peak_margin_D"])
+        sampling = guard_sampling(constraints, depths, cdp, wl, plan_eyes, window_D, options,
+                                  display, np.asarray(spectrum.weights), pairs=pairs)
     config = PipelineConfig.build(wl, constraints.max_diameter_mm, constraints.pupil_diameter_mm,
                                   sampling, options, eye_chunk, display=display)
     accommodation = Accommodation.per_depth(depths[:, None], options, constraints.pupil_diameter_mm)

@@ -25,7 +25,7 @@ from lfjax.layout_opt._evaluation import (
 )
 from lfjax.layout_opt._feasible import (
     Constraints,
-    _check_finite_params,
+    check_finite_params,
     from_box,
     from_unconstrained,
     to_box,
@@ -312,7 +312,7 @@ def optimise_layout(
     history = np.asarray(history, float)
     if not np.all(np.isfinite(history)):
         raise FloatingPointError(f"the objective became non-finite during the fit: {history.tolist()}")
-    _check_finite_params(fitted)
+    check_finite_params(fitted)
     layout = to_layout(fitted, constraints, name)
     constraints.check(layout)  # by construction; kept as a guard against regressions
     initial_layout = to_layout(initial, constraints, "initial")

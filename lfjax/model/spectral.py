@@ -23,7 +23,9 @@ LEF_NAME = "CIE 2008 2 Degree Physiologically Relevant LEF"
 
 
 @lru_cache(maxsize=1)
-def _lef_table() -> tuple[np.ndarray, np.ndarray]:
+def lef_data() -> tuple[np.ndarray, np.ndarray]:
+    """The CIE 2008 2° physiologically relevant LEF as tabulated: (wavelengths nm, V(λ)),
+    colour-science's 1 nm table (read once)."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message='.*"Matplotlib" related API')
         import colour
@@ -34,7 +36,7 @@ def _lef_table() -> tuple[np.ndarray, np.ndarray]:
 
 def lef_range_nm() -> tuple[float, float]:
     """Wavelength range (nm) of the CIE 2008 physiologically relevant LEF data."""
-    wl, _ = _lef_table()
+    wl, _ = lef_data()
     return float(wl[0]), float(wl[-1])
 
 
@@ -53,7 +55,7 @@ def luminous_efficiency(wavelengths_nm) -> np.ndarray:
     References: Stockman & Sharpe (2000); CIE 170-1:2006 / Sharpe et al. (2005, 2011).
     """
     wavelengths_nm = np.atleast_1d(np.asarray(wavelengths_nm, float))
-    wl, values = _lef_table()
+    wl, values = lef_data()
     _check_range("wavelengths_nm", wavelengths_nm, wl[0], wl[-1], "CIE 2008 LEF data")
     return np.interp(wavelengths_nm, wl, values)
 
@@ -74,7 +76,9 @@ def lca_dioptres(wavelengths_nm, options: ModelOptions | ModelParameters = Model
 
 
 @lru_cache(maxsize=None)
-def _sce_table(column: str) -> tuple[np.ndarray, np.ndarray]:
+def sce_rho_data(column: str) -> tuple[np.ndarray, np.ndarray]:
+    """The Stiles–Crawford ρ(λ) table ``column`` (a ``ModelOptions.sce_table`` name) as
+    tabulated: (wavelengths nm, ρ mm⁻²), read once from ``lfjax/data``."""
     text = resources.files("lfjax").joinpath("data/stiles_crawford_rho.csv").read_text()
     rows = list(csv.DictReader(text.splitlines()))
     wl = np.array([float(r["wavelength_nm"]) for r in rows])
@@ -89,7 +93,7 @@ def sce_rho_per_mm2(wavelengths_nm, table: str = "isetbio_berendschot_data") -> 
     clamps below and returns NaN above).
     """
     wavelengths_nm = np.atleast_1d(np.asarray(wavelengths_nm, float))
-    wl, rho = _sce_table(table)
+    wl, rho = sce_rho_data(table)
     _check_range("wavelengths_nm", wavelengths_nm, wl[0], wl[-1], "Stiles–Crawford ρ(λ) table")
     return np.interp(wavelengths_nm, wl, rho)
 
@@ -233,9 +237,11 @@ def monochromatic_spectrum(wavelength_nm: float, options: ModelOptions = ModelOp
 
 __all__ = [
     "luminous_efficiency",
+    "lef_data",
     "lef_range_nm",
     "lca_dioptres",
     "sce_rho_per_mm2",
+    "sce_rho_data",
     "Spectrum",
     "make_spectrum",
     "model_spectrum",

@@ -2,9 +2,10 @@
 costs seconds of host work per layout (3–10 s for the paper's layouts, the proxy on a 5 nm
 reference), so a second ask of the same plan should cost nothing.
 
-:func:`cached_plan_sampling` keys a plan by everything it is computed from — every argument,
-by value (arrays by their bytes, dataclasses and equinox modules field by field) — and by
-the source of the package and the numpy version, so an edited planner or a new release
+:func:`cached_plan_sampling` keys a plan by everything it is computed from — every argument
+(the :class:`~lfjax.planner.scene.PlanScene`, the :class:`~lfjax.planner.plan.Targets`, the
+overrides and the guard), by value (arrays by their bytes, dataclasses and equinox modules
+field by field, defaults filled in) — and by the source of the package and the numpy version, so an edited planner or a new release
 never answers from an old plan. Plans are kept for the process; with
 :func:`enable_plan_cache` (the command line turns it on beside JAX's compilation cache) also
 on disk, one pickle per plan, so a warm ``lfjax reproduce`` or a resumed sweep re-plans
@@ -16,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
+import inspect
 import os
 import pickle
 import tempfile
@@ -25,6 +27,7 @@ import numpy as np
 
 from lfjax.planner.plan import Plan, plan_sampling
 
+_SIGNATURE = inspect.signature(plan_sampling)  # the arguments a plan is keyed by
 _MEMORY: dict[str, object] = {}
 _MEMORY_SIZE = 256
 _FOLDER: Path | None = None
@@ -95,24 +98,28 @@ def _feed(digest, value) -> None:
         digest.update(np.ascontiguousarray(array).tobytes())
 
 
-def plan_key(**kwargs) -> str:
-    """Hex key of a :func:`~lfjax.planner.plan.plan_sampling` call with these keyword arguments."""
+def plan_key(*args, **kwargs) -> str:
+    """Hex key of a :func:`~lfjax.planner.plan.plan_sampling` call with these arguments (each
+    named as the function names it, defaults filled in, so a default given or left out is
+    the same plan)."""
+    bound = _SIGNATURE.bind(*args, **kwargs)
+    bound.apply_defaults()
     digest = hashlib.sha256(_code_version().encode())
-    for name in sorted(kwargs):
+    for name in sorted(bound.arguments):
         digest.update(f"{name}=".encode())
-        _feed(digest, kwargs[name])
+        _feed(digest, bound.arguments[name])
     return digest.hexdigest()
 
 
-def cached_plan_sampling(**kwargs):
-    """:func:`lfjax.planner.plan.plan_sampling` (keyword arguments only), answered from memory or
-    the disk cache when the same plan was made before by the same code."""
-    key = plan_key(**kwargs)
+def cached_plan_sampling(*args, **kwargs) -> Plan:
+    """:func:`lfjax.planner.plan.plan_sampling` with the same arguments, answered from memory
+    or the disk cache when the same plan was made before by the same code."""
+    key = plan_key(*args, **kwargs)
     if key in _MEMORY:
         return _MEMORY[key]
     plan = _read(key, Plan)
     if plan is None:
-        plan = plan_sampling(**kwargs)
+        plan = plan_sampling(*args, **kwargs)
         _write(key, plan)
     if len(_MEMORY) >= _MEMORY_SIZE:
         _MEMORY.pop(next(iter(_MEMORY)))

@@ -3,7 +3,7 @@
 :class:`StudyConfig` holds the settings (defaults: the paper's experiment;
 :meth:`~StudyConfig.quick` for tests, :meth:`~StudyConfig.reduced` for the modelling
 alternatives). :func:`study_eyes` draws the virtual eyes plus the average eye.
-``_planned_sampling`` asks :func:`lfjax.planner.plan.plan_sampling` for the frequency step of one
+:func:`planned_sampling` asks :func:`lfjax.planner.plan.plan_sampling` for the frequency step of one
 layout's scene. ``METRICS`` and ``LF_LAYOUTS`` name the metrics and the light-field layouts
 the study reads.
 
@@ -24,6 +24,8 @@ from lfjax.model.layouts import LF_LAYOUTS as LF_LAYOUTS
 from lfjax.model.layouts import PAPER_LAYOUTS
 from lfjax.model.options import ModelOptions
 from lfjax.planner.cache import cached_plan_sampling
+from lfjax.planner.plan import Targets
+from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 
 METRICS = ("vsotf", "strehl")
@@ -224,7 +226,7 @@ def study_eyes(config: StudyConfig) -> tuple[Eyes, list[str]]:
 # ----------------------------------------------------------------------------- sampling
 
 
-def _planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, np.ndarray]:
+def planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, np.ndarray]:
     """(Sampling, wavelengths in nm) of one layout's scene.
 
     The frequency step is :func:`lfjax.planner.plan.plan_sampling`'s field guard (the largest
@@ -241,20 +243,19 @@ def _planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, 
     start, stop, _ = config.wavelengths_nm
     fixed_step = dict(config.wavelength_steps_nm).get(layout.name)
     spectrum = {"wavelengths_nm": config.wavelength_grid_nm}
+    targets = Targets()
     if config.accuracy == "claims" and fixed_step is not None:
         spectrum = {"wavelengths_nm": inclusive_grid(start, stop, fixed_step)}
     elif config.accuracy == "claims":
-        spectrum = {"wavelength_range_nm": (start, stop), "vsotf_tolerance": None,
-                    "peak_tolerance_D": config.peak_tolerance_D,
-                    "cutoff_tolerance_cpd": config.cutoff_tolerance_cpd,
-                    "cutoff_threshold": config.cutoff_threshold}
-    plan = cached_plan_sampling(
+        spectrum = {"wavelength_range_nm": (start, stop)}
+        targets = Targets(vsotf=None, peak_D=config.peak_tolerance_D,
+                          cutoff_cpd=config.cutoff_tolerance_cpd,
+                          cutoff_threshold=config.cutoff_threshold)
+    plan = cached_plan_sampling(PlanScene(
         layout=layout, pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
         depths_D=np.asarray(depths, float), accommodation_D=config.accommodation_D,
-        accommodation_window_D=config.window_D, eyes_zernike_um=np.asarray(eyes.zernike_um),
-        measured_pupil_mm=eyes.measured_pupil_mm, options=options, estimate_accuracy=False,
-        **spectrum,
-    )
+        accommodation_window_D=config.window_D, eyes=eyes, options=options, **spectrum,
+    ), targets, estimate_accuracy=False)
     wavelengths = np.asarray(plan.wavelengths_nm, float)
     mft_samples = dict(config.mft_pupil_samples).get(layout.name)
     if mft_samples is None:
@@ -268,5 +269,6 @@ __all__ = [
     "LF_LAYOUTS",
     "METRICS",
     "StudyConfig",
+    "planned_sampling",
     "study_eyes",
 ]

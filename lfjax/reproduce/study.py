@@ -25,16 +25,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from lfjax._version import __version__
+from lfjax.base.parabola import parabola_vertex
 from lfjax.model.eyes import Eyes, aberration_free_eye
 from lfjax.vision.images import psf_on_grid, retinal_image, snellen_e
 from lfjax.model.layouts import Layout, grid_layout, open_pupil, paper_layouts
 from lfjax.kernel.optics import full_plane
 from lfjax.model.options import ModelOptions
 from lfjax.vision.psf import polychromatic_otf
-from lfjax.base.sampling import AliasingError, Sampling, finer_step
+from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import make_spectrum
 from lfjax.vision.focus import ThroughFocus, through_focus, through_focus_variants
-from lfjax.reproduce.config import METRICS, StudyConfig, _planned_sampling, study_eyes
+from lfjax.vision.prepare import with_aliasing_retry
+from lfjax.reproduce.config import METRICS, StudyConfig, planned_sampling, study_eyes
 
 # ----------------------------------------------------------------------------- one layout
 
@@ -57,29 +59,25 @@ def layout_through_focus(
 def _layout_run(eyes, layout, depths_D, config, spectrum=None, options=None):
     """:func:`layout_through_focus`, returning also the wavelengths (nm) it used."""
     options = config.options if options is None else options
-    sampling, wavelengths = _planned_sampling(eyes, layout, depths_D, config, options)
+    sampling, wavelengths = planned_sampling(eyes, layout, depths_D, config, options)
     if spectrum is None:
         spectrum = make_spectrum(wavelengths, options)
     wavelengths = np.asarray(spectrum.wavelengths_nm, float)
-    for _ in range(16):
-        try:
-            tf = through_focus(
-                eyes, layout, np.asarray(depths_D, float),
-                accommodation_D=config.accommodation_D, window_D=config.window_D,
-                pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
-                spectrum=spectrum, sampling=sampling, options=options,
-                # claim 2 reads the global VSOTF peak; second peaks stay grid-located. "local"
-                # (three-point refinement, no solver loop) agrees with Newton to ~1e-4 D and
-                # compiles like the grid (Newton's loop added ~25 s per layout).
-                continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
-            )
-            return jax.block_until_ready(tf), sampling, wavelengths
-        except AliasingError as err:
-            sampling = dataclasses.replace(
-                sampling, freq_step_cpd=finer_step(err, sampling.freq_step_cpd)
-            )
-    raise RuntimeError(f"no aliasing-free sampling found for layout {layout.name}")
 
+    def run(sampling):
+        return jax.block_until_ready(through_focus(
+            eyes, layout, np.asarray(depths_D, float),
+            accommodation_D=config.accommodation_D, window_D=config.window_D,
+            pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
+            spectrum=spectrum, sampling=sampling, options=options,
+            # claim 2 reads the global VSOTF peak; second peaks stay grid-located. "local"
+            # (three-point refinement, no solver loop) agrees with Newton to ~1e-4 D and
+            # compiles like the grid (Newton's loop added ~25 s per layout).
+            continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
+        ))
+
+    tf, sampling = with_aliasing_retry(run, sampling, what=f"layout {layout.name}")
+    return tf, sampling, wavelengths
 
 
 # ----------------------------------------------------------------------------- study
@@ -95,19 +93,12 @@ def _interp_last(x_new, x, y):
 
 
 def _parabolic_peak(acc_grid, values, index):
-    """Sub-grid peak position from a parabola through the grid peak and its neighbours."""
+    """Sub-grid peak position from a parabola through the grid peak and its neighbours, on
+    the study's uniform grid (:func:`lfjax.base.parabola.parabola_vertex`)."""
     values = np.asarray(values, float)
-    n = values.shape[-1]
-    i = np.asarray(index)
-    lo, hi = np.clip(i - 1, 0, n - 1), np.clip(i + 1, 0, n - 1)
-    y0 = np.take_along_axis(values, lo[..., None], -1)[..., 0]
-    y1 = np.take_along_axis(values, i[..., None], -1)[..., 0]
-    y2 = np.take_along_axis(values, hi[..., None], -1)[..., 0]
-    step = float(acc_grid[1] - acc_grid[0]) if len(acc_grid) > 1 else 0.0
-    denom = y0 - 2 * y1 + y2
-    ok = np.isfinite(y0) & np.isfinite(y2) & (lo != i) & (hi != i) & (denom < 0)
-    shift = np.where(ok, 0.5 * (y0 - y2) / np.where(ok, denom, 1.0), 0.0)
-    return np.asarray(acc_grid)[i] + np.clip(shift, -0.5, 0.5) * step
+    acc = np.asarray(acc_grid, float)
+    step = float(acc[1] - acc[0]) if len(acc) > 1 else 0.0
+    return parabola_vertex(np.broadcast_to(acc, values.shape), values, np.asarray(index), step)
 
 
 def run_study(
@@ -162,29 +153,25 @@ def _layout_run_variants(eyes, layout, depths_D, config, options):
     """:func:`layout_through_focus_variants`, each with the wavelengths (nm) it used: the
     first variant's (the planned spectrum is the baseline's, so every variant is measured
     on the same wavelengths)."""
-    first, wavelengths = _planned_sampling(eyes, layout, depths_D, config, options[0])
+    first, wavelengths = planned_sampling(eyes, layout, depths_D, config, options[0])
     if config.accuracy == "claims" and layout.name not in dict(config.wavelength_steps_nm):
         step = float(wavelengths[1] - wavelengths[0]) if wavelengths.size > 1 else 100.0
         config = config.replace(wavelength_steps_nm=tuple(config.wavelength_steps_nm)
                                 + ((layout.name, step),))
-    samplings = [first] + [_planned_sampling(eyes, layout, depths_D, config, o)[0]
+    samplings = [first] + [planned_sampling(eyes, layout, depths_D, config, o)[0]
                            for o in options[1:]]
-    for _ in range(16 * len(options)):
-        try:
-            tfs = through_focus_variants(
-                eyes, layout, np.asarray(depths_D, float), options,
-                accommodation_D=config.accommodation_D, window_D=config.window_D,
-                pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
-                wavelengths_nm=wavelengths, samplings=samplings,
-                continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
-            )
-            return [(tf, sampling, wavelengths)
-                    for tf, sampling in zip(jax.block_until_ready(tfs), samplings)]
-        except AliasingError as err:
-            i = err.variant
-            samplings[i] = dataclasses.replace(
-                samplings[i], freq_step_cpd=finer_step(err, samplings[i].freq_step_cpd))
-    raise RuntimeError(f"no aliasing-free sampling found for layout {layout.name}")
+
+    def run(samplings):
+        return jax.block_until_ready(through_focus_variants(
+            eyes, layout, np.asarray(depths_D, float), options,
+            accommodation_D=config.accommodation_D, window_D=config.window_D,
+            pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
+            wavelengths_nm=wavelengths, samplings=samplings,
+            continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
+        ))
+
+    tfs, samplings = with_aliasing_retry(run, samplings, what=f"layout {layout.name}")
+    return [(tf, sampling, wavelengths) for tf, sampling in zip(tfs, samplings)]
 
 
 def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool) -> dict:

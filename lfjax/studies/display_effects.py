@@ -40,8 +40,10 @@ from lfjax.model.layouts import grid_layout
 from lfjax.model.options import ModelOptions
 from lfjax.vision.peaks import PEAK_METHODS
 from lfjax.planner.plan import plan_sampling
+from lfjax.planner.scene import PlanScene
 from lfjax.model.spectral import make_spectrum
-from lfjax.vision.focus import _windowed_grid, through_focus
+from lfjax.vision.focus import through_focus
+from lfjax.vision.prepare import States
 
 STEPS = ("ideal", "+diffraction", "+pixels", "+spectrum")
 LAYOUT_SIZES = {"2x2": 2, "3x3": 3, "4x4": 4}
@@ -157,15 +159,14 @@ def shared_sampling(eyes: Eyes, config: DisplayStudyConfig, layout, display, *sp
     so the steps differ by the display effects only, not by their sampling."""
     depths = config.depths_D
     window = config.window_D if window_D is None else window_D
-    _, _, allowed, absolute = _windowed_grid(config.accommodation_D, depths, window)
-    pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
-    plans = [plan_sampling(
+    pairs = States.grid(config.accommodation_D, depths, window).pairs
+    plans = [plan_sampling(PlanScene(
         layout, config.pupil_diameter_mm, config.cdp_D, depths_D=depths,
-        accommodation_window_D=None, wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
-        spectral_weights=np.asarray(spectrum.weights),
-        eyes_zernike_um=np.asarray(eyes.zernike_um), measured_pupil_mm=eyes.measured_pupil_mm,
-        options=config.options, estimate_accuracy=False, pairs=pairs, display=display,
-    ) for spectrum in spectra]
+        accommodation_window_D=None, pairs=pairs,
+        wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
+        spectral_weights=np.asarray(spectrum.weights), eyes=eyes, options=config.options,
+        display=display,
+    ), estimate_accuracy=False) for spectrum in spectra]
     return min((p.sampling for p in plans), key=lambda s: s.freq_step_cpd)
 
 

@@ -15,7 +15,6 @@ partition an FFT along its batch axis).
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from dataclasses import dataclass
 
@@ -30,13 +29,15 @@ from lfjax.model.eyes import Eyes, append_average_eye, sample_eyes
 from lfjax.model.layout_files import load_layout_json
 from lfjax.model.layouts import Layout, paper_layouts
 from lfjax.kernel.metrics import cutoff_frequency
-from lfjax.kernel.optics import _field_check, _validate_coefficients
+from lfjax.kernel.optics import validate_coefficients
 from lfjax.vision.peaks import METRICS, peaks_from_grid
 from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
 from lfjax.planner.cache import cached_plan_sampling
-from lfjax.base.sampling import AliasingError, Sampling, finer_step
+from lfjax.planner.plan import Overrides, Targets
+from lfjax.planner.scene import PlanScene
+from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import Spectrum, make_spectrum
-from lfjax.vision.focus import _used_states, _windowed_grid
+from lfjax.vision.prepare import States, prepare, with_aliasing_retry
 from lfjax.sweep.config import SweepConfig
 
 FREQUENCIES_CPD = np.arange(0.0, 61.0, 1.0)
@@ -121,16 +122,15 @@ def planned_wavelength_step(config: SweepConfig) -> float:
     for pupil in config.pupil_diameters_mm:
         for entry in config.layouts:
             layout = resolve_layout(config, entry, pupil)
-            plan = cached_plan_sampling(
+            plan = cached_plan_sampling(PlanScene(
                 layout=layout, pupil_diameter_mm=pupil, cdp_D=config.cdp_D,
                 depths_D=cdp if entry == "natural" else all_depths,
                 accommodation_D=config.accommodation_D, accommodation_window_D=config.window_D,
-                wavelength_range_nm=(start, stop), vsotf_tolerance=None,
-                peak_tolerance_D=config.peak_tolerance_D,
-                cutoff_tolerance_cpd=config.cutoff_tolerance_cpd,
-                cutoff_threshold=config.cutoff_threshold, options=config.options,
-                estimate_accuracy=False, display=config.display_optics(),
-            )
+                wavelength_range_nm=(start, stop), options=config.options,
+                display=config.display_optics(),
+            ), Targets(vsotf=None, peak_D=config.peak_tolerance_D,
+                       cutoff_cpd=config.cutoff_tolerance_cpd,
+                       cutoff_threshold=config.cutoff_threshold), estimate_accuracy=False)
             wl = plan.wavelengths_nm
             steps.append(float(wl[1] - wl[0]) if len(wl) > 1 else float(stop - start))
     return min(steps)
@@ -151,16 +151,15 @@ def layout_name(entry: str) -> str:
 
 def _plan(config: SweepConfig, eyes: Eyes, layout: Layout, pupil_mm: float, depths, pairs,
           spectrum: Spectrum) -> Sampling:
-    plan = cached_plan_sampling(
+    plan = cached_plan_sampling(PlanScene(
         layout=layout, pupil_diameter_mm=pupil_mm, cdp_D=config.cdp_D,
-        depths_D=np.asarray(depths, float), accommodation_window_D=None,
-        wavelengths_nm=np.asarray(spectrum.wavelengths_nm), eyes_zernike_um=np.asarray(eyes.zernike_um),
-        measured_pupil_mm=eyes.measured_pupil_mm, options=config.options,
+        depths_D=np.asarray(depths, float), accommodation_window_D=None, pairs=pairs,
+        wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
+        spectral_weights=np.asarray(spectrum.weights), eyes=eyes, options=config.options,
+        display=config.display_optics(),
+    ), Targets(vsotf=config.vsotf_tolerance or 1e-3),
         estimate_accuracy=config.vsotf_tolerance is not None,
-        vsotf_tolerance=config.vsotf_tolerance or 1e-3, pairs=pairs,
-        freq_step_cpd=config.freq_step_cpd, display=config.display_optics(),
-        spectral_weights=np.asarray(spectrum.weights),
-    )
+        overrides=Overrides(freq_step_cpd=config.freq_step_cpd))
     return plan.sampling
 
 
@@ -168,13 +167,15 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
                 samplings: dict | None = None) -> list[Task]:
     """One :class:`Task` per (pupil, layout), sampling checked against the whole population.
 
-    ``samplings`` maps (pupil_index, layout_index) to a :class:`~lfjax.base.sampling.Sampling` to use
-    instead of planning (a resumed store's); otherwise the planner's field guard (or its
-    accuracy target, ``vsotf_tolerance``) picks the step, made finer while the aliasing
-    guard still refuses it.
+    ``samplings`` maps (pupil_index, layout_index) to a
+    :class:`~lfjax.base.sampling.Sampling` to use instead of planning (a resumed store's);
+    otherwise the planner's field guard (or its accuracy target, ``vsotf_tolerance``) picks
+    the step, made finer while the aliasing guard still refuses it
+    (:func:`lfjax.vision.prepare.with_aliasing_retry`). Each task is prepared by
+    :func:`lfjax.vision.prepare.prepare`.
     """
     spectrum = sweep_spectrum(config) if spectrum is None else spectrum
-    _validate_coefficients(np.asarray(eyes.zernike_um))
+    validate_coefficients(np.asarray(eyes.zernike_um))  # before planning reads the eyes
     all_depths = config.depths_D
     cdp_slot = int(np.argmin(np.abs(all_depths - config.cdp_D)))
     tasks = []
@@ -183,36 +184,28 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
             layout = resolve_layout(config, entry, pupil)
             slots = (cdp_slot,) if entry == "natural" else tuple(range(all_depths.size))
             depths = all_depths[list(slots)]
-            grid, index, allowed, absolute = _windowed_grid(config.accommodation_D, depths,
-                                                            config.window_D)
-            pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
-            grid_used, index_used = _used_states(grid, index, allowed)
-            if samplings is not None and (pi, li) in samplings:
-                sampling = samplings[(pi, li)]
-            else:
-                sampling = _plan(config, eyes, layout, pupil, depths, pairs, spectrum)
-                for _ in range(16):
-                    try:
-                        _field_check(np.asarray(eyes.zernike_um), eyes.measured_pupil_mm, pupil,
-                                     config.cdp_D, grid_used, depths, layout, spectrum, sampling,
-                                     pairs=pairs, display=config.display_optics())
-                        break
-                    except AliasingError as err:
-                        if config.freq_step_cpd is not None:
-                            raise
-                        sampling = dataclasses.replace(
-                            sampling, freq_step_cpd=finer_step(err, sampling.freq_step_cpd))
+            states = States.grid(config.accommodation_D, depths, config.window_D)
+
             # inputs are checked here on the host (config, population, layout files), so the
             # program carries no traced checks: JAX's persistent cache can then keep it for
             # the next process (a resumed sweep, another host)
-            pipeline_config = PipelineConfig.build(
-                spectrum.wavelengths_nm, layout.window_diameter_mm, pupil, sampling,
-                config.options, traced_checks=False, display=config.display_optics())
+            def prepared_at(sampling, check_aliasing=True, layout=layout, states=states,
+                            pupil=pupil):
+                return prepare(eyes, layout, states, pupil_diameter_mm=pupil,
+                               cdp_D=config.cdp_D, spectrum=spectrum, options=config.options,
+                               sampling=sampling, check_aliasing=check_aliasing,
+                               display=config.display_optics(), traced_checks=False)
+
+            if samplings is not None and (pi, li) in samplings:
+                prepared = prepared_at(samplings[(pi, li)], check_aliasing=False)
+            else:
+                prepared, _ = with_aliasing_retry(
+                    prepared_at, _plan(config, eyes, layout, pupil, depths, states.pairs, spectrum),
+                    refine=config.freq_step_cpd is None, what=f"layout {entry} at {pupil:g} mm")
             tasks.append(Task(
-                pi, li, float(pupil), entry, layout, slots, depths, allowed,
-                Scene.from_layout(layout, depths, config.cdp_D, pupil, config.display_optics()),
-                Accommodation.shared(grid_used, index_used, config.options, pupil),
-                sampling, pipeline_config,
+                pi, li, float(pupil), entry, layout, slots, depths, states.allowed,
+                prepared.scene, prepared.accommodation(config.options), prepared.sampling,
+                prepared.config,
             ))
     return tasks
 

@@ -27,7 +27,6 @@ from lfjax.sweep.config import SweepConfig
 from lfjax.sweep.guard import check_fits, estimate
 from lfjax.sweep.store import (
     StoreLock,
-    _now,
     check_store_matches,
     chunk_dataset,
     completed_chunks,
@@ -36,6 +35,7 @@ from lfjax.sweep.store import (
     stored_samplings,
     template,
     unmark_chunks,
+    utc_now,
     verify_store,
     write_chunk,
 )
@@ -174,7 +174,7 @@ def run_sweep(
     process_index``, writing them into the shared store.
     """
     t0 = time.perf_counter()
-    started = _now()
+    started = utc_now()
     store = Path(store)
     pid, nproc = _process()
     exists = check_store_target(store, resume)

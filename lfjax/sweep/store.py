@@ -192,7 +192,8 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
     return ds
 
 
-def _now() -> str:
+def utc_now() -> str:
+    """The time now, UTC, to the second (ISO 8601): when a store or a run was created or ended."""
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
@@ -220,7 +221,7 @@ def provenance() -> dict:
         "jax_devices": f"{len(devices)} x {devices[0].device_kind}",
         "process_count": jax.process_count(),
         "host": socket.gethostname(),
-        "created_utc": _now(),
+        "created_utc": utc_now(),
     }
 
 
@@ -233,7 +234,7 @@ def record_run(path, started_utc: str, computed: list[int]) -> None:
     group = zarr.open_group(str(path), mode="r+", zarr_format=ZARR_FORMAT)
     runs = json.loads(group.attrs.get("runs_json", "[]"))
     runs.append({"host": socket.gethostname(), "pid": os.getpid(), "started_utc": started_utc,
-                 "ended_utc": _now(), "chunks_computed": len(computed)})
+                 "ended_utc": utc_now(), "chunks_computed": len(computed)})
     update = {"runs_json": json.dumps(runs)}
     if np.asarray(group["chunk_complete"][:], bool).all():
         update["completed_utc"] = runs[-1]["ended_utc"]
@@ -347,7 +348,7 @@ class StoreLock:
         self.file = lock_path(path)
         self.path = Path(path)
         self.recovered: dict | None = None
-        self.record = {"host": socket.gethostname(), "pid": os.getpid(), "started_utc": _now()}
+        self.record = {"host": socket.gethostname(), "pid": os.getpid(), "started_utc": utc_now()}
 
     def acquire(self) -> StoreLock:
         for _ in range(2):

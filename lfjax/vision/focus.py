@@ -17,25 +17,23 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Real
 
-from lfjax.base.types import is_concrete as _is_concrete
 from lfjax.base.types import shape_checked
 from lfjax.display.lenslets import DisplayOptics
-from lfjax.model.eyes import Eyes, check_eyes
-from lfjax.model.layouts import Layout, open_pupil
+from lfjax.model.eyes import Eyes
+from lfjax.model.layouts import Layout
 from lfjax.kernel.metrics import cutoff_frequency
-from lfjax.kernel.optics import _field_check, _validate_coefficients, validate_pupil, validate_states
+from lfjax.kernel.optics import validate_states
 from lfjax.model.options import STATIC_CHOICES, ModelOptions, stack_parameters
 from lfjax.vision.peaks import METRICS, PEAK_METHODS, Peaks, peaks_from_grid
 from lfjax.kernel.pipeline import (
     Accommodation,
     PipelineConfig,
-    Scene,
     reference_normalisers,
     retinal_metrics,
     vsotf_and_strehl,
 )
-from lfjax.planner.plan import plan_sampling
 from lfjax.base.sampling import AliasingError, Sampling
+from lfjax.vision.prepare import Prepared, States, prepare
 from lfjax.model.spectral import Spectrum, make_spectrum, model_spectrum, sce_rho_table
 
 
@@ -136,117 +134,6 @@ def _cutoff_at_index(radial_mtf, index, frequencies_cpd, threshold: float):
     return cutoff_frequency(_mtf_at_index(radial_mtf, index), frequencies_cpd, threshold)
 
 
-def _check_states(accommodation_D, depths_D) -> None:
-    acc = np.asarray(accommodation_D, float)
-    depth = np.asarray(depths_D, float)
-    if acc.ndim != 1 or acc.size < 1:
-        raise ValueError(f"accommodation_D must be a 1-D grid of >= 1 states, got shape {acc.shape}")
-    if depth.ndim != 1 or depth.size < 1:
-        raise ValueError(f"depths_D must be a 1-D array of >= 1 depths, got shape {depth.shape}")
-    if not np.all(np.isfinite(acc)) or not np.all(np.isfinite(depth)):
-        raise ValueError("accommodation_D and depths_D must be finite")
-    if np.any(acc < 0):
-        raise ValueError(
-            "accommodation_D must be >= 0 D (hyperopic limit: an eye cannot focus beyond "
-            f"infinity); got states down to {acc.min():g} D. Drop them, e.g. with "
-            "relative_accommodation_grid(..., hyperopic_limit=True)"
-        )
-    if np.any(depth < 0):
-        raise ValueError(
-            f"depths_D must be >= 0 D (0 D is optical infinity); got {depth[depth < 0].tolist()}"
-        )
-
-
-def relative_accommodation_grid(depths_D, offsets_D, hyperopic_limit: bool = True):
-    """Absolute accommodation grid covering ``depth + offset`` for every depth (host).
-
-    Returns (accommodation_D (n_acc,), index (n_depth, n_offsets)) where
-    ``accommodation_D[index[d, k]] == depths_D[d] + offsets_D[k]``; entries excluded by the
-    hyperopic limit (negative accommodation) have index −1. Values are rounded to 1e-9 D
-    so shared states are computed once.
-    """
-    depths = np.atleast_1d(np.asarray(depths_D, float))
-    offsets = np.atleast_1d(np.asarray(offsets_D, float))
-    states = np.round(depths[:, None] + offsets[None, :], 9)
-    allowed = states >= 0 if hyperopic_limit else np.ones_like(states, bool)
-    if not np.any(allowed):
-        raise ValueError("the accommodation grid excludes every allowed state (all < 0 D)")
-    grid = np.unique(states[allowed])
-    index = np.where(allowed, np.searchsorted(grid, states), -1)
-    return grid, index
-
-
-def _check_layout(layout: Layout) -> None:
-    """Host check of a concrete layout: finite centres, diameters > 0 mm."""
-    c = np.asarray(layout.centres_mm, float)
-    d = np.asarray(layout.diameters_mm, float)
-    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(d))):
-        raise ValueError("layout centres_mm and diameters_mm must be finite")
-    if np.any(d <= 0):
-        raise ValueError(f"layout diameters_mm must be > 0 mm, got {d[d <= 0].tolist()}")
-
-
-def _windowed_grid(accommodation_D, depths, window_D=None):
-    """A shared absolute grid (D) seen by every depth, restricted to ±window_D (D) of it.
-
-    Returns (grid (n_acc,), index (n_depth, n_acc), allowed (n_depth, n_acc) bool,
-    absolute (n_depth, n_acc) D).
-    """
-    grid = np.atleast_1d(np.asarray(accommodation_D, float))
-    _check_states(grid, depths)
-    if grid.size > 1 and np.any(np.diff(grid) <= 0):
-        raise ValueError("accommodation_D must be strictly increasing")
-    index = np.broadcast_to(np.arange(grid.size), (depths.size, grid.size))
-    allowed = np.ones(index.shape, bool)
-    if window_D is not None:
-        allowed = np.abs(grid[None, :] - depths[:, None]) <= float(window_D) + 1e-9
-        if not np.all(allowed.any(axis=1)):
-            raise ValueError(
-                f"window_D={window_D} leaves no accommodation state for some rendered depths"
-            )
-    return grid, index, allowed, grid[index]
-
-
-def _used_states(grid, index, allowed):
-    """Keep each absolute state once, and only those some allowed pair uses: (grid, index)."""
-    used = np.zeros(grid.size, bool)
-    used[index[allowed]] = True
-    remap = np.cumsum(used) - 1
-    return grid[used], np.where(allowed, remap[index], 0)
-
-
-PLANNED_NEIGHBOURHOOD_D = np.round(np.arange(-5, 6) * 0.2, 9)
-"""Offsets (D) around each rendered depth that every default sampling covers: the default
-through-focus grid of :func:`through_focus`."""
-
-
-def _planned_sampling(eyes: Eyes, layout: Layout, depths, pairs, pupil_diameter_mm, cdp_D,
-                      spectrum: Spectrum, options: ModelOptions, display=None) -> Sampling:
-    """The planner's field guard for this scene (milliseconds; no accuracy proxy).
-
-    One rule for :func:`through_focus` and :func:`metrics_at`: the guard covers the pairs
-    asked for *and* the default through-focus neighbourhood of every rendered depth
-    (:data:`PLANNED_NEIGHBOURHOOD_D`, states ≥ 0 D). The guard picks the largest frequency
-    step whose field holds the widest blur of the pairs it sees, so a single (depth, state)
-    pair would otherwise get a coarser step than the curve through it, and the two entry
-    points would give different values at the same point (by 2e-3 in VSOTF, more than the
-    planner's accuracy target)."""
-    depths = np.atleast_1d(np.asarray(depths, float))
-    around = depths[:, None] + PLANNED_NEIGHBOURHOOD_D[None, :]
-    keep = around >= 0
-    pairs = (np.concatenate([np.asarray(pairs[0], float).ravel(), around[keep]]),
-             np.concatenate([np.asarray(pairs[1], float).ravel(),
-                             np.broadcast_to(depths[:, None], around.shape)[keep]]))
-    return plan_sampling(
-        layout=layout, pupil_diameter_mm=float(pupil_diameter_mm), cdp_D=float(cdp_D),
-        depths_D=np.asarray(depths, float), accommodation_D=np.unique(np.asarray(pairs[0], float)),
-        accommodation_window_D=None, wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
-        eyes_zernike_um=np.asarray(eyes.zernike_um), measured_pupil_mm=eyes.measured_pupil_mm,
-        options=options, estimate_accuracy=False, spectral_weights=np.asarray(spectrum.weights),
-        pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)), display=display,
-    ).sampling
-
-
 @shape_checked
 def through_focus(
     eyes: Eyes,
@@ -288,8 +175,8 @@ def through_focus(
     sampling : Sampling, optional
         Default: the planner's field guard for this scene (the largest frequency step whose
         PSF field holds every blur and display shift; milliseconds,
-        :func:`lfjax.planner.plan.plan_sampling` with ``estimate_accuracy=False``). The result's
-        ``sampling`` says what was used.
+        :func:`lfjax.vision.prepare.default_sampling`). The result's ``sampling`` says what
+        was used.
     continuous_peaks : metrics ("vsotf", "strehl") whose continuous peak is refined from
         the grid in the same compiled call (:mod:`lfjax.vision.peaks`; ``()`` for grid peaks only)
     peak_method : refinement, one of :data:`lfjax.vision.peaks.PEAK_METHODS` ("auto": Newton for
@@ -305,94 +192,49 @@ def through_focus(
     aberration-free, focused and rendered at the CDP, accommodation SA and LCA kept).
     """
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
-    prepared = _prepare(eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D,
-                        spectrum, sampling, options, accommodation_offsets_D, window_D,
-                        eye_chunk, check_aliasing, continuous_peaks, peak_method, display)
+    _check_peak_options(continuous_peaks, peak_method)
+    prepared = prepare(eyes, layout, _through_focus_states(depths_D, accommodation_D, cdp_D,
+                                                           accommodation_offsets_D, window_D),
+                       pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, spectrum=spectrum,
+                       options=options, sampling=sampling, check_aliasing=check_aliasing,
+                       eye_chunk=eye_chunk, display=display, traced_checks=False)
     metrics, peaks = _metrics_and_peaks(
-        eyes, prepared.scene, spectrum,
-        Accommodation.shared(prepared.grid, prepared.index, options, pupil_diameter_mm),
-        prepared.config, prepared.allowed, tuple(continuous_peaks), peak_method,
-        refine_second_peaks,
+        eyes, prepared.scene, spectrum, prepared.accommodation(options), prepared.config,
+        prepared.states.allowed, tuple(continuous_peaks), peak_method, refine_second_peaks,
     )
     return _result(prepared, metrics, peaks)
 
 
-class _Prepared(eqx.Module):
-    """What :func:`through_focus` settles on the host before the compiled call."""
-
-    scene: Scene
-    grid: np.ndarray  # (n_states,) D
-    index: np.ndarray  # (n_depth, n_acc) state of each pair
-    allowed: np.ndarray  # (n_depth, n_acc) bool
-    absolute: np.ndarray  # (n_depth, n_acc) D
-    depths: np.ndarray  # (n_depth,) D
-    cdp_D: float = eqx.field(static=True)
-    layout_name: str = eqx.field(static=True)
-    sampling: Sampling = eqx.field(static=True)
-    config: PipelineConfig = eqx.field(static=True)
-
-
-def _prepare(eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
-             sampling, options, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
-             continuous_peaks, peak_method, display) -> _Prepared:
-    """Host checks, the accommodation grid, the sampling (planned or checked) and the static
-    configuration of one :func:`through_focus` call."""
-    check_eyes(eyes)
-    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
-    validate_states(None, depths_D, cdp_D)
-    layout = open_pupil(float(pupil_diameter_mm)) if layout is None else layout
-    depths = np.atleast_1d(np.asarray(cdp_D if depths_D is None else depths_D, float))
-    if accommodation_D is not None and accommodation_offsets_D is not None:
-        raise ValueError("give accommodation_D or accommodation_offsets_D, not both")
+def _check_peak_options(continuous_peaks, peak_method) -> None:
     for name in continuous_peaks:
         if name not in METRICS:
             raise ValueError(f"continuous_peaks must name metrics in {METRICS}, got {name!r}")
     if peak_method not in PEAK_METHODS:
         raise ValueError(f"peak_method must be one of {PEAK_METHODS}, got {peak_method!r}")
+
+
+def _through_focus_states(depths_D, accommodation_D, cdp_D, accommodation_offsets_D,
+                          window_D) -> States:
+    """The :class:`~lfjax.vision.prepare.States` of :func:`through_focus`'s arguments."""
+    validate_states(None, None, cdp_D)  # the default depth is the CDP: its own message first
+    depths = np.atleast_1d(np.asarray(cdp_D if depths_D is None else depths_D, float))
+    if accommodation_D is not None and accommodation_offsets_D is not None:
+        raise ValueError("give accommodation_D or accommodation_offsets_D, not both")
     if accommodation_D is not None:
-        grid, index, allowed, absolute = _windowed_grid(accommodation_D, depths, window_D)
-    else:
-        offsets = (
-            np.round(np.arange(-5, 6) * 0.2, 9)
-            if accommodation_offsets_D is None
-            else np.atleast_1d(np.asarray(accommodation_offsets_D, float))
-        )
-        _check_states(np.abs(offsets), depths)  # finiteness and depth range
-        grid, index = relative_accommodation_grid(depths, offsets, hyperopic_limit=True)
-        allowed = index >= 0
-        index = np.where(allowed, index, 0)
-        # true state of every entry, also those beyond the hyperopic limit (not computed)
-        absolute = np.where(allowed, grid[index], depths[:, None] + offsets[None, :])
-    grid, index = _used_states(grid, index, allowed)
-    _validate_coefficients(eyes.zernike_um)
-    pairs = (absolute[allowed], np.broadcast_to(depths[:, None], absolute.shape)[allowed])
-    if sampling is None:
-        sampling = _planned_sampling(eyes, layout, depths, pairs, pupil_diameter_mm, cdp_D,
-                                     spectrum, options, display)
-    elif check_aliasing:
-        _field_check(
-            eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D, grid, depths,
-            layout, spectrum, sampling, pairs=pairs, display=display,
-        )
-    _check_layout(layout)
-    # Every input was checked here on the host: the compiled program needs no traced checks
-    # (host callbacks), so JAX's persistent compilation cache can keep it across processes.
-    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
-                                  float(pupil_diameter_mm), sampling, options, eye_chunk,
-                                  traced_checks=False, display=display)
-    return _Prepared(Scene.from_layout(layout, depths, cdp_D, pupil_diameter_mm, display), grid,
-                     index, allowed, absolute, depths, float(cdp_D), layout.name, sampling, config)
+        return States.grid(accommodation_D, depths, window_D)
+    return States.around(depths, accommodation_offsets_D)
 
 
-def _result(prepared: _Prepared, metrics, peaks) -> ThroughFocus:
-    mask = jnp.asarray(prepared.allowed)
+def _result(prepared: Prepared, metrics, peaks) -> ThroughFocus:
+    states = prepared.states
+    mask = jnp.asarray(states.allowed)
     # NaN marks states beyond the hyperopic limit (never computed); `allowed` says which.
     return ThroughFocus(
         jnp.where(mask[None], metrics.vsotf, jnp.nan), jnp.where(mask[None], metrics.strehl, jnp.nan),
         metrics.radial_mtf,
         jnp.arange(prepared.config.n_fft // 2 + 1) * prepared.sampling.freq_step_cpd,
-        np.asarray(prepared.absolute, float), np.asarray(prepared.allowed), prepared.depths,
-        prepared.cdp_D, prepared.layout_name, prepared.sampling, peaks,
+        np.asarray(states.absolute_D, float), np.asarray(states.allowed), states.depths_D,
+        float(prepared.cdp_D), prepared.layout.name, prepared.sampling, peaks,
     )
 
 
@@ -481,10 +323,13 @@ def through_focus_variants(
             eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
             sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
             continuous_peaks, peak_method, refine_second_peaks, display))
-    prepared = _each_variant(variants, lambda o, spectrum, sampling: _prepare(
-        eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
-        sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
-        continuous_peaks, peak_method, display))
+    _check_peak_options(continuous_peaks, peak_method)
+    states = _through_focus_states(depths_D, accommodation_D, cdp_D, accommodation_offsets_D,
+                                   window_D)
+    prepared = _each_variant(variants, lambda o, spectrum, sampling: prepare(
+        eyes, layout, states, pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D,
+        spectrum=spectrum, options=o, sampling=sampling, check_aliasing=check_aliasing,
+        eye_chunk=eye_chunk, display=display, traced_checks=False))
     groups: dict[PipelineConfig, list[int]] = {}
     for i, p in enumerate(prepared):
         groups.setdefault(p.config, []).append(i)
@@ -496,8 +341,9 @@ def through_focus_variants(
         parameters = stack_parameters([options[i].parameters() for i in members])
         rho_tables = np.stack([sce_rho_table(wl, options[i]) for i in members])
         metrics, peaks = _metrics_and_peaks_variants(
-            eyes, first.scene, wl, weights, rho_tables, parameters, first.grid, first.index,
-            jnp.asarray(pupil_diameter_mm, float), config, first.allowed, continuous_peaks,
+            eyes, first.scene, wl, weights, rho_tables, parameters, first.states.states_D,
+            first.states.index, jnp.asarray(pupil_diameter_mm, float), config,
+            first.states.allowed, continuous_peaks,
             peak_method, refine_second_peaks, batch,
         )
         # sliced on the host: an eager x[k] per leaf and variant compiles a program each
@@ -581,42 +427,12 @@ def metrics_at(
     -------
     (vsotf, strehl), each (n_eyes, n_depth, n_acc).
     """
-    check_eyes(eyes)
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
-    validate_states(accommodation_D, depths_D, cdp_D)
-    _validate_coefficients(eyes.zernike_um)
-    concrete = _is_concrete(pupil_diameter_mm, cdp_D, depths_D, accommodation_D)
-    if np.ndim(accommodation_D) != 2 or np.shape(accommodation_D)[0] != np.size(depths_D):
-        raise ValueError(
-            f"accommodation_D must have shape (n_depth, n_acc) = ({np.size(depths_D)}, n), "
-            f"got {np.shape(accommodation_D)}"
-        )
-    if concrete:
-        validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
-        acc = np.asarray(accommodation_D, float)
-        depth = np.asarray(depths_D, float)
-        pairs = (acc.ravel(), np.broadcast_to(depth[:, None], acc.shape).ravel())
-        if sampling is None:
-            sampling = _planned_sampling(eyes, layout, depth, pairs, pupil_diameter_mm, cdp_D,
-                                         spectrum, options, display)
-        else:
-            _field_check(eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
-                         acc.ravel(), depth, layout, spectrum, sampling, pairs=pairs,
-                         display=display)
-    elif sampling is None:
-        raise ValueError(
-            "sampling must be given when depths_D, accommodation_D, cdp_D or pupil_diameter_mm "
-            "are traced (jax.jit / vmap / grad): plan it once on concrete values, e.g. "
-            "lfjax.planner.plan.plan_sampling(...).sampling"
-        )
-    pupil_static = (float(pupil_diameter_mm) if _is_concrete(pupil_diameter_mm)
-                    else float(eyes.measured_pupil_mm))
-    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
-                                  pupil_static, sampling, options, display=display)
-    scene = Scene.from_layout(layout, depths_D, cdp_D, pupil_diameter_mm, display)
-    accommodation = Accommodation.per_depth(accommodation_D, options, pupil_diameter_mm)
-    return vsotf_and_strehl(eyes, scene, spectrum, accommodation, config)
+    prepared = prepare(eyes, layout, States.per_depth(accommodation_D, depths_D),
+                       pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, spectrum=spectrum,
+                       options=options, sampling=sampling, display=display)
+    return vsotf_and_strehl(eyes, prepared.scene, spectrum, prepared.accommodation(options),
+                            prepared.config)
 
 
-__all__ = ["ThroughFocus", "through_focus", "through_focus_variants",
-           "relative_accommodation_grid", "metrics_at"]
+__all__ = ["ThroughFocus", "through_focus", "through_focus_variants", "metrics_at"]

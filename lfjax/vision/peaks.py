@@ -57,6 +57,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
+from lfjax.base.parabola import parabola_vertex
 from lfjax.base.types import FULL, shape_checked
 from lfjax.base.types import is_concrete as _is_concrete
 from lfjax.model.eyes import Eyes
@@ -64,7 +65,7 @@ from lfjax.kernel.pipeline import (
     Accommodation,
     PipelineConfig,
     Scene,
-    _eye_coefficients,
+    eye_coefficients,
     pair_metric,
     reference_normalisers,
     retinal_metrics,
@@ -269,27 +270,9 @@ def _local_refinement(value_fn, vertex_D, lower_D, upper_D, args, batch: int) ->
                 jnp.full(location.shape, -1, jnp.int32), n)
 
 
-def parabola_vertex(states_D, values, index):
-    """Vertex of the parabola through grid points index−1, index, index+1 (D), clipped to
-    ±half a step; the grid point itself at the grid's ends or where the curve is not concave.
-
-    states_D (…, n) increasing, values (…, n), index (…) int → (…) D.
-    """
-    n = states_D.shape[-1]
-    lo, hi = jnp.clip(index - 1, 0, n - 1), jnp.clip(index + 1, 0, n - 1)
-    take = lambda x, i: jnp.take_along_axis(x, i[..., None], axis=-1)[..., 0]  # noqa: E731
-    y0, y1, y2 = take(values, lo), take(values, index), take(values, hi)
-    a0, a1, a2 = take(states_D, lo), take(states_D, index), take(states_D, hi)
-    denom = y0 - 2 * y1 + y2
-    ok = (lo != index) & (hi != index) & (denom < 0) & jnp.isfinite(y0 + y2)
-    step = 0.5 * (a2 - a0)
-    shift = jnp.where(ok, 0.5 * (y0 - y2) / jnp.where(ok, denom, -1.0), 0.0)
-    return a1 + jnp.clip(shift, -0.5, 0.5) * step
-
-
 def _parabola_value(states_D, values, index, at_D):
     """Value at ``at_D`` (D) of the parabola through grid points index−1, index, index+1;
-    the grid value where :func:`parabola_vertex` falls back to the grid point."""
+    the grid value where :func:`lfjax.base.parabola.parabola_vertex` falls back to the grid point."""
     n = states_D.shape[-1]
     lo, hi = jnp.clip(index - 1, 0, n - 1), jnp.clip(index + 1, 0, n - 1)
     take = lambda x, i: jnp.take_along_axis(x, i[..., None], axis=-1)[..., 0]  # noqa: E731
@@ -471,7 +454,7 @@ def peaks_from_grid(
     value_fn = single_state_metric(eyes.measured_pupil_mm, scene, spectrum, grid, config,
                                    reference, metric)
     depths_b = jnp.broadcast_to(scene.depths_D[None, :], values.shape[:2])
-    coefficients = _eye_coefficients(eyes, config)
+    coefficients = eye_coefficients(eyes, config)
     z_b = jnp.broadcast_to(coefficients[:, None, :], values.shape[:2] + coefficients.shape[-1:])
 
     n_candidates = 2 if refine_second else 1
@@ -545,7 +528,6 @@ __all__ = [
     "Peak",
     "Peaks",
     "refine_peak",
-    "parabola_vertex",
     "accommodation_peaks",
     "peaks_from_grid",
     "result_name",

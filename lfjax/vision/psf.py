@@ -16,7 +16,8 @@ instead of returning NaN). Structural arguments (``measured_pupil_mm``, ``n_pixe
 
 :func:`polychromatic_otf` is the host-side entry point to the pure pipeline's first half
 (:func:`lfjax.kernel.pipeline.otf_stack`): it checks its inputs, builds the ``Scene`` and
-``Accommodation`` pytrees and calls the compiled pipeline once.
+``Accommodation`` pytrees (:func:`lfjax.vision.prepare.prepare`) and calls the compiled
+pipeline once.
 """
 
 from __future__ import annotations
@@ -32,22 +33,17 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Complex, Float, Real
 
-from lfjax.base.types import FULL, is_concrete, shape_checked
+from lfjax.base.types import FULL, shape_checked
 from lfjax.base.apertures import soft_disk
-from lfjax.model.eyes import Eyes, check_eyes
+from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout
-from lfjax.kernel.optics import (
-    _field_check,
-    _validate_coefficients,
-    full_plane,
-    validate_pupil,
-    validate_states,
-)
+from lfjax.kernel.optics import full_plane, validate_pupil, validate_states
 from lfjax.model.options import ModelOptions
-from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, otf_stack
+from lfjax.kernel.pipeline import otf_stack
 from lfjax.base.sampling import EDGE_EXTENT_SCALES, Sampling
-from lfjax.model.spectral import Spectrum, make_spectrum
+from lfjax.model.spectral import Spectrum
 from lfjax.base.units import ARCMIN_PER_RADIAN, dioptres_to_c20_um
+from lfjax.vision.prepare import States, prepare
 from lfjax.base.zernike import zernike_mode
 
 WAVELENGTH_RANGE_NM = (380.0, 830.0)
@@ -483,36 +479,14 @@ def polychromatic_otf(
     -------
     OTFStack with ``otf`` of shape (n_eyes, n_depth, n_acc, L, L), OTF(0) = 1.
     """
-    check_eyes(eyes)
-    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
-    validate_states(accommodation_D, depths_D, cdp_D)
-    _validate_coefficients(eyes.zernike_um)
-    spectrum = make_spectrum(options=options) if spectrum is None else spectrum
-    # A traced pupil (under jax.grad) cannot size windows: use the measured pupil as bound.
-    pupil_static = (
-        float(pupil_diameter_mm) if is_concrete(pupil_diameter_mm) else eyes.measured_pupil_mm
-    )
-    if layout is None:
-        layout = Layout(
-            jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
-            pupil_static, "natural",
-        )
-    depths_D = jnp.atleast_1d(jnp.asarray(cdp_D if depths_D is None else depths_D, float))
-    accommodation_D = jnp.atleast_1d(jnp.asarray(accommodation_D, float))
-    if check_aliasing:
-        _field_check(
-            eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
-            accommodation_D, depths_D, layout, spectrum, sampling, display=display,
-        )
-    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
-                                  pupil_static, sampling, options, eye_chunk, display=display)
-    every_pair = jnp.broadcast_to(jnp.arange(accommodation_D.shape[0], dtype=jnp.int32),
-                                  depths_D.shape + accommodation_D.shape)
-    otf = otf_stack(
-        eyes, Scene.from_layout(layout, depths_D, cdp_D, pupil_diameter_mm, display), spectrum,
-        Accommodation.shared(accommodation_D, every_pair, options, pupil_diameter_mm), config,
-    )
-    return OTFStack(otf, accommodation_D, depths_D, sampling.freq_step_cpd)
+    validate_states(None, None, cdp_D)  # the default depth is the CDP: its own message first
+    states = States.every(accommodation_D, cdp_D if depths_D is None else depths_D)
+    prepared = prepare(eyes, layout, states, pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D,
+                       spectrum=spectrum, options=options, sampling=sampling,
+                       check_aliasing=check_aliasing, eye_chunk=eye_chunk, display=display)
+    otf = otf_stack(eyes, prepared.scene, prepared.spectrum, prepared.accommodation(options),
+                    prepared.config)
+    return OTFStack(otf, states.states_D, states.depths_D, prepared.sampling.freq_step_cpd)
 
 
 __all__ = [

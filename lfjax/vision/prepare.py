@@ -1,0 +1,462 @@
+"""The preparation seam: what a computation settles on the host before its compiled call.
+
+Every entry point (:func:`~lfjax.vision.focus.through_focus`,
+:func:`~lfjax.vision.focus.through_focus_variants`, :func:`~lfjax.vision.focus.metrics_at`,
+:func:`~lfjax.vision.psf.polychromatic_otf`) and every application that calls the pipeline
+on a layout (the sweep, the paper's study, the display studies) prepares it in the same five
+steps, here and only here:
+
+1. **checks** of the concrete inputs, each naming the parameter (eyes, calculation pupil,
+   CDP, Zernike coefficients; a :class:`States` checks its own depths and states when it is
+   built);
+2. **states**: which (rendered depth, accommodation) pairs are computed — a :class:`States`,
+   built by one of its constructors, the way diffrax's ``SaveAt`` says which times to save;
+3. **sampling**: a given :class:`~lfjax.base.sampling.Sampling` is checked against the
+   field guard (an :class:`~lfjax.base.sampling.AliasingError` when the PSF would wrap), and
+   none given is planned (:func:`default_sampling`, the planner's field guard);
+   :func:`with_aliasing_retry` makes a refused step finer and runs again;
+4. the static configuration, :class:`~lfjax.kernel.pipeline.PipelineConfig`;
+5. the :class:`~lfjax.kernel.scene.Scene` pytree.
+
+:func:`prepare` runs the five and returns a :class:`Prepared`: what the compiled call takes
+(``scene``, ``config``, ``accommodation(options)``) and what its result reports
+(``states``, ``sampling``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+
+from lfjax.base.sampling import AliasingError, Sampling, finer_step
+from lfjax.base.types import is_concrete
+from lfjax.display.lenslets import DisplayOptics
+from lfjax.kernel.optics import field_check, validate_coefficients, validate_pupil, validate_states
+from lfjax.kernel.pipeline import PipelineConfig
+from lfjax.kernel.scene import Accommodation, Scene
+from lfjax.model.eyes import Eyes, check_eyes
+from lfjax.model.layouts import Layout, open_pupil
+from lfjax.model.options import ModelOptions
+from lfjax.model.spectral import Spectrum, make_spectrum
+from lfjax.planner.plan import plan_sampling
+from lfjax.planner.scene import PlanScene
+
+DEFAULT_OFFSETS_D = np.round(np.arange(-5, 6) * 0.2, 9)
+"""The paper's through-focus: states −1 … +1 D around each rendered depth in 0.2 D steps."""
+
+PLANNED_NEIGHBOURHOOD_D = DEFAULT_OFFSETS_D
+"""Offsets (D) around each rendered depth that every default sampling covers: the default
+through-focus grid (:data:`DEFAULT_OFFSETS_D`)."""
+
+STATE_KINDS = ("grid", "around", "every", "per_depth")
+"""How a :class:`States` was built (its constructor)."""
+
+
+# ----------------------------------------------------------------------------- states
+
+
+def _check_states(accommodation_D, depths_D) -> None:
+    acc = np.asarray(accommodation_D, float)
+    depth = np.asarray(depths_D, float)
+    if acc.ndim != 1 or acc.size < 1:
+        raise ValueError(
+            f"accommodation_D must be a 1-D grid of >= 1 states, got shape {acc.shape}")
+    if depth.ndim != 1 or depth.size < 1:
+        raise ValueError(f"depths_D must be a 1-D array of >= 1 depths, got shape {depth.shape}")
+    if not np.all(np.isfinite(acc)) or not np.all(np.isfinite(depth)):
+        raise ValueError("accommodation_D and depths_D must be finite")
+    if np.any(acc < 0):
+        raise ValueError(
+            "accommodation_D must be >= 0 D (hyperopic limit: an eye cannot focus beyond "
+            f"infinity); got states down to {acc.min():g} D. Drop them, e.g. with "
+            "relative_accommodation_grid(..., hyperopic_limit=True)"
+        )
+    if np.any(depth < 0):
+        raise ValueError(
+            f"depths_D must be >= 0 D (0 D is optical infinity); got {depth[depth < 0].tolist()}"
+        )
+
+
+def relative_accommodation_grid(depths_D, offsets_D, hyperopic_limit: bool = True):
+    """Absolute accommodation grid covering ``depth + offset`` for every depth (host).
+
+    Returns (accommodation_D (n_acc,), index (n_depth, n_offsets)) where
+    ``accommodation_D[index[d, k]] == depths_D[d] + offsets_D[k]``; entries excluded by the
+    hyperopic limit (negative accommodation) have index −1. Values are rounded to 1e-9 D
+    so shared states are computed once.
+    """
+    depths = np.atleast_1d(np.asarray(depths_D, float))
+    offsets = np.atleast_1d(np.asarray(offsets_D, float))
+    states = np.round(depths[:, None] + offsets[None, :], 9)
+    allowed = states >= 0 if hyperopic_limit else np.ones_like(states, bool)
+    if not np.any(allowed):
+        raise ValueError("the accommodation grid excludes every allowed state (all < 0 D)")
+    grid = np.unique(states[allowed])
+    index = np.where(allowed, np.searchsorted(grid, states), -1)
+    return grid, index
+
+
+def _used_states(grid, index, allowed):
+    """Keep each absolute state once, and only those some allowed pair uses: (grid, index)."""
+    used = np.zeros(grid.size, bool)
+    used[index[allowed]] = True
+    remap = np.cumsum(used) - 1
+    return grid[used], np.where(allowed, remap[index], 0)
+
+
+@dataclass(frozen=True, eq=False)
+class States:
+    """The (rendered depth, accommodation) pairs a computation evaluates, in D.
+
+    Build one with a constructor; each checks its inputs (values and shapes, messages naming
+    the parameter):
+
+    * :meth:`grid` — one absolute grid shared by every depth, optionally only the states
+      within ±``window_D`` of each (:func:`~lfjax.vision.focus.through_focus` with
+      ``accommodation_D``, the sweep, the study);
+    * :meth:`around` — states relative to each depth (the paper's through-focus; states
+      below 0 D are not ``allowed``);
+    * :meth:`every` — every state for every depth
+      (:func:`~lfjax.vision.psf.polychromatic_otf`); the arrays may be traced;
+    * :meth:`per_depth` — a row of states per depth (:func:`~lfjax.vision.focus.metrics_at`);
+      the arrays may be traced.
+
+    Attributes
+    ----------
+    kind : the constructor, one of :data:`STATE_KINDS`
+    depths_D : (n_depth,) rendered depths, D (host float64 for ``grid``/``around``; as given
+        otherwise)
+    states_D : the states computed, D: each distinct state once, (n_states,), for
+        ``grid``/``around``; (n_acc,) for ``every``; (n_depth, n_acc) for ``per_depth``
+    index : (n_depth, n_acc) int, the entry of ``states_D`` of each pair (0 where not
+        allowed); None for ``every``/``per_depth``
+    allowed : (n_depth, n_acc) bool, False where a state is not computed (outside the
+        window, or beyond the hyperopic limit); None for ``every``/``per_depth`` (all are)
+    absolute_D : (n_depth, n_acc) the absolute state of every entry, D, also of those not
+        allowed (``grid``/``around``); None otherwise
+    """
+
+    kind: str
+    depths_D: Any
+    states_D: Any
+    index: np.ndarray | None = None
+    allowed: np.ndarray | None = None
+    absolute_D: np.ndarray | None = None
+
+    @classmethod
+    def grid(cls, accommodation_D, depths_D, window_D: float | None = None) -> States:
+        """One absolute grid ``accommodation_D`` (n_acc,) D, strictly increasing, ≥ 0 D,
+        seen by every rendered depth ``depths_D`` (n_depth,) D; with ``window_D`` (D) only
+        the states within ±window_D of each depth are allowed."""
+        validate_states(None, depths_D)
+        depths = np.atleast_1d(np.asarray(depths_D, float))
+        grid = np.atleast_1d(np.asarray(accommodation_D, float))
+        _check_states(grid, depths)
+        if grid.size > 1 and np.any(np.diff(grid) <= 0):
+            raise ValueError("accommodation_D must be strictly increasing")
+        index = np.broadcast_to(np.arange(grid.size), (depths.size, grid.size))
+        allowed = np.ones(index.shape, bool)
+        if window_D is not None:
+            allowed = np.abs(grid[None, :] - depths[:, None]) <= float(window_D) + 1e-9
+            if not np.all(allowed.any(axis=1)):
+                raise ValueError(
+                    f"window_D={window_D} leaves no accommodation state for some rendered depths"
+                )
+        absolute = grid[index]
+        grid, index = _used_states(grid, index, allowed)
+        return cls("grid", depths, grid, index, allowed, absolute)
+
+    @classmethod
+    def around(cls, depths_D, offsets_D=None) -> States:
+        """States ``depth + offset`` for every rendered depth ``depths_D`` (n_depth,) D and
+        offset ``offsets_D`` (n_acc,) D (default :data:`DEFAULT_OFFSETS_D`); those below
+        0 D (the hyperopic limit) are not allowed, and their ``absolute_D`` still says where
+        they were."""
+        validate_states(None, depths_D)
+        depths = np.atleast_1d(np.asarray(depths_D, float))
+        offsets = (DEFAULT_OFFSETS_D if offsets_D is None
+                   else np.atleast_1d(np.asarray(offsets_D, float)))
+        _check_states(np.abs(offsets), depths)  # finiteness and depth range
+        grid, index = relative_accommodation_grid(depths, offsets, hyperopic_limit=True)
+        allowed = index >= 0
+        index = np.where(allowed, index, 0)
+        # true state of every entry, also those beyond the hyperopic limit (not computed)
+        absolute = np.where(allowed, grid[index], depths[:, None] + offsets[None, :])
+        grid, index = _used_states(grid, index, allowed)
+        return cls("around", depths, grid, index, allowed, absolute)
+
+    @classmethod
+    def every(cls, accommodation_D, depths_D) -> States:
+        """Every absolute state ``accommodation_D`` (n_acc,) D for every rendered depth
+        ``depths_D`` (n_depth,) D; either may be traced (checked on the host when concrete)."""
+        validate_states(accommodation_D, depths_D)
+        depths = jnp.atleast_1d(jnp.asarray(depths_D, float))
+        states = jnp.atleast_1d(jnp.asarray(accommodation_D, float))
+        return cls("every", depths, states)
+
+    @classmethod
+    def per_depth(cls, accommodation_D, depths_D) -> States:
+        """A row of absolute states per rendered depth: ``accommodation_D`` (n_depth, n_acc)
+        D for ``depths_D`` (n_depth,) D, each pair computed on its own; either may be traced
+        (checked on the host when concrete)."""
+        validate_states(accommodation_D, depths_D)
+        if np.ndim(accommodation_D) != 2 or np.shape(accommodation_D)[0] != np.size(depths_D):
+            raise ValueError(
+                f"accommodation_D must have shape (n_depth, n_acc) = ({np.size(depths_D)}, n), "
+                f"got {np.shape(accommodation_D)}"
+            )
+        return cls("per_depth", depths_D, accommodation_D)
+
+    def __post_init__(self):
+        if self.kind not in STATE_KINDS:
+            raise ValueError(f"States.kind must be one of {STATE_KINDS}, got {self.kind!r}")
+
+    @property
+    def concrete(self) -> bool:
+        """The depths and states are known on the host (not traced)."""
+        return is_concrete(self.depths_D, self.states_D)
+
+    @property
+    def host_depths_D(self) -> np.ndarray:
+        """(n_depth,) rendered depths, host float64, D (concrete states only)."""
+        return np.atleast_1d(np.asarray(self.depths_D, float))
+
+    @property
+    def pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """(accommodation D, depth D) of every computed pair, host float64 arrays
+        (concrete states only)."""
+        depths = self.host_depths_D
+        if self.kind == "per_depth":
+            acc = np.asarray(self.states_D, float)
+            return acc.ravel(), np.broadcast_to(depths[:, None], acc.shape).ravel()
+        if self.kind == "every":
+            acc = np.asarray(self.states_D, float).reshape(-1)
+            return np.repeat(acc, depths.size), np.tile(depths, acc.size)
+        absolute = self.absolute_D
+        return (absolute[self.allowed],
+                np.broadcast_to(depths[:, None], absolute.shape)[self.allowed])
+
+    @property
+    def computed_D(self):
+        """Every state computed, D (host when concrete): ``states_D``, flattened."""
+        if self.kind == "per_depth":
+            return np.asarray(self.states_D, float).ravel()
+        return self.states_D
+
+    def accommodation(self, options: ModelOptions, pupil_diameter_mm) -> Accommodation:
+        """The kernel's :class:`~lfjax.kernel.scene.Accommodation` of these states, the
+        accommodation SA from ``options`` (``ModelOptions`` or ``ModelParameters``) on the
+        calculation pupil ``pupil_diameter_mm`` (mm)."""
+        if self.kind == "per_depth":
+            return Accommodation.per_depth(self.states_D, options, pupil_diameter_mm)
+        if self.kind == "every":
+            every_pair = jnp.broadcast_to(jnp.arange(self.states_D.shape[0], dtype=jnp.int32),
+                                          self.depths_D.shape + self.states_D.shape)
+            return Accommodation.shared(self.states_D, every_pair, options, pupil_diameter_mm)
+        return Accommodation.shared(self.states_D, self.index, options, pupil_diameter_mm)
+
+
+# ----------------------------------------------------------------------------- sampling
+
+
+def default_sampling(eyes: Eyes, layout: Layout, states: States, *, pupil_diameter_mm,
+                     cdp_D, spectrum: Spectrum, options: ModelOptions,
+                     display: DisplayOptics | None = None) -> Sampling:
+    """The sampling a computation uses when none is given: the planner's field guard for
+    this scene (milliseconds; no accuracy proxy).
+
+    One rule for every entry point: the guard covers the pairs asked for *and* the default
+    through-focus neighbourhood of every rendered depth (:data:`PLANNED_NEIGHBOURHOOD_D`,
+    states ≥ 0 D). The guard picks the largest frequency step whose field holds the widest
+    blur of the pairs it sees, so a single (depth, state) pair would otherwise get a coarser
+    step than the curve through it, and :func:`~lfjax.vision.focus.through_focus` and
+    :func:`~lfjax.vision.focus.metrics_at` would give different values at the same point
+    (by 2e-3 in VSOTF, more than the planner's accuracy target)."""
+    depths = states.host_depths_D
+    pairs = states.pairs
+    around = depths[:, None] + PLANNED_NEIGHBOURHOOD_D[None, :]
+    keep = around >= 0
+    pairs = (np.concatenate([np.asarray(pairs[0], float).ravel(), around[keep]]),
+             np.concatenate([np.asarray(pairs[1], float).ravel(),
+                             np.broadcast_to(depths[:, None], around.shape)[keep]]))
+    scene = PlanScene(
+        layout=layout, pupil_diameter_mm=float(pupil_diameter_mm), cdp_D=float(cdp_D),
+        depths_D=np.asarray(depths, float), accommodation_D=np.unique(np.asarray(pairs[0], float)),
+        accommodation_window_D=None,
+        pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)),
+        wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
+        spectral_weights=np.asarray(spectrum.weights), eyes=eyes, options=options, display=display,
+    )
+    return plan_sampling(scene, estimate_accuracy=False).sampling
+
+
+def with_aliasing_retry(compute: Callable, sampling: Sampling | Sequence[Sampling], *,
+                        attempts: int = 16, refine: bool = True, what: str = "the scene"):
+    """``compute(sampling)``, made finer while the field guard refuses the sampling.
+
+    Each :class:`~lfjax.base.sampling.AliasingError` that ``compute`` raises replaces the
+    refused frequency step by :func:`~lfjax.base.sampling.finer_step` and runs it again,
+    at most ``attempts`` times; then a ``RuntimeError`` says that no aliasing-free sampling
+    was found for ``what``. ``refine=False`` lets the error through (a frequency step the
+    user fixed). ``sampling`` may be a sequence, one per variant: ``compute`` gets the list,
+    the error's ``variant`` attribute says which entry to refine (as
+    :func:`~lfjax.vision.focus.through_focus_variants` sets it), and each variant has
+    ``attempts`` tries.
+
+    Returns ``(result, sampling)``: what ``compute`` returned and the sampling (or list)
+    that it ran with.
+    """
+    several = not isinstance(sampling, Sampling)
+    current = list(sampling) if several else sampling
+    for _ in range(attempts * (len(current) if several else 1)):
+        try:
+            return compute(current), current
+        except AliasingError as err:
+            if not refine:
+                raise
+            if several:
+                i = err.variant
+                current[i] = dataclasses.replace(
+                    current[i], freq_step_cpd=finer_step(err, current[i].freq_step_cpd))
+            else:
+                current = dataclasses.replace(
+                    current, freq_step_cpd=finer_step(err, current.freq_step_cpd))
+    raise RuntimeError(f"no aliasing-free sampling found for {what}")
+
+
+# ----------------------------------------------------------------------------- prepare
+
+
+def _check_layout(layout: Layout) -> None:
+    """Host check of a concrete layout: finite centres, diameters > 0 mm."""
+    c = np.asarray(layout.centres_mm, float)
+    d = np.asarray(layout.diameters_mm, float)
+    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(d))):
+        raise ValueError("layout centres_mm and diameters_mm must be finite")
+    if np.any(d <= 0):
+        raise ValueError(f"layout diameters_mm must be > 0 mm, got {d[d <= 0].tolist()}")
+
+
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """A computation prepared on the host (:func:`prepare`).
+
+    Attributes
+    ----------
+    scene : the :class:`~lfjax.kernel.scene.Scene` pytree (layout, depths, CDP, pupil, display)
+    states : the :class:`States` computed
+    sampling : the :class:`~lfjax.base.sampling.Sampling` used (checked, or planned)
+    config : the static :class:`~lfjax.kernel.pipeline.PipelineConfig`
+    layout : the :class:`~lfjax.model.layouts.Layout`
+    spectrum : the :class:`~lfjax.model.spectral.Spectrum` (the default V(λ) one when none
+        was given)
+    pupil_diameter_mm : the calculation pupil as given (mm; may be traced)
+    cdp_D : the CDP as given (D; may be traced)
+    """
+
+    scene: Scene
+    states: States
+    sampling: Sampling
+    config: PipelineConfig
+    layout: Layout
+    spectrum: Spectrum
+    pupil_diameter_mm: Any
+    cdp_D: Any
+
+    def accommodation(self, options: ModelOptions) -> Accommodation:
+        """The states as the kernel takes them, the accommodation SA from ``options``."""
+        return self.states.accommodation(options, self.pupil_diameter_mm)
+
+
+def prepare(
+    eyes: Eyes,
+    layout: Layout | None,
+    states: States,
+    *,
+    pupil_diameter_mm=3.0,
+    cdp_D=2.0,
+    spectrum: Spectrum | None = None,
+    options: ModelOptions = ModelOptions(),
+    sampling: Sampling | None = None,
+    check_aliasing: bool = True,
+    eye_chunk: int | None = None,
+    display: DisplayOptics | None = None,
+    traced_checks: bool = True,
+) -> Prepared:
+    """Check, sample, configure and build the scene of one computation (module docstring).
+
+    Parameters
+    ----------
+    eyes : :class:`~lfjax.model.eyes.Eyes`
+    layout : the display's views, mm; None: the open pupil (natural viewing)
+    states : the (depth, accommodation) pairs, a :class:`States`
+    pupil_diameter_mm : calculation pupil, mm, ≤ ``eyes.measured_pupil_mm`` (may be traced:
+        the windows are then sized for the measured pupil)
+    cdp_D : the display's central depth plane, D (may be traced)
+    spectrum : default V(λ) on 400–700 nm in 10 nm steps with ``options``' LCA and SCE
+    options : :class:`~lfjax.model.options.ModelOptions`
+    sampling : checked against the field guard when given (``check_aliasing``; concrete
+        inputs only); planned by :func:`default_sampling` when None (concrete depths, states,
+        pupil and CDP only — give it when they are traced)
+    eye_chunk : eyes evaluated together inside the pipeline's map (None: one at a time)
+    display : :class:`~lfjax.display.lenslets.DisplayOptics` of a real display, or None (ideal)
+    traced_checks : False when every input is checked here on the host (the layout too):
+        the compiled program then carries no host callbacks, so JAX's persistent compilation
+        cache can keep it across processes. Leave True where inputs may be traced.
+
+    Raises ``ValueError`` for a bad input (naming it), ``TypeError`` for eyes that are not
+    :class:`~lfjax.model.eyes.Eyes`, :class:`~lfjax.base.sampling.AliasingError` when the
+    given sampling's field cannot hold the blur.
+    """
+    check_eyes(eyes)
+    validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
+    validate_states(None, None, cdp_D)
+    validate_coefficients(eyes.zernike_um)
+    spectrum = make_spectrum(options=options) if spectrum is None else spectrum
+    # A traced pupil (under jax.grad) cannot size windows: the measured pupil bounds it.
+    pupil_static = (float(pupil_diameter_mm) if is_concrete(pupil_diameter_mm)
+                    else float(eyes.measured_pupil_mm))
+    if layout is None:
+        layout = (open_pupil(pupil_static) if is_concrete(pupil_diameter_mm) else Layout(
+            jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
+            pupil_static, "natural"))
+    concrete = states.concrete and is_concrete(pupil_diameter_mm, cdp_D)
+    if sampling is None:
+        if not concrete:
+            raise ValueError(
+                "sampling must be given when depths_D, accommodation_D, cdp_D or "
+                "pupil_diameter_mm are traced (jax.jit / vmap / grad): plan it once on concrete "
+                "values, e.g. lfjax.planner.plan.plan_sampling(...).sampling"
+            )
+        sampling = default_sampling(eyes, layout, states, pupil_diameter_mm=pupil_diameter_mm,
+                                    cdp_D=cdp_D, spectrum=spectrum, options=options,
+                                    display=display)
+    elif check_aliasing and concrete:
+        field_check(eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
+                    states.computed_D, states.host_depths_D, layout, spectrum, sampling,
+                    pairs=states.pairs, display=display)
+    if not traced_checks:
+        _check_layout(layout)
+    config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
+                                  pupil_static, sampling, options, eye_chunk,
+                                  traced_checks=traced_checks, display=display)
+    scene = Scene.from_layout(layout, states.depths_D, cdp_D, pupil_diameter_mm, display)
+    return Prepared(scene, states, sampling, config, layout, spectrum, pupil_diameter_mm, cdp_D)
+
+
+__all__ = [
+    "States",
+    "Prepared",
+    "prepare",
+    "default_sampling",
+    "with_aliasing_retry",
+    "relative_accommodation_grid",
+    "DEFAULT_OFFSETS_D",
+    "PLANNED_NEIGHBOURHOOD_D",
+    "STATE_KINDS",
+]
