@@ -61,7 +61,7 @@ class Sampling:
         Scale of the logistic aperture edge, in pupil samples (anti-aliasing; keeps apertures
         differentiable in centre and diameter). The MTF bias of a soft edge is ∝ this scale
         over the pupil samples; 0.25 is on the speed/accuracy Pareto front
-        (benchmarks/speed_accuracy.png: VSOTF error 1.6e-4 against 4.3e-3 at 0.5).
+        (benchmarks/speed/speed_accuracy.png: VSOTF error 1.6e-4 against 4.3e-3 at 0.5).
     transform : "fft" or "mft"
         ``"fft"`` (default): pupil sampled at λ·df per wavelength, zero-padded FFT; the
         PSF is exactly periodic (wraps). ``"mft"``: one pupil grid of ``mft_pupil_samples``

@@ -353,7 +353,7 @@ def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, s
     # Reverse mode keeps each wavelength's pupil spectrum and recomputes the cheap pupil
     # fields instead of stacking every intermediate over the scan (jax.checkpoint): 1.6x
     # faster than stacking, 1.13x faster than recomputing the transform too; the forward
-    # is unchanged (benchmarks/bench_gradient.py, RESULTS.md §8).
+    # is unchanged (benchmarks/speed/bench_gradient.py, RESULTS.md §8).
     keep_spectrum = jax.checkpoint_policies.save_only_these_names("pupil_spectrum")
     one_wavelength = jax.checkpoint(one_wavelength, prevent_cse=False, policy=keep_spectrum)
     (psf_band, energy_band), _ = jax.lax.scan(one_wavelength, init, xs)

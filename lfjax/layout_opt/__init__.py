@@ -104,7 +104,7 @@ depend on the layout) the same scan has an interior optimum at d ≈ 1 mm (0.367
 0.316 for the tangent grid; worst depth 0.291 against 0.148). :func:`make_problem`
 refuses any other reference.
 
-What the old default favoured (benchmarks/layout_optimisation.py, 2×2 lattice, 10 training
+What the old default favoured (benchmarks/studies/layout_optimisation.py, 2×2 lattice, 10 training
 eyes, 200 held-out eyes, 0–4 D): depth of field alone, with overlapping views allowed,
 collapsed the lattice onto the pupil centre (one 0.93 mm aperture, no light field left),
 and an evaluation that searched for peaks only ±0.3 D around each depth reported 0.28 D

@@ -1,7 +1,7 @@
 """The planner's cost model: the modelled seconds per eye of a sampling, and its FFT work.
 
 Only the ratio of the FFT and MFT paths' costs matters (``transform="auto"`` picks the
-cheaper); benchmarks/speed_accuracy.py re-measures it.
+cheaper); benchmarks/speed/speed_accuracy.py re-measures it.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from lfjax.kernel.optics import pupil_window_size
 # samples evaluated × t_pupil. Calibrated by least squares on four warm pipeline runs on
 # the 2-core reference machine (2×2 and 4×4, FFT and MFT, 31 λ, 21 states, 3 eyes; fit within
 # 8 %); small transforms run well below the rate of large FFTs on this machine. Only the ratio
-# of the two paths matters for the choice, and benchmarks/speed_accuracy.py re-measures it.
+# of the two paths matters for the choice, and benchmarks/speed/speed_accuracy.py re-measures it.
 _FFT_FLOPS_PER_S = 4.1e9
 _MATMUL_FLOPS_PER_S = 92e9
 _PUPIL_S_PER_SAMPLE = 17e-9

@@ -420,7 +420,7 @@ def _choose_wavelength_step(p: _Planning) -> None:
         p.errors["spectral"] = float("nan")
         if p.wl.size > 1 and np.any(np.diff(p.wl) > 20.0):
             p.reasons.append("warning: wavelength steps over 20 nm under-sample LCA blur (Ravikumar et al. 2008; "
-                             "benchmarks/speed_accuracy.py: 50 nm moves a prediction by 0.2 D)")
+                             "benchmarks/speed/speed_accuracy.py: 50 nm moves a prediction by 0.2 D)")
         return
     step_choice = p.overrides.wavelength_step_nm
     spec_proxy_df = ladder_floor(min(p.df_top, s.smallest_diameter_mm

@@ -38,7 +38,7 @@ from lfjax.planner.scene import PlanScene, map_psf
 
 ESTIMATE_SAFETY = 1.05
 """Factor on the proxy's VSOTF error estimates (calibration against the pipeline:
-benchmarks/planner_validation.py)."""
+benchmarks/validation/planner_validation.py)."""
 
 PROXY_WAVELENGTHS = 7
 """Most wavelengths the proxy evaluates; a longer spectrum is thinned, each kept wavelength

@@ -181,7 +181,7 @@ def refine_peak(value_fn, lower_D, upper_D, start_D, args, method: str = "newton
     if method == "golden":
         # The golden section's bracket after n steps is known: (upper − lower)·0.618ⁿ. Its
         # Cauchy test also asks the values to settle, which float32 noise on a flat top can
-        # keep from happening until max_steps (benchmarks/peak_finding.py: 90 of 720 VSOTF
+        # keep from happening until max_steps (benchmarks/validation/peak_finding.py: 90 of 720 VSOTF
         # and 79 of 720 Strehl peaks, located to a median 1e-4 D, were flagged as failures
         # after 32 steps); a bracket already narrower than atol_D has converged.
         shrink = jnp.power(0.5 * (jnp.sqrt(5.0) - 1.0), sol.stats["num_steps"])

@@ -58,7 +58,7 @@ and/or ``defocus_D``) when the default ``pupil_samples`` is chosen: their values
 known when the shapes are fixed. Larger wavefronts under a transformation need an
 explicit ``pupil_samples``, e.g. from :func:`pupil_samples_for`."""
 
-# Measured error model of the soft-edged, sampled pupil (benchmarks/psf_defaults.py, edge
+# Measured error model of the soft-edged, sampled pupil (benchmarks/validation/psf_defaults.py, edge
 # 0.25 samples): max error / peak ≈ (a·U + b·w²) / N², U the field in λ/d, w the RMS
 # wavefront in waves; a ≤ 0.90 (the soft edge dims wide angles, so the field-sum
 # normalisation drifts), b ≤ 665 with a = 1 (pure defocus is the worst case; a first-order
@@ -287,7 +287,7 @@ def monochromatic_psf(
     rule takes a = 1, b = 700 and aims at ``tolerance``/2, rounded up to 8 sizes per
     octave (and at least U/2 + blur radius + 8 in λ/d, so the sampled pupil's periodic
     replicas stay outside the field; never the binding term in the measurements).
-    Measured (benchmarks/psf_defaults.py): aberration-free 3 mm, 550 nm, 201 × 0.117
+    Measured (benchmarks/validation/psf_defaults.py): aberration-free 3 mm, 550 nm, 201 × 0.117
     arcmin, against 2048 samples: 128 samples (the former default) 2.1e-3 of peak, 256:
     5.3e-4, the default 288: 4.2e-4; against up to 4× the samples (Richardson in 1/N²),
     45 seeded random cases
