@@ -63,7 +63,7 @@ def test_site_builds_strict(tmp_path):
     assert (site / "benchmarks" / "speed" / "speed_accuracy.png").is_file()
     notebook = (site / "notebooks" / "display_effects" / "index.html").read_text(encoding="utf-8")
     assert "data:image/png;base64" in notebook  # committed outputs rendered
-    api = (site / "api" / "through_focus" / "index.html").read_text(encoding="utf-8")
+    api = (site / "api" / "vision" / "index.html").read_text(encoding="utf-8")
     assert 'id="lfjax.vision.focus.through_focus"' in api
 
 
