@@ -18,7 +18,7 @@
 #
 # The size is set by `LFJAX_NOTEBOOK_SIZE`: `small` (the committed outputs: 2 training and
 # 4 held-out eyes, 2×2 and 3×3, two solver steps, the fit setting's single wavelength) or
-# `tiny` (what `tests/test_design.py` runs: one eye each, 2×2 only, one step, lenslet
+# `tiny` (what `tests/design/test_design_fit.py` runs: one eye each, 2×2 only, one step, lenslet
 # diffraction off and a coarse fixed frequency step; numbers meaningless). The population
 # trade-off is `benchmarks/studies/spatio_angular_tradeoff.py` (RESULTS §15).
 #

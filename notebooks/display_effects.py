@@ -19,7 +19,7 @@
 #
 # The size is set by `LFJAX_NOTEBOOK_SIZE`: `small` (the committed outputs: the Thibos
 # average eye, three layouts, three depths, 50 nm wavelength steps) or `tiny` (what
-# `tests/test_display.py` runs: 2×2 only, 100 nm steps, peaks from three states around the
+# `tests/display/test_lenslets.py` runs: 2×2 only, 100 nm steps, peaks from three states around the
 # grid's instead of Newton; numbers meaningless). The full
 # study: `benchmarks/studies/display_effects.py` (RESULTS §12) or `lfjax reproduce --display-effects`.
 #

@@ -24,7 +24,7 @@
 #
 # The size is set by `LFJAX_NOTEBOOK_SIZE`: `small` (the committed outputs: 4 training
 # eyes, 8 held-out eyes scored at the full accuracy — 31 wavelengths, refined peaks) or
-# `tiny` (what `tests/test_layout_opt.py` runs: seconds, numbers meaningless). Larger
+# `tiny` (what `tests/layout_opt/test_layout_opt.py` runs: seconds, numbers meaningless). Larger
 # studies: `benchmarks/studies/layout_optimisation.py` and `lfjax optimise --help`.
 #
 # `notebooks/optimise_layout.py` is this notebook as a plain script (jupytext percent

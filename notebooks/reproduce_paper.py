@@ -16,7 +16,7 @@
 # grid, 400–700 nm in 10 nm steps, 10 virtual eyes plus the average eye).
 #
 # `notebooks/reproduce_paper.py` is the same notebook as a plain script (jupytext percent
-# format); `tests/test_cli.py` executes the `.ipynb` and checks that the two agree.
+# format); `tests/cli/test_cli.py` executes the `.ipynb` and checks that the two agree.
 
 # %%
 import io

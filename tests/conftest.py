@@ -2,7 +2,7 @@
 
 * float64 everywhere (``jax_enable_x64``): the physics checks and the finite-difference
   gradient checks need it. lfjax follows ``jnp.result_type(float)``, so it computes in
-  float64 here; the float32 accuracy statement (test_optics.py) runs inside
+  float64 here; the float32 accuracy statement (kernel/test_optics.py) runs inside
   ``jax.enable_x64(False)``.
 * XLA's CPU backend optimisation level 0: this suite is dominated by compiling many small
   programs (each distinct shape or static option recompiles); level 0 compiles them 2-3x

@@ -343,3 +343,33 @@ def test_the_folders_are_the_layers():
     loose = {n for n in entries - {"data", "_version.py", "py.typed"}
              if not (LFJAX / n / "__init__.py").exists()}
     assert not loose, f"modules outside a layer folder: {sorted(loose)}"
+
+
+PROJECT_WIDE_TESTS = {
+    "test_docs.py": "the documentation site, the README's and guides' examples",
+    "test_errors.py": "bad input at every public entry point",
+    "test_import_layers.py": "this file: the layers and the tests' tree",
+    "test_isetbio_style.py": "the ISETBio-style baseline kept beside the tests",
+    "test_precision.py": "every matrix product asks for full precision",
+    "test_reference_selfcheck.py": "the float64 reference against analytic results",
+    "test_shapes.py": "the shape checks of every public numerical entry point",
+    "test_transforms.py": "every public numerical function under jit, vmap and grad",
+}
+"""Test files that check the whole package at once, and so sit at the top of tests/."""
+
+
+def test_the_tests_mirror_the_package():
+    """tests/<folder>/ holds the tests of lfjax/<folder>/ (one file per module or per
+    folder); only the project-wide checks above sit at the top."""
+    tests = ROOT / "tests"
+    folders = {f.split(".")[1] for f in LAYERS if f.count(".") == 1 and f != "lfjax._version"}
+    have = {p.name for p in tests.iterdir() if p.is_dir() and any(p.glob("test_*.py"))}
+    assert have <= folders, f"test folders with no package folder: {sorted(have - folders)}"
+    untested = sorted(folders - have)
+    assert not untested, f"package folders without a tests/<folder>/: {untested}"
+    top = {p.name for p in tests.glob("test_*.py")}
+    assert top == set(PROJECT_WIDE_TESTS), (
+        f"unexpected top-level test files {sorted(top - set(PROJECT_WIDE_TESTS))}; "
+        f"missing {sorted(set(PROJECT_WIDE_TESTS) - top)}")
+    names = [p.name for p in tests.rglob("test_*.py")]
+    assert len(names) == len(set(names)), "test file names must be unique across folders"

@@ -4,7 +4,7 @@ For each scene (aberration-free eye, 450/550/650 nm, accommodation 0–4 D in 0.
 within a window of each rendered depth) the planner's sampling and each rejected cheaper
 neighbour are run through lfjax.vision.focus; the measured error is max |VSOTF − converged|
 where converged is Richardson-extrapolated from a quarter and an eighth of the plan's step; "wrap" is
-the pipeline's wrapped PSF / peak on the plan's field. tests/test_planner.py asserts the
+the pipeline's wrapped PSF / peak on the plan's field. tests/planner/test_plan.py asserts the
 parts that hold; benchmarks/RESULTS.md §7 records a run.
 
 Run:  .venv/bin/python benchmarks/validation/planner_validation.py [tolerance, default 2e-3]

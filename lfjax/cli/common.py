@@ -70,7 +70,7 @@ FLAGS: dict[str, dict[str, str]] = {
 }
 """The one parameter↔flag table: for each subcommand, the library parameter a check names
 (:attr:`~lfjax.base.errors.ParameterError.parameters`) → the flag (or positional) that
-sets it. tests/test_cli.py checks that it covers every parameter the subcommand's library
+sets it. tests/cli/test_cli.py checks that it covers every parameter the subcommand's library
 calls can name and that every flag in it exists."""
 
 

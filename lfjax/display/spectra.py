@@ -38,7 +38,7 @@ oled      27      10     10      9
 laser     3       1      1       1
 ======== ======= ===== ======= ======
 
-(counts as of writing; what is tested, in ``tests/test_display_spectra.py``, is that the
+(counts as of writing; what is tested, in ``tests/display/test_display_spectra.py``, is that the
 LCD white's 25 wavelengths give the VSOTF of its 61 fine samples within
 ``weight_tolerance``). CRT red puts 0.15 % of its V-weighted power above 700 nm (its
 far-red tail); it is merged into the 700 nm sample with a warning. Every white mix keeps

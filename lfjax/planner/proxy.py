@@ -8,7 +8,7 @@ and enters with its display shift and the tilt of the defocus over it as one pha
 Views congruent under the square's mirrors and quarter turns share one transform (their
 VSOTF terms are equal, their PSFs mapped copies: :meth:`~lfjax.planner.scene.PlanScene.view_groups`).
 For the aberration-free eye the proxy's VSOTF equals the pipeline's to < 1e-6 at any step
-(tests/test_planner.py), so its error estimates are the pipeline's own; the proxy thins a
+(tests/planner/test_plan.py), so its error estimates are the pipeline's own; the proxy thins a
 spectrum to at most :data:`PROXY_WAVELENGTHS` wavelengths.
 
 It runs in float64 numpy on the host and compiles nothing. It shares the metrics' NCSF on

@@ -450,7 +450,7 @@ def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: 
 
     An independent, host float64/complex64 computation (diffracted beams by
     :func:`disc_fresnel_field`, one FFT pair per view and state), for studies; its
-    idealised curves agree with the pipeline's (``tests/test_array_views.py``). Beams
+    idealised curves agree with the pipeline's (``tests/studies/test_array_views.py``). Beams
     bringing less than ``min_view_energy`` of the strongest beam's power through the pupil
     are left out, and the share they carried is reported. Circular lenslets only.
 

@@ -9,7 +9,7 @@ with one of:
 ``"auto"`` (default)
     ``"newton"`` for VSOTF (smooth in accommodation) and ``"golden"`` for the Strehl ratio:
     the sampled PSF's peak is the largest of its pixels, piecewise smooth in accommodation,
-    and Newton's derivatives jump between pieces (tests/test_peaks.py pins the case).
+    and Newton's derivatives jump between pieces (tests/vision/test_peaks.py pins the case).
 ``"newton"``
     optimistix ``Newton`` root find of dV/da = 0 inside the bracket; dV/da and d²V/da² by
     forward-mode differentiation of the pipeline in the scalar accommodation (cheap: one

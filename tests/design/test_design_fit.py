@@ -192,7 +192,7 @@ def test_cli_design_bad_input_one_line_exit_2(capsys, tmp_path, args, message):
 
 # ------------------------------------------------------------------ notebook
 
-NOTEBOOK = Path(__file__).resolve().parents[1] / "notebooks" / "display_design.ipynb"
+NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "display_design.ipynb"
 
 
 def test_notebook_matches_its_script_twin():

@@ -275,7 +275,7 @@ def test_traced_bad_display_values_do_not_pass_silently():
 
 # ------------------------------------------------------------------ study, notebook, CLI
 
-NOTEBOOK = Path(__file__).resolve().parents[1] / "notebooks" / "display_effects.ipynb"
+NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "display_effects.ipynb"
 
 
 def test_notebook_matches_its_script_twin():

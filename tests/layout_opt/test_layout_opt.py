@@ -23,7 +23,7 @@ from lfjax.layout_opt import _feasible as feasible_maps
 
 import helpers as H
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK = ROOT / "notebooks" / "optimise_layout.ipynb"
 
 DEPTHS = [1.0, 3.0]

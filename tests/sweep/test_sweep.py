@@ -526,7 +526,7 @@ def test_guide_config_lists_every_key_with_its_default():
     from lfjax.sweep import SweepConfig
     from lfjax.sweep.config import _SCHEMA
 
-    guide = Path(__file__).resolve().parents[1] / "docs" / "guides" / "population-sweeps.md"
+    guide = Path(__file__).resolve().parents[2] / "docs" / "guides" / "population-sweeps.md"
     guide = guide.read_text()
     block = re.search(r"```toml\n(.*?)```", guide, re.S).group(1)
     data = tomllib.loads(block)

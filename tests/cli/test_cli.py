@@ -18,7 +18,7 @@ from lfjax import reproduce as rep
 from lfjax.base.errors import ParameterError
 from lfjax.cli import common
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK = ROOT / "notebooks" / "reproduce_paper.ipynb"
 NOTEBOOK_TWIN = ROOT / "notebooks" / "reproduce_paper.py"
 

@@ -9,7 +9,7 @@ orders inside the two application packages.
 import ast
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LFJAX = ROOT / "lfjax"
 PACKAGE = LFJAX / "reproduce"
 

@@ -78,7 +78,7 @@ fast − reference difference, its aperture-edge error). Not derived: the residu
 edge error's modulation by the aberration phase at the aperture edges, measured 0.21–0.33
 e_0 with the paper's options and up to 0.59 e_0 with the unscaled accommodation SA (its
 steeper phase at the rim); every deliberately mis-modelled reference leaves ≥ 0.83 e_0
-(both asserted: this file and test_lightfield.py). The bound sits between."""
+(both asserted: this file and test_focus.py). The bound sits between."""
 
 
 def control_variate_residual(fast, ref, fast_dl, ref_dl) -> float:
