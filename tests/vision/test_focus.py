@@ -14,7 +14,7 @@ import pytest
 import helpers as H
 import lfjax
 import reference as R
-from lfjax.vision.focus import through_focus
+from lfjax.vision.focus import metrics_at, through_focus
 from lfjax.vision.prepare import relative_accommodation_grid
 
 CDP = 2.0
