@@ -373,3 +373,19 @@ def test_the_tests_mirror_the_package():
         f"missing {sorted(set(PROJECT_WIDE_TESTS) - top)}")
     names = [p.name for p in tests.rglob("test_*.py")]
     assert len(names) == len(set(names)), "test file names must be unique across folders"
+
+
+def test_no_test_file_imports_another():
+    """What tests share lives in helpers.py, reference.py or conftest.py: a test file that
+    imports another passes or fails by which files its pytest worker happened to collect."""
+    tests = ROOT / "tests"
+    names = {p.stem for p in tests.rglob("test_*.py")}
+    wrong = []
+    for path in tests.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            targets = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                       else [node.module] if isinstance(node, ast.ImportFrom) and node.module
+                       else [])
+            wrong += [f"{path.relative_to(ROOT)}:{node.lineno} imports {t}"
+                      for t in targets if t.split(".")[0] in names]
+    assert not wrong, "\n".join(wrong)

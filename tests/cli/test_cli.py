@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import percent_cells
 from lfjax import cli
 from lfjax import reproduce as rep
 from lfjax.base.errors import ParameterError
@@ -403,29 +404,6 @@ def test_the_sweep_report_names_its_store_and_out(capsys, tmp_path):
 
 
 # ------------------------------------------------------------------ notebook
-
-
-def percent_cells(text):
-    """(cell_type, source) pairs of a jupytext percent-format script."""
-    cells, kind, lines = [], None, []
-    body = text.split("# ---\n", 2)[-1] if text.startswith("# ---") else text
-
-    def flush():
-        if kind is not None:
-            src = "\n".join(lines).strip("\n")
-            if kind == "markdown":
-                src = "\n".join(ln[2:] if ln.startswith("# ") else ln.lstrip("#")
-                                for ln in src.splitlines())
-            cells.append((kind, src))
-
-    for line in body.splitlines():
-        if line.startswith("# %%"):
-            flush()
-            kind, lines = ("markdown" if "[markdown]" in line else "code"), []
-        else:
-            lines.append(line)
-    flush()
-    return cells
 
 
 def build_notebook():

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import helpers as H
+from helpers import CV_BOUND, MISMODELLED
 import lfjax
 import reference as R
 from lfjax.kernel import metrics
@@ -62,23 +63,6 @@ def _random_eyes_reference(zernike_um, spectrum, options, n, eyes=(0, 1, 2)):
     return np.stack([H.reference_for(zernike_um[i], spectrum, RANDOM_ACC[i], 2.0, 2.0,
                                      lfjax.open_pupil(3.0), n, 2.0, options)
                      for i in eyes])
-
-
-MISMODELLED = {
-    "sce_as_intensity": dict(sce="intensity"),
-    "accommodation_sa_off": dict(accommodation_sa="off"),
-    "lca_off": dict(lca_A=0.0),
-}
-"""Deliberate modelling errors a reference comparison must see (ModelOptions changes)."""
-
-
-CV_BOUND = 0.7
-"""Bound of the control-variate residual, in units of e_0 (the aberration-free eye's
-fast − reference difference, its aperture-edge error). Not derived: the residual is the
-edge error's modulation by the aberration phase at the aperture edges, measured 0.21–0.33
-e_0 with the paper's options and up to 0.59 e_0 with the unscaled accommodation SA (its
-steeper phase at the rim); every deliberately mis-modelled reference leaves ≥ 0.83 e_0
-(both asserted: this file and test_focus.py). The bound sits between."""
 
 
 def control_variate_residual(fast, ref, fast_dl, ref_dl) -> float:

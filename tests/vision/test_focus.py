@@ -357,7 +357,7 @@ def test_lightfield_fast_path_matches_reference(name, dl_convergence):
     4.6e-3 = 0.32 e_0; required ≤ test_optics.CV_BOUND·e_0 (0.7 e_0: 1.4e-2, 1.0e-2),
     which every deliberately mis-modelled reference exceeds
     (test_lightfield_reference_sees_a_modelling_error)."""
-    from test_optics import CV_BOUND
+    from helpers import CV_BOUND
 
     d = _lf_comparison(name)
     e0 = max(float(np.abs(d["free"][c] - d["ref_free"][c]).max()) for c in d["free"])
@@ -374,7 +374,7 @@ def test_lightfield_reference_sees_a_modelling_error(model):
     control-variate residual above the CV_BOUND·e_0 bound the fast path meets. Measured
     1.66e-2 = 0.83 e_0, 1.77e-2 = 0.89 e_0 and 0.51 against 1.4e-2 (at df 1 cpd the margin
     widens to 1.14 and 1.39 e_0 against a residual of 0.16 e_0, at 3× the cost)."""
-    from test_optics import CV_BOUND, MISMODELLED
+    from helpers import CV_BOUND, MISMODELLED
 
     d = _lf_comparison("inside")
     wrong, wrong_free = _lf_references(d["z"], d["layout"], d["n"],
