@@ -12,6 +12,11 @@
   call (``lfjax.base.types.shape_checked``).
 * Expensive results shared by several test files are session fixtures here (each costs
   one XLA compile); cheap module-level inputs live in ``helpers.py``.
+* One compilation cache per test session, shared by every process the session starts (the
+  pytest-xdist workers, the notebooks' kernels, the command-line subprocesses), and empty
+  at its start: a program one of them compiled is read back by the others, and nothing is
+  read from the user's own cache (``~/.cache/lfjax``), so a run's time and results do not
+  depend on what ran before it. ``LFJAX_TEST_CACHE_DIR`` names another folder to keep it.
 """
 
 from __future__ import annotations
@@ -24,6 +29,25 @@ if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
     ).strip()
 
 os.environ.setdefault("LFJAX_SHAPE_CHECKS", "1")
+
+
+def _session_cache() -> tuple[str, bool]:
+    """The session's compilation cache folder, and whether this process made it (the xdist
+    controller, or a plain pytest run; every process it starts inherits the folder)."""
+    folder = os.environ.get("LFJAX_TEST_CACHE_DIR")
+    if folder:
+        return folder, False
+    import tempfile
+
+    folder = tempfile.mkdtemp(prefix="lfjax-test-cache-")
+    os.environ["LFJAX_TEST_CACHE_DIR"] = folder
+    return folder, True
+
+
+_CACHE, _MADE_CACHE = _session_cache()
+os.environ["JAX_COMPILATION_CACHE_DIR"] = _CACHE  # this process and the workers
+os.environ["LFJAX_CACHE_DIR"] = _CACHE  # the command line's subprocesses and the notebooks
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
 
 import jax  # noqa: E402
 
@@ -100,3 +124,10 @@ def tf_2x2():
 @pytest.fixture(scope="session")
 def tf_4x4():
     return _physics_tf(4)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    if _MADE_CACHE:
+        import shutil
+
+        shutil.rmtree(_CACHE, ignore_errors=True)
