@@ -215,7 +215,8 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
 
 def _chunk_metrics(zernike_um, scene: Scene, spectrum: Spectrum, accommodation: Accommodation, *,
                    config: PipelineConfig, measured_pupil_mm: float, allowed: np.ndarray,
-                   continuous: tuple[str, ...], peak_method: str, cutoff_threshold: float):
+                   continuous: tuple[str, ...], peak_method: str, cutoff_threshold: float,
+                   peak_tolerance_D: float):
     """Everything a sweep stores for a batch of eyes of one (pupil, layout), as arrays with
     the eye axis first. Pure; the caller jits (and shards) it."""
     eyes = Eyes(zernike_um, measured_pupil_mm)
@@ -246,7 +247,7 @@ def _chunk_metrics(zernike_um, scene: Scene, spectrum: Spectrum, accommodation: 
         if name in continuous:
             peaks = peaks_from_grid(getattr(metrics, name), eyes, scene, spectrum, accommodation,
                                     config, reference, name, peak_method, mask,
-                                    refine_second=False)
+                                    refine_second=False, tolerance_D=peak_tolerance_D)
             cont_acc.append(peaks.accommodation_D)
             cont_ok.append(peaks.success)
         else:
@@ -276,12 +277,13 @@ TRACES: dict[tuple, int] = {}
 @functools.lru_cache(maxsize=64)
 def _chunk_function(config: PipelineConfig, measured_pupil_mm: float, allowed: tuple,
                     continuous: tuple[str, ...], peak_method: str, cutoff_threshold: float,
-                    devices: tuple):
-    key = (config, measured_pupil_mm, allowed, continuous, peak_method, cutoff_threshold, devices)
+                    peak_tolerance_D: float, devices: tuple):
+    key = (config, measured_pupil_mm, allowed, continuous, peak_method, cutoff_threshold,
+           peak_tolerance_D, devices)
     body = functools.partial(
         _chunk_metrics, config=config, measured_pupil_mm=measured_pupil_mm,
         allowed=np.asarray(allowed, bool), continuous=continuous, peak_method=peak_method,
-        cutoff_threshold=cutoff_threshold)
+        cutoff_threshold=cutoff_threshold, peak_tolerance_D=peak_tolerance_D)
 
     def counted(zernike_um, scene, spectrum, accommodation):
         TRACES[key] = TRACES.get(key, 0) + 1
@@ -323,7 +325,8 @@ class ChunkEvaluator:
             task.pipeline_config, self.measured_pupil_mm,
             tuple(map(tuple, np.asarray(task.allowed, bool).tolist())),
             tuple(self.config.continuous_peaks), self.config.peak_method,
-            float(self.config.cutoff_threshold), self.devices)
+            float(self.config.cutoff_threshold), float(self.config.peak_tolerance_D),
+            self.devices)
         self._start.setdefault(task.key, TRACES.get(key, 0))
         return key, function
 

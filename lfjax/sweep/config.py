@@ -340,7 +340,8 @@ class SweepConfig(DepthGrid):
         "proxy runs, seconds per layout); not set: its field guard alone (milliseconds)",
         Range(0, 0.1, lo_open=True, hi_open=True), example=1e-3))
     peak_tolerance_D: float = field(default=0.01, metadata=_key(
-        "sampling", "a planned wavelength step moves no peak by more",
+        "sampling", "a planned wavelength step moves no peak by more, and the adaptive peak "
+        "method refines every peak whose grid estimate may be further off",
         Range(0, 0.5, lo_open=True)))
     cutoff_tolerance_cpd: float = field(default=0.25, metadata=_key(
         "sampling", "a planned wavelength step moves no cut-off by more",
@@ -348,7 +349,7 @@ class SweepConfig(DepthGrid):
     continuous_peaks: tuple[str, ...] = field(default=("vsotf",), metadata=_key(
         "metrics", "metrics whose peak is refined off the grid (lfjax.vision.peaks)",
         OneOf(METRICS)))
-    peak_method: str = field(default="local", metadata=_key(
+    peak_method: str = field(default="adaptive", metadata=_key(
         "metrics", "how a peak is refined (lfjax.vision.peaks.PEAK_METHODS)",
         OneOf(PEAK_METHODS)))
     cutoff_threshold: float = field(default=0.05, metadata=_key(

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import jax
 
-from lfjax.vision.peaks import METRICS, STATE_COST, resolved_method
+from lfjax.vision.peaks import METRICS, STATE_COST, TYPICAL_REFINED_FRACTION, resolved_method
 from lfjax.base.grids import grid_size
 from lfjax.base.sampling import EYE_BLOCK
 from lfjax.sweep.compute import sweep_spectrum
@@ -46,9 +46,10 @@ CPU cores: the default sweep (``lfjax sweep --template``: 25 nm, ``local`` peaks
 1,000-eye sweep at 20 nm with ``vertex`` peaks: 1.26e-9 s per unit); the first chunks'
 eyes/s on the progress bar is the measured rate."""
 
-TYPICAL_STEPS = {"newton": 3, "golden": 31, "bfgs": 12}
+TYPICAL_STEPS = {"newton": 3, "golden": 31, "bfgs": 12, "adaptive": TYPICAL_REFINED_FRACTION}
 """Typical solver steps per continuous peak (benchmarks/RESULTS.md §10: Newton 2.2, golden
-section 31, BFGS 11.5), rounded up; the one-shot methods take one."""
+section 31, BFGS 11.5), rounded up; the one-shot methods take one, and ``adaptive`` takes
+the local stencil's one on the fraction of peaks it refines."""
 
 REFINEMENT_STATES = {method: STATE_COST[method] * TYPICAL_STEPS.get(method, 1)
                      for method in STATE_COST} | {"vertex": 0, "grid": 0}

@@ -24,7 +24,14 @@ from lfjax.model.layouts import Layout
 from lfjax.kernel.metrics import cutoff_frequency
 from lfjax.kernel.optics import validate_states
 from lfjax.model.options import STATIC_CHOICES, ModelOptions, stack_parameters
-from lfjax.vision.peaks import METRICS, PEAK_METHODS, Peaks, peaks_from_grid
+from lfjax.vision.peaks import (
+    DEFAULT_TOLERANCE_D,
+    METRICS,
+    PEAK_METHODS,
+    Peaks,
+    check_tolerance,
+    peaks_from_grid,
+)
 from lfjax.kernel.pipeline import (
     Accommodation,
     PipelineConfig,
@@ -153,6 +160,7 @@ def through_focus(
     peak_method: str = "auto",
     refine_second_peaks: bool = True,
     display: DisplayOptics | None = None,
+    peak_tolerance_D: float = DEFAULT_TOLERANCE_D,
 ) -> ThroughFocus:
     """VSOTF, Strehl and radial MTF through focus for eyes × depths × accommodation states.
 
@@ -183,6 +191,8 @@ def through_focus(
         VSOTF, golden section for the Strehl ratio)
     refine_second_peaks : refine second local maxima too (default; see
         :func:`lfjax.vision.peaks.accommodation_peaks`); False halves the refinement's cost
+    peak_tolerance_D : with ``peak_method="adaptive"``: refine only the peaks whose grid
+        estimate may lie further than this from the true maximum, D (default 0.01 D)
     display : :class:`lfjax.display.lenslets.DisplayOptics`, optional — lenslet diffraction and
         finite pixels of a real display (default: the paper's ideal display). The VSOTF and
         Strehl reference stays the ideal display's, so values compare across displays.
@@ -192,7 +202,7 @@ def through_focus(
     aberration-free, focused and rendered at the CDP, accommodation SA and LCA kept).
     """
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
-    _check_peak_options(continuous_peaks, peak_method)
+    _check_peak_options(continuous_peaks, peak_method, peak_tolerance_D)
     prepared = prepare(eyes, layout, _through_focus_states(depths_D, accommodation_D, cdp_D,
                                                            accommodation_offsets_D, window_D),
                        pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, spectrum=spectrum,
@@ -201,16 +211,18 @@ def through_focus(
     metrics, peaks = _metrics_and_peaks(
         eyes, prepared.scene, spectrum, prepared.accommodation(options), prepared.config,
         prepared.states.allowed, tuple(continuous_peaks), peak_method, refine_second_peaks,
+        float(peak_tolerance_D),
     )
     return _result(prepared, metrics, peaks)
 
 
-def _check_peak_options(continuous_peaks, peak_method) -> None:
+def _check_peak_options(continuous_peaks, peak_method, peak_tolerance_D) -> None:
     for name in continuous_peaks:
         if name not in METRICS:
             raise ValueError(f"continuous_peaks must name metrics in {METRICS}, got {name!r}")
     if peak_method not in PEAK_METHODS:
         raise ValueError(f"peak_method must be one of {PEAK_METHODS}, got {peak_method!r}")
+    check_tolerance(peak_tolerance_D)
 
 
 def _through_focus_states(depths_D, accommodation_D, cdp_D, accommodation_offsets_D,
@@ -270,6 +282,7 @@ def through_focus_variants(
     refine_second_peaks: bool = True,
     display: DisplayOptics | None = None,
     batch: str = "auto",
+    peak_tolerance_D: float = DEFAULT_TOLERANCE_D,
 ) -> list[ThroughFocus]:
     """:func:`through_focus` under several :class:`~lfjax.ModelOptions` at once: one compiled
     program over their stacked :class:`~lfjax.model.options.ModelParameters` per sampling.
@@ -322,8 +335,8 @@ def through_focus_variants(
         return _each_variant(variants, lambda o, spectrum, sampling: through_focus(
             eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
             sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
-            continuous_peaks, peak_method, refine_second_peaks, display))
-    _check_peak_options(continuous_peaks, peak_method)
+            continuous_peaks, peak_method, refine_second_peaks, display, peak_tolerance_D))
+    _check_peak_options(continuous_peaks, peak_method, peak_tolerance_D)
     states = _through_focus_states(depths_D, accommodation_D, cdp_D, accommodation_offsets_D,
                                    window_D)
     prepared = _each_variant(variants, lambda o, spectrum, sampling: prepare(
@@ -344,7 +357,7 @@ def through_focus_variants(
             eyes, first.scene, wl, weights, rho_tables, parameters, first.states.states_D,
             first.states.index, jnp.asarray(pupil_diameter_mm, float), config,
             first.states.allowed, continuous_peaks,
-            peak_method, refine_second_peaks, batch,
+            peak_method, refine_second_peaks, batch, float(peak_tolerance_D),
         )
         # sliced on the host: an eager x[k] per leaf and variant compiles a program each
         metrics, peaks = jax.device_get((metrics, peaks))
@@ -360,7 +373,8 @@ VARIANT_BATCHES = ("auto", "vmap", "map", "loop")
 @eqx.filter_jit
 def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables, parameters,
                                 states_D, pair_index, pupil_diameter_mm, config, allowed,
-                                peak_metrics, peak_method, refine_second, batch="vmap"):
+                                peak_metrics, peak_method, refine_second, batch="vmap",
+                                tolerance_D=DEFAULT_TOLERANCE_D):
     """:func:`_metrics_and_peaks` over stacked ModelParameters (leading axis) and their ρ(λ)
     tables (n_variants, n_wavelengths), vmapped or mapped (``batch``): one compiled program
     for them all."""
@@ -369,7 +383,7 @@ def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables
         spectrum = model_spectrum(wavelengths_nm, weights, rho_table, p)
         accommodation = Accommodation.shared(states_D, pair_index, p, pupil_diameter_mm)
         return _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed,
-                                  peak_metrics, peak_method, refine_second)
+                                  peak_metrics, peak_method, refine_second, tolerance_D)
 
     if batch == "map":
         return jax.lax.map(lambda xs: one(*xs), (parameters, rho_tables))
@@ -378,14 +392,14 @@ def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables
 
 @eqx.filter_jit
 def _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed, peak_metrics,
-                       peak_method, refine_second):
+                       peak_method, refine_second, tolerance_D=DEFAULT_TOLERANCE_D):
     """Grid metrics and the continuous peaks refined from them, in one compiled call."""
     reference = reference_normalisers(scene, spectrum, accommodation, config)
     metrics = retinal_metrics(eyes, scene, spectrum, accommodation, config, reference)
     peaks = {
         name: peaks_from_grid(getattr(metrics, name), eyes, scene, spectrum, accommodation,
                               config, reference, name, peak_method, allowed,
-                              refine_second=refine_second)
+                              refine_second=refine_second, tolerance_D=tolerance_D)
         for name in peak_metrics
     }
     return metrics, peaks

@@ -43,6 +43,18 @@ with one of:
     the parabola's, RESULTS §10).
 ``"grid"``
     the grid maximum itself.
+``"adaptive"``
+    ``"local"`` only where the grid cannot answer: every grid peak's location is first
+    estimated from the grid alone (:func:`grid_peak_estimate`: the maximum of the quartic
+    through the five grid values around it, with the distance to the three-point parabola's
+    vertex as its error estimate), and the local stencil is spent only on the (eye, depth)
+    pairs whose estimate exceeds ``tolerance_D`` or which the estimate cannot serve (a
+    neighbour missing at the window's end or the hyperopic limit, a curve not concave
+    there, and, when both candidates are refined, a second peak whose choice reads the
+    refined values). Those pairs are gathered first and refined in batches of a fixed size
+    inside one ``lax.map``; a batch holding none is skipped (``lax.cond``), so the
+    arithmetic follows the number of pairs refined (under an outer ``jax.vmap`` the skip
+    becomes a select and every batch is computed: the values are the same).
 
 Every result carries a success flag and, for the optimistix methods, the solver's result
 code; the pipeline never raises inside the batch (``throw=False``).
@@ -57,6 +69,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.parabola import parabola_vertex
 from lfjax.base.types import FULL, shape_checked
 from lfjax.base.types import is_concrete as _is_concrete
@@ -73,7 +86,8 @@ from lfjax.kernel.pipeline import (
 from lfjax.kernel.optics import state_chunk
 from lfjax.model.spectral import Spectrum
 
-PEAK_METHODS = ("auto", "newton", "golden", "bfgs", "local", "parabola", "vertex", "grid")
+PEAK_METHODS = ("auto", "newton", "golden", "bfgs", "local", "parabola", "vertex", "grid",
+                "adaptive")
 METRICS = ("vsotf", "strehl")
 
 
@@ -111,6 +125,16 @@ def _check_method(method: str):
         raise ValueError(f"method must be one of {PEAK_METHODS}, got {method!r}")
 
 
+def check_tolerance(tolerance_D) -> None:
+    """Refuse a peak tolerance that is not a positive, finite number of dioptres."""
+    ok = isinstance(tolerance_D, (int, float, np.floating, np.integer)) and not isinstance(
+        tolerance_D, bool) and np.isfinite(tolerance_D) and 0 < float(tolerance_D) < 1
+    if not ok:
+        raise ParameterError("peak_tolerance_D", "{peak_tolerance_D} must lie in (0, 1) D (the "
+                             "largest error a grid-estimated peak may keep), got {got!r}",
+                             got=tolerance_D)
+
+
 def refine_peak(value_fn, lower_D, upper_D, start_D, args, method: str = "newton",
                 atol_D: float = 1e-5, max_steps: int = 64) -> Peak:
     """Maximise ``value_fn(a, args)`` (scalar a in D) on the bracket [lower_D, upper_D].
@@ -130,7 +154,7 @@ def refine_peak(value_fn, lower_D, upper_D, start_D, args, method: str = "newton
     atol_D : tolerance on the location, D
     """
     _check_method(method)
-    if method in ("parabola", "vertex", "local", "grid", "auto"):
+    if method in ("parabola", "vertex", "local", "grid", "auto", "adaptive"):
         raise ValueError(f"refine_peak needs a solver method (newton, golden, bfgs), got {method!r}")
     bracket = (lower_D, upper_D, start_D)
     if _is_concrete(*bracket):
@@ -198,6 +222,19 @@ def refine_peak(value_fn, lower_D, upper_D, start_D, args, method: str = "newton
 LOCAL_OFFSETS_D = (-0.02, 0.0, 0.02)
 """Offsets (D) from the grid parabola's vertex at which ``"local"`` evaluates the metric."""
 
+DEFAULT_TOLERANCE_D = 0.01
+"""``"adaptive"`` refines a peak whose grid estimate may be further than this from the
+true maximum, D (the paper study's target for a predicted accommodation)."""
+
+TYPICAL_REFINED_FRACTION = 0.15
+"""Fraction of peaks ``"adaptive"`` refines at the default tolerance on the paper's scene
+(11.5 % with its ±1 D window, rounded up: benchmarks/validation/peak_error_estimate.py);
+the sweep's time estimate uses it."""
+
+ADAPTIVE_BATCHES = 16
+"""``"adaptive"`` refines its flagged pairs in batches of 1/16 of all pairs (or the
+kernel's memory limit, if smaller): the work is rounded up to a batch."""
+
 LOCAL_TRUST_D = 0.05
 """``"local"`` trusts its fitted vertex this far (D) from the stencil's centre."""
 
@@ -205,14 +242,19 @@ LOCAL_TRUST_D = 0.05
 # Kernel evaluations one refinement step holds at once, per (eye, depth) pair and state it
 # evaluates: the local stencil's points; Newton's location is a root of the metric's slope,
 # so each step carries the value with its first and second forward derivatives.
-STATE_COST = {"local": len(LOCAL_OFFSETS_D), "newton": 4, "golden": 1, "bfgs": 3, "parabola": 1}
+STATE_COST = {"local": len(LOCAL_OFFSETS_D), "newton": 4, "golden": 1, "bfgs": 3, "parabola": 1,
+              "adaptive": len(LOCAL_OFFSETS_D)}
 
 
 def resolved_method(metric: str, method: str) -> str:
     """The refinement ``method`` runs for ``metric``: ``"auto"`` is Newton for VSOTF (smooth
-    in accommodation) and golden section for the Strehl ratio; any other name is itself."""
+    in accommodation) and golden section for the Strehl ratio; ``"adaptive"`` is itself for
+    VSOTF and golden section for the Strehl ratio (its grid estimate assumes a smooth
+    curve; the Strehl ratio's is piecewise smooth); any other name is itself."""
     if method == "auto":
         return "newton" if metric == "vsotf" else "golden"
+    if method == "adaptive" and metric != "vsotf":
+        return "golden"
     return method
 
 
@@ -238,7 +280,8 @@ def _map_pairs(fn, batch: int, *args):
     return jax.tree_util.tree_map(lambda x: x.reshape(lead + x.shape[1:]), out)
 
 
-def _local_refinement(value_fn, vertex_D, lower_D, upper_D, args, batch: int) -> Peak:
+def _local_stencil(vertex_D, lower_D, upper_D):
+    """The ``"local"`` stencil around the grid parabola's ``vertex_D``: (centre, points (…, 3))."""
     offsets = jnp.asarray(LOCAL_OFFSETS_D, vertex_D.dtype)
     # The stencil is moved inside the usable bracket rather than clipped at its ends: clipped
     # points would coincide at the hyperopic limit and leave the fit singular.
@@ -246,9 +289,12 @@ def _local_refinement(value_fn, vertex_D, lower_D, upper_D, args, batch: int) ->
     centre = jnp.clip(vertex_D, low - offsets[0], upper_D - offsets[-1])
     centre = jax.lax.stop_gradient(jnp.where(upper_D - low < offsets[-1] - offsets[0],
                                              0.5 * (low + upper_D), centre))
-    points = centre[..., None] + offsets
-    batched = jax.vmap(value_fn, in_axes=(0, None))  # over the stencil's points
-    values = _map_pairs(batched, batch, points, args)  # (n_eyes, n_depth, n_points)
+    return centre, centre[..., None] + offsets
+
+
+def _local_fit(centre, points, values, lower_D, upper_D) -> Peak:
+    """The ``"local"`` answer from the metric ``values`` at the stencil's ``points`` (…, 3)."""
+    low = jnp.maximum(lower_D, 0.0)
     # least-squares parabola in x = point − centre: minimise Σ (c0 + c1 x + c2 x² − v)²
     x = points - centre[..., None]
     design = jnp.stack([jnp.ones_like(x), x, x * x], axis=-1)
@@ -270,6 +316,33 @@ def _local_refinement(value_fn, vertex_D, lower_D, upper_D, args, batch: int) ->
                 jnp.full(location.shape, -1, jnp.int32), n)
 
 
+def _local_refinement(value_fn, vertex_D, lower_D, upper_D, args, batch: int) -> Peak:
+    centre, points = _local_stencil(vertex_D, lower_D, upper_D)
+    batched = jax.vmap(value_fn, in_axes=(0, None))  # over the stencil's points
+    values = _map_pairs(batched, batch, points, args)  # (n_eyes, n_depth, n_points)
+    return _local_fit(centre, points, values, lower_D, upper_D)
+
+
+def _adaptive_refinement(value_fn, estimate: GridEstimate, vertex_D, lower_D, upper_D, args,
+                         tolerance_D: float, force, batch: int) -> Peak:
+    """``"adaptive"``: the grid estimate where its error estimate is within ``tolerance_D``
+    (and lies in the bracket), the local stencil elsewhere and where ``force``."""
+    low = jnp.maximum(lower_D, 0.0)
+    trusted = ((estimate.error_D <= tolerance_D) & (estimate.accommodation_D >= low)
+               & (estimate.accommodation_D <= upper_D))
+    flagged = ~trusted | force
+    shape = estimate.accommodation_D.shape
+    fallback = Peak(estimate.accommodation_D, estimate.value, jnp.ones(shape, bool),
+                    jnp.full(shape, -1, jnp.int32), jnp.zeros(shape, jnp.int32))
+
+    def one_pair(vertex, lo, hi, pair_args):
+        centre, points = _local_stencil(vertex, lo, hi)
+        values = jax.vmap(value_fn, in_axes=(0, None))(points, pair_args)
+        return _local_fit(centre, points, values, lo, hi)
+
+    return _map_flagged(one_pair, flagged, batch, fallback, vertex_D, lower_D, upper_D, args)
+
+
 def _parabola_value(states_D, values, index, at_D):
     """Value at ``at_D`` (D) of the parabola through grid points index−1, index, index+1;
     the grid value where :func:`lfjax.base.parabola.parabola_vertex` falls back to the grid point."""
@@ -284,6 +357,172 @@ def _parabola_value(states_D, values, index, at_D):
     y0, y2, h = (jnp.where(ok, y0, y1), jnp.where(ok, y2, y1), jnp.where(ok, h, 1.0))
     x = at_D - a1
     return y1 + x * (y2 - y0) / (2 * h) + x * x * (y0 - 2 * y1 + y2) / (2 * h * h)
+
+
+ESTIMATE_NEWTON_STEPS = 8
+"""Newton steps that locate the maximum of :func:`grid_peak_estimate`'s polynomials (from
+the lower order's maximum, inside ±one grid step: quadratic convergence, far more than
+enough)."""
+
+ESTIMATE_RULES = {7: (3.0, 1e-3), 5: (2.0, 2e-3)}
+"""How :func:`grid_peak_estimate` turns the distance between its two interpolants into an
+error estimate, by the number of grid points it reads: (safety factor, floor in D). Chosen
+on the natural view and 2×2 views, and checked on the 3×3 and 4×4 views they were not
+chosen on (benchmarks/validation/peak_error_estimate.py); the floor covers two
+interpolants agreeing by chance while both are off by a little (< 1.5 mD there)."""
+
+
+class GridEstimate(eqx.Module):
+    """A peak located from the grid values alone, with an estimate of its own error.
+
+    Attributes (each (…))
+    ----------
+    accommodation_D : maximum of the polynomial through the logarithms of the seven grid
+        values around the grid maximum (five where the grid ends sooner), D
+    value : the interpolant's value there
+    error_D : estimated distance of ``accommodation_D`` from the true maximum, D
+        (:func:`grid_peak_estimate`). ``inf`` where the grid cannot tell: a grid maximum
+        without two usable neighbours on each side (at the window's end or the hyperopic
+        limit), a value that is not positive, a curve not concave there, or an
+        interpolated maximum beyond the grid maximum's neighbours.
+    n_points : grid points read (7, 5, or 0 where the grid cannot tell)
+    """
+
+    accommodation_D: Array
+    value: Array
+    error_D: Array
+    n_points: Array
+
+
+def _polynomial_maximum(u, y, start):
+    """Maximum near ``start`` of the polynomial through (u, y) (…, k) (degree k − 1), in
+    the units of u, kept inside [−1, 1]; returns (location, value, concave there)."""
+    half = (u.shape[-1] - 1) / 2  # u/half lies in [−1, 1]: a well-conditioned system
+    powers = jnp.arange(u.shape[-1], dtype=u.dtype)
+    vandermonde = (u / half)[..., :, None] ** powers
+    coefficients = jnp.linalg.solve(vandermonde, y[..., None])[..., 0]
+    slope_c = coefficients[..., 1:] * powers[1:]
+    curvature_c = slope_c[..., 1:] * powers[1:-1]
+
+    def evaluate(c, x):
+        return jnp.sum(c * (x / half)[..., None] ** jnp.arange(c.shape[-1], dtype=x.dtype),
+                       axis=-1)
+
+    x = start
+    for _ in range(ESTIMATE_NEWTON_STEPS):
+        g, h = evaluate(slope_c, x) * half, evaluate(curvature_c, x)
+        x = jnp.clip(jnp.where(h < 0, x - g / jnp.where(h < 0, h, -1.0), x), -1.0, 1.0)
+    return x, evaluate(coefficients, x), evaluate(curvature_c, x) < 0
+
+
+def grid_peak_estimate(states_D, values, index) -> GridEstimate:
+    """Locate the maximum at grid point ``index`` from the grid values alone, and estimate
+    the error of that location (:class:`GridEstimate`).
+
+    states_D (…, n) increasing and evenly spaced around ``index``, D; values (…, n),
+    positive, −inf (or NaN) at states not to use; index (…) int, the grid maximum.
+
+    Interpolants of the logarithms of the values (the through-focus curves resemble a
+    Gaussian near their maxima, which a parabola in the logarithm fits exactly: on the
+    paper's 0.2 D grid the quartic through the logarithms erred half as much as the
+    quartic through the values). With three usable points on each side of the maximum,
+    the answer is the maximum of the polynomial through all seven (sixth order) and its
+    error estimate is a safety factor times its distance from the maximum of the quartic
+    through the middle five, plus a floor (:data:`ESTIMATE_RULES`); with two on each side,
+    the quartic's maximum and its distance from the parabola through the middle three.
+    To leading order the distance is the lower order's error, which bounds the higher
+    order's. It is an estimate, not a proof: a feature narrower than the grid step is
+    invisible to any rule that reads only the grid. Validated against Newton at float64
+    (benchmarks/validation/peak_error_estimate.py).
+    """
+    n = states_D.shape[-1]
+    offsets = jnp.arange(-3, 4)
+    points = jnp.clip(index[..., None] + offsets, 0, n - 1)
+    take = lambda x: jnp.take_along_axis(x, points, axis=-1)  # noqa: E731
+    s, y = take(states_D), take(values)
+    inside = (index[..., None] + offsets >= 0) & (index[..., None] + offsets <= n - 1)
+    usable = inside & jnp.isfinite(y) & (y > 0)
+    five = jnp.all(usable[..., 1:6], axis=-1)
+    seven = five & usable[..., 0] & usable[..., 6]
+    centre = s[..., 3]
+    step = 0.5 * (s[..., 4] - s[..., 2])
+    step = jnp.where(five & (step > 0), step, 1.0)
+    regular = jnp.arange(-3.0, 4.0, dtype=s.dtype)
+    u = jnp.where(usable, (s - centre[..., None]) / step[..., None], regular)
+    log_y = jnp.log(jnp.where(usable, y, 1.0))
+    l0, l1, l2 = log_y[..., 2], log_y[..., 3], log_y[..., 4]
+    curvature = l0 - 2 * l1 + l2
+    concave = five & (curvature < 0)
+    vertex = jnp.clip(jnp.where(concave, 0.5 * (l0 - l2) / jnp.where(concave, curvature, -1.0),
+                                0.0), -1.0, 1.0)
+    x5, v5, c5 = _polynomial_maximum(u[..., 1:6], log_y[..., 1:6], vertex)
+    x7, v7, c7 = _polynomial_maximum(u, log_y, x5)
+    safety7, floor7 = ESTIMATE_RULES[7]
+    safety5, floor5 = ESTIMATE_RULES[5]
+    use7 = seven & c7 & (jnp.abs(x7) < 1.0)
+    x = jnp.where(use7, x7, x5)
+    value = jnp.where(use7, v7, v5)
+    distance = jnp.where(use7, jnp.abs(x7 - x5), jnp.abs(x5 - vertex)) * step
+    error = jnp.where(use7, safety7 * distance + floor7, safety5 * distance + floor5)
+    served = concave & c5 & (jnp.abs(x5) < 1.0)
+    # A grid maximum on the hyperopic limit (0 D) has no neighbour below it: the maximum
+    # is the limit itself when the curve falls from it, i.e. when the parabola through the
+    # logarithms of the first three values and the cubic through the first four both peak
+    # below 0 D (their extrapolated maxima lie beyond the limit)
+    at_limit = (centre <= 0.0) & jnp.all(usable[..., 3:], axis=-1)
+    step_up = jnp.where(at_limit, s[..., 4] - centre, 1.0)
+    u_up = jnp.where(at_limit[..., None], (s[..., 3:] - centre[..., None]) / step_up[..., None],
+                     jnp.arange(4.0, dtype=s.dtype))
+    a0, a1, a2 = log_y[..., 3], log_y[..., 4], log_y[..., 5]
+    bend = a0 - 2 * a1 + a2  # parabola through u = 0, 1, 2: slope at u = 0 is (−3a0 + 4a1 − a2)/2
+    falls3 = (bend < 0) & (-3 * a0 + 4 * a1 - a2 < 0)
+    powers = jnp.arange(4, dtype=s.dtype)
+    cubic = jnp.linalg.solve(u_up[..., :, None] ** powers, log_y[..., 3:, None])[..., 0]
+    slope = lambda u: cubic[..., 1] + 2 * cubic[..., 2] * u + 3 * cubic[..., 3] * u * u  # noqa: E731
+    falls4 = (slope(0.0) < 0) & (slope(0.5) < 0) & (slope(1.0) < 0)
+    on_limit = at_limit & falls3 & falls4 & ~served
+    # unserved: the grid maximum itself, its value; the error is unknown
+    return GridEstimate(jnp.where(served, centre + x * step, centre),
+                        jnp.exp(jnp.where(served, value, l1)),
+                        jnp.where(served, error, jnp.where(on_limit, floor5, jnp.inf)),
+                        jnp.where(served, jnp.where(use7, 7, 5),
+                                  jnp.where(on_limit, 4, 0)).astype(jnp.int32))
+
+
+def _map_flagged(fn, flagged, batch: int, fallback, *args):
+    """``fn`` (one (eye, depth) pair → pytree) on the pairs where ``flagged`` (n_eyes,
+    n_depth) is true, ``fallback`` (a pytree of (n_eyes, n_depth, …) arrays) elsewhere.
+
+    The flagged pairs are gathered first and evaluated ``batch`` at a time in one
+    ``lax.map``; a batch with no flagged pair is skipped (``lax.cond``), so the work is
+    that of the flagged pairs rounded up to a batch."""
+    lead = flagged.shape
+    n_pairs = lead[0] * lead[1]
+    batch = max(1, min(int(batch), n_pairs))
+    n_batches = -(-n_pairs // batch)
+    flat = lambda x: x.reshape((n_pairs,) + x.shape[2:])  # noqa: E731
+    order = jnp.argsort(~flagged.reshape(-1), stable=True)  # flagged pairs first
+    n_flagged = jnp.sum(flagged)
+    pad = n_batches * batch - n_pairs
+    order_padded = jnp.concatenate([order, jnp.broadcast_to(order[-1:], (pad,))])
+    gathered = jax.tree_util.tree_map(
+        lambda x: flat(x)[order_padded].reshape((n_batches, batch) + x.shape[2:]), args)
+    skipped = jax.tree_util.tree_map(
+        lambda x: flat(x)[order_padded].reshape((n_batches, batch) + x.shape[2:]), fallback)
+
+    def one_batch(item):
+        k, xs, rest = item
+        return jax.lax.cond(k * batch < n_flagged, lambda: jax.vmap(fn)(*xs), lambda: rest)
+
+    out = jax.lax.map(one_batch, (jnp.arange(n_batches), gathered, skipped))
+    inverse = jnp.argsort(order)
+
+    def scatter(computed, default):
+        computed = computed.reshape((n_batches * batch,) + computed.shape[2:])[:n_pairs][inverse]
+        keep = flagged.reshape((n_pairs,) + (1,) * (computed.ndim - 1))
+        return jnp.where(keep, computed, flat(default)).reshape(lead + computed.shape[1:])
+
+    return jax.tree_util.tree_map(scatter, out, fallback)
 
 
 class Peaks(eqx.Module):
@@ -302,6 +541,9 @@ class Peaks(eqx.Module):
     second_accommodation_D, second_value : the other local maximum (NaN where there is none)
     at_hyperopic_limit : bool — the maximum is at 0 D (the eye cannot relax further)
     at_grid_edge : bool — the grid maximum is the last (or first, above 0 D) state
+    grid_error_D : the grid's own estimate of how far its interpolated peak lies from the
+        true maximum (:func:`grid_peak_estimate`), D; ``inf`` where it cannot tell. The
+        ``"adaptive"`` method refines exactly the peaks where it exceeds ``tolerance_D``.
     """
 
     accommodation_D: Array
@@ -315,6 +557,7 @@ class Peaks(eqx.Module):
     second_value: Array
     at_hyperopic_limit: Array
     at_grid_edge: Array
+    grid_error_D: Array
 
     @property
     def has_second_peak(self):
@@ -361,6 +604,7 @@ def accommodation_peaks(
     metric: str = "vsotf", method: str = "auto",
     allowed: Bool[ArrayLike, "n_depth n_k"] | None = None, prominence: float = 0.05,
     atol_D: float = 1e-5, max_steps: int = 32, refine_second: bool = True,
+    tolerance_D: float = DEFAULT_TOLERANCE_D,
 ) -> Peaks:
     """Continuous predicted accommodation of every eye and rendered depth.
 
@@ -383,6 +627,8 @@ def accommodation_peaks(
         run in one batched solve and the higher refined value is returned as the peak (a
         second peak that refines higher wins). False halves the solver's work: the second
         peak is located by the grid parabola and valued on the grid.
+    tolerance_D : ``"adaptive"`` only: refine the peaks whose grid estimate's error
+        (:func:`grid_peak_estimate`) may exceed this, D; the others keep the estimate
     """
     _check_method(method)
     if metric not in METRICS:
@@ -391,7 +637,7 @@ def accommodation_peaks(
     on_grid = retinal_metrics(eyes, scene, spectrum, grid, config, reference)
     return peaks_from_grid(getattr(on_grid, metric), eyes, scene, spectrum, grid, config,
                            reference, metric, method, allowed, prominence, atol_D, max_steps,
-                           refine_second)
+                           refine_second, tolerance_D)
 
 
 def single_state_metric(measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
@@ -418,12 +664,14 @@ def peaks_from_grid(
     values, eyes: Eyes, scene: Scene, spectrum: Spectrum, grid: Accommodation,
     config: PipelineConfig, reference, metric: str = "vsotf", method: str = "auto",
     allowed=None, prominence: float = 0.05, atol_D: float = 1e-5, max_steps: int = 32,
-    refine_second: bool = True,
+    refine_second: bool = True, tolerance_D: float = DEFAULT_TOLERANCE_D,
 ) -> Peaks:
     """:func:`accommodation_peaks` from metric values already computed on the grid,
     ``values`` (n_eyes, n_depth, n_k); ``reference`` = the scene's
-    :func:`lfjax.kernel.pipeline.reference_normalisers`."""
+    :func:`lfjax.kernel.pipeline.reference_normalisers`; ``tolerance_D``: see
+    :func:`accommodation_peaks`."""
     _check_method(method)
+    check_tolerance(tolerance_D)
     method = resolved_method(metric, method)
     if grid.pair_index.shape[-1] < 2:
         raise ValueError(
@@ -460,6 +708,10 @@ def peaks_from_grid(
     n_candidates = 2 if refine_second else 1
     batch = _pairs_per_batch(scene, config, method, n_candidates)
 
+    masked = jnp.where(allowed_b, values, -jnp.inf)
+    has_second = second >= 0
+    second_index = jnp.where(has_second, second, best)
+
     def refine(index):  # index (n_eyes, n_depth)
         lo, hi = bracket_of(index)
         start = take(states_b, index)
@@ -488,9 +740,35 @@ def peaks_from_grid(
             value_fn, lo_, hi_, s_, (z_, d_), method, atol_D, max_steps)
         return _map_pairs(solve, batch, lo, hi, start, z_b, depths_b)
 
-    has_second = second >= 0
-    second_index = jnp.where(has_second, second, best)
-    if refine_second:
+    if method == "adaptive":
+        # The candidates go side by side along the eye axis (not vmapped: under vmap the
+        # skipped batches would be computed); a pair with a second peak refines both, since
+        # the choice between them reads their refined values.
+        n_cand = 2 if refine_second else 1
+        index = jnp.concatenate([best, second_index][:n_cand])
+        bounds = [bracket_of(i) for i in (best, second_index)[:n_cand]]
+        lo = jnp.concatenate([b[0] for b in bounds])
+        hi = jnp.concatenate([b[1] for b in bounds])
+        tile = lambda x: jnp.concatenate([x] * n_cand)  # noqa: E731
+        estimate = grid_peak_estimate(tile(states_b), tile(masked), index)
+        vertex = parabola_vertex(tile(states_b), tile(masked), index)
+        force = tile(has_second) if refine_second else jnp.zeros(index.shape, bool)
+        n_pairs = index.shape[0] * index.shape[1]
+        adaptive_batch = max(1, min(batch, -(-n_pairs // ADAPTIVE_BATCHES)))
+        both = _adaptive_refinement(value_fn, estimate, vertex, lo, hi,
+                                    (tile(z_b), tile(depths_b)), tolerance_D, force,
+                                    adaptive_batch)
+        n_eyes = values.shape[0]
+        main = jax.tree_util.tree_map(lambda x: x[:n_eyes], both)
+        if refine_second:
+            other = jax.tree_util.tree_map(lambda x: x[n_eyes:], both)
+        else:
+            located = jnp.clip(parabola_vertex(states_b, masked, second_index),
+                               *bracket_of(second_index))
+            other = Peak(located, take(values, second_index), jnp.ones(located.shape, bool),
+                         jnp.full(located.shape, -1, jnp.int32),
+                         jnp.zeros(located.shape, jnp.int32))
+    elif refine_second:
         # Both candidates in one batched solve: one compiled solver (a lax.cond between two
         # solves compiled the pipeline's derivatives twice).
         both = jax.vmap(refine)(jnp.stack([best, second_index]))
@@ -519,12 +797,15 @@ def peaks_from_grid(
         second_accommodation_D=jnp.where(distinct, alt.accommodation_D, jnp.nan),
         second_value=jnp.where(distinct, alt.value, jnp.nan),
         at_hyperopic_limit=at_limit, at_grid_edge=at_edge,
+        grid_error_D=grid_peak_estimate(states_b, masked, edge_index).error_D,
     )
 
 
 __all__ = [
     "PEAK_METHODS",
     "single_state_metric",
+    "GridEstimate",
+    "grid_peak_estimate",
     "Peak",
     "Peaks",
     "refine_peak",

@@ -207,7 +207,8 @@ def test_store_equals_through_focus_on_the_same_eyes_and_sampling(reference):
             eyes, task.layout, task.depths_D, accommodation_D=config.accommodation_D,
             window_D=config.window_D, pupil_diameter_mm=task.pupil_mm, cdp_D=config.cdp_D,
             spectrum=sweep_spectrum(config), sampling=task.sampling, options=config.options,
-            continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False,
+            continuous_peaks=("vsotf",), peak_method=config.peak_method,
+            peak_tolerance_D=config.peak_tolerance_D, refine_second_peaks=False,
         )
         sub = ds.isel(pupil=task.pupil_index, layout=task.layout_index,
                       depth=list(task.depth_slots))

@@ -367,3 +367,145 @@ def test_pairs_refined_in_batches_equal_pairs_refined_together(monkeypatch, meth
     np.testing.assert_array_equal(batched[2], together[2])
     for a, b in zip(batched[:2], together[:2]):  # float64 rounding of another program only
         np.testing.assert_allclose(a, b, rtol=1e-13, atol=0)
+
+
+# ------------------------------------------------------------------ "adaptive"
+
+
+def test_grid_estimate_is_exact_for_a_gaussian_and_bounds_a_skewed_peak():
+    """The grid estimate (quartic through the logarithms of five samples) is exact for a
+    Gaussian peak, wherever it falls between grid points; on smooth skewed peaks it is
+    off, and its error estimate bounds how far off (float64, analytic)."""
+    from lfjax.vision.peaks import ESTIMATE_RULES, grid_peak_estimate
+
+    states = np.round(np.arange(0, 26) * 0.2, 9)
+    for centre in (1.0, 1.0731, 2.4499):
+        gauss = 0.4 * np.exp(-((states - centre) / 0.35) ** 2)
+        est = grid_peak_estimate(states, gauss, np.argmax(gauss))
+        assert abs(float(est.accommodation_D) - centre) < 1e-9
+        np.testing.assert_allclose(float(est.value), 0.4, rtol=1e-9)
+        # the lower order is exact too: the estimate is its rule's floor
+        assert int(est.n_points) == 7
+        np.testing.assert_allclose(float(est.error_D), ESTIMATE_RULES[7][1], atol=1e-9)
+    # skewed, smooth: exp(−x²/2σ²)·(1 + tanh kx), maximum found on a 1e-5 D grid
+    grid_fine = np.linspace(0, 5, 500001)
+    errors = []
+    for sigma in (0.3, 0.5):
+        for k in (-2.0, -1.0, 1.0, 2.0):
+            for centre in (1.0, 1.07, 2.31):
+                def f(a):
+                    return np.exp(-(a - centre) ** 2 / (2 * sigma**2)) * (1 + np.tanh(k * (a - centre)))
+                truth = grid_fine[np.argmax(f(grid_fine))]
+                values = f(states)
+                est = grid_peak_estimate(states, values, np.argmax(values))
+                errors.append(abs(float(est.accommodation_D) - truth))
+                assert errors[-1] <= float(est.error_D), (sigma, k, centre, errors[-1])
+    assert max(errors) > 1e-4, "skewed peaks the grid cannot place exactly"
+
+
+def test_grid_estimate_refuses_what_the_grid_cannot_tell():
+    """No estimate (error ∞, the grid maximum kept) where a neighbour is missing, the
+    curve is not concave, or a value is not positive."""
+    from lfjax.vision.peaks import grid_peak_estimate
+
+    states = np.round(np.arange(0, 11) * 0.2, 9)
+    peak = np.exp(-((states - 1.0) / 0.4) ** 2)
+    at_start = np.exp(-((states - 0.1) / 0.4) ** 2)  # grid maximum at index 0 or 1
+    masked = np.where(np.arange(11) < 6, peak, -np.inf)  # index 5 maximum, index 6 masked
+    masked[5] = peak[5] * 1.01
+    flat = np.ones(11)
+    negative = peak - 0.5
+    for values in (at_start, masked, flat, negative):
+        est = grid_peak_estimate(states, values, np.argmax(values))
+        assert np.isinf(float(est.error_D))
+        assert float(est.accommodation_D) == states[np.argmax(values)]
+
+
+def test_map_flagged_evaluates_only_the_flagged_pairs():
+    """Flagged pairs get fn, the others the fallback; fn never sees an unflagged pair's
+    batch when a whole batch is unflagged (a counter inside fn would show it: here, fn
+    returns a marker that the fallback cannot)."""
+    from lfjax.vision.peaks import _map_flagged
+
+    rng = np.random.default_rng(0)
+    x = jnp.asarray(rng.normal(size=(5, 7)))
+    for fraction in (0.0, 0.2, 1.0):
+        flagged = jnp.asarray(rng.random((5, 7)) < fraction)
+        fallback = -jnp.ones((5, 7))
+        for batch in (1, 3, 35):
+            out = _map_flagged(lambda v: v * v + 10.0, flagged, batch, fallback, x)
+            expected = np.where(np.asarray(flagged), np.asarray(x) ** 2 + 10.0, -1.0)
+            np.testing.assert_allclose(np.asarray(out), expected, rtol=1e-12)
+
+
+def test_adaptive_refines_exactly_where_the_estimate_exceeds_the_tolerance():
+    """Aberrated eyes, 2×2 views, three wavelengths: "adaptive" returns "local"'s peak on
+    the pairs whose grid estimate may exceed the tolerance (n_steps 3) and the grid
+    estimate elsewhere (n_steps 0), each within the tolerance of "local"'s; a tolerance
+    below every estimate refines everything and reproduces "local"."""
+    layout = lfjax.grid_layout(2, 3.0)
+    options = lfjax.ModelOptions()
+    spectrum = lfjax.make_spectrum([450.0, 550.0, 650.0], options)
+    depths = [0.0, 1.0, 2.0, 3.5]
+    cfg, scene, grid, allowed = _pipeline(layout, depths, options=options, spectrum=spectrum,
+                                          window=2.0)
+    eyes = lfjax.sample_eyes(5, 6)
+    local = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "vsotf", "local", allowed,
+                                refine_second=False)
+    for tol in (0.01, 0.002):
+        adaptive = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "vsotf", "adaptive",
+                                       allowed, refine_second=False, tolerance_D=tol)
+        refined = np.asarray(adaptive.n_steps) > 0
+        estimate = np.asarray(adaptive.grid_error_D)
+        np.testing.assert_array_equal(refined, ~(estimate <= tol) | ~np.isfinite(estimate))
+        a, b = np.asarray(adaptive.accommodation_D), np.asarray(local.accommodation_D)
+        np.testing.assert_allclose(a[refined], b[refined], atol=1e-6)
+        assert np.all(np.abs(a - b)[~refined] <= tol + 2e-4)  # "local" is itself ~1e-4 off
+        assert np.all(np.asarray(adaptive.success) == np.asarray(local.success)) or tol < 0.01
+    everything = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "vsotf", "adaptive",
+                                     allowed, refine_second=False, tolerance_D=1e-9)
+    assert np.all(np.asarray(everything.n_steps) == 3)
+    np.testing.assert_allclose(np.asarray(everything.accommodation_D),
+                               np.asarray(local.accommodation_D), atol=1e-6)
+
+
+def test_adaptive_gradient_matches_finite_difference():
+    """d(peak)/d(Zernike coefficients) through "adaptive", with one pair refined (depth
+    0 D: its grid maximum lacks two neighbours below) and one kept from the grid (1.5 D:
+    the estimate is differentiable too, checked against central differences; float64)."""
+    layout = lfjax.grid_layout(2, 3.0)
+    options = lfjax.ModelOptions()
+    spectrum = lfjax.make_spectrum([550.0], options)
+    cfg, scene, grid, allowed = _pipeline(layout, [0.0, 1.5], options=options, spectrum=spectrum)
+    z0 = jnp.asarray(np.asarray(lfjax.sample_eyes(2, 1).zernike_um)[0])
+
+    def peaks(z):
+        return accommodation_peaks(lfjax.Eyes(z[None], 3.0), scene, spectrum, grid, cfg,
+                                   "vsotf", "adaptive", allowed, refine_second=False)
+
+    np.testing.assert_array_equal(np.asarray(peaks(z0).n_steps), [[3, 0]])
+    v = H.random_direction(jax.random.key(4), z0)
+    # kept from the grid: the derivative of the estimate's own location
+    directional = H.tree_vdot(jax.grad(lambda z: peaks(z).accommodation_D[0, 1])(z0), v)
+    fd = H.directional_fd(lambda z: peaks(z).accommodation_D[0, 1], z0, v, 1e-5)
+    assert abs(fd) > 1e-3
+    np.testing.assert_allclose(directional, fd, rtol=1e-3)
+    # refined: "local"'s derivative (its fitted vertex's, with the stencil held), passed
+    # through the gather and scatter unchanged
+    local = jax.grad(lambda z: accommodation_peaks(
+        lfjax.Eyes(z[None], 3.0), scene, spectrum, grid, cfg, "vsotf", "local", allowed,
+        refine_second=False).accommodation_D[0, 0])(z0)
+    refined = jax.grad(lambda z: peaks(z).accommodation_D[0, 0])(z0)
+    assert float(jnp.max(jnp.abs(local))) > 1e-2
+    np.testing.assert_allclose(np.asarray(refined), np.asarray(local), rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("tolerance", [0.0, -0.01, float("nan"), 1.5, "0.01"])
+def test_adaptive_tolerance_is_checked(tolerance):
+    from lfjax.base.errors import ParameterError
+
+    layout = lfjax.open_pupil(3.0)
+    cfg, scene, grid, allowed = _pipeline(layout, [2.0])
+    with pytest.raises(ParameterError, match="peak_tolerance_D"):
+        accommodation_peaks(_defocused_eye(0.1), scene, SPECTRUM, grid, cfg, "vsotf",
+                            "adaptive", allowed, tolerance_D=tolerance)
