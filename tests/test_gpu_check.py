@@ -92,15 +92,14 @@ def test_commands_are_accepted_by_lfjax(tmp_path, tiny):
 
 
 def test_full_size_is_the_issue_s_question(tmp_path):
-    """At full size: reproduce and optimise at their defaults (only --no-progress and --out
-    given), the sweep 10,000 eyes x the paper's four layouts x 9 depths with every other key
+    """At full size: reproduce and optimise at their defaults (only --out given), the sweep 10,000 eyes x the paper's four layouts x 9 depths with every other key
     at its default but the chunk size, 256 (the script records it)."""
     commands, config = _printed(False, tmp_path)
     parser = build_parser()
     for name in ("reproduce_cold", "optimise"):
         argv = commands[name]
         given = parser.parse_args(argv)
-        default = parser.parse_args([argv[0], "--out", given.out, "--no-progress"])
+        default = parser.parse_args([argv[0], "--out", given.out])
         assert vars(given) == vars(default), name
     assert config.n_eyes == 10_000
     assert tuple(config.layouts) == tuple(PAPER_LAYOUTS) and len(config.depths_D) == 9

@@ -115,13 +115,29 @@ def _write_stats(stats_file: Path, **fields) -> None:
     tmp.replace(stats_file)  # whole or not at all, whenever the process is killed
 
 
+_SAMPLING = threading.Lock()
+_FINISHED = threading.Event()
+
+
 def _sample_rss(stats_file: Path, t0: float, period_s: float = 1.0) -> None:
     """Keep the peak resident memory so far in ``stats_file`` while the command runs: a step
     killed after its grace (SIGKILL) leaves /usr/bin/time nothing to report, but this."""
-    while True:
-        time.sleep(period_s)
-        _write_stats(stats_file, rc=None, running=True,
-                     in_process_s=round(time.perf_counter() - t0, 3))
+    while not _FINISHED.wait(period_s):
+        with _SAMPLING:  # never after the final figures
+            if not _FINISHED.is_set():
+                _write_stats(stats_file, rc=None, running=True,
+                             in_process_s=round(time.perf_counter() - t0, 3))
+
+
+def _backend_started() -> bool:
+    """Whether jax has started a backend (reading memory statistics would start one, which
+    takes seconds on a GPU that a stopped step does not have)."""
+    try:
+        from jax._src import xla_bridge  # private: only this yes/no is read from it
+
+        return bool(xla_bridge._backends)
+    except Exception:  # noqa: BLE001 - another jax: ask the devices anyway
+        return hasattr(sys.modules["jax"], "local_devices")
 
 
 def cmd_exec(stats_file: Path, argv: list[str]) -> int:
@@ -142,7 +158,7 @@ def cmd_exec(stats_file: Path, argv: list[str]) -> int:
         peaks, backend = [], None
         # jax's figures only if it got as far as importing jax (a step stopped while
         # importing must not start now: the grace before SIGKILL is short)
-        if "jax" in sys.modules and hasattr(sys.modules["jax"], "local_devices"):
+        if "jax" in sys.modules and _backend_started():
             try:
                 jax = sys.modules["jax"]
                 backend = jax.default_backend()
@@ -152,10 +168,12 @@ def cmd_exec(stats_file: Path, argv: list[str]) -> int:
                         peaks.append(stats["peak_bytes_in_use"])
             except Exception as err:  # noqa: BLE001 - the figures are optional, the status not
                 error = error or f"memory_stats: {type(err).__name__}: {err}"
-        _write_stats(stats_file, rc=int(rc if rc is not None else 0),
-                     in_process_s=round(seconds, 3),
-                     device_peak_bytes=max(peaks) if peaks else None, backend=backend,
-                     error=error)
+        with _SAMPLING:
+            _FINISHED.set()
+            _write_stats(stats_file, rc=int(rc if rc is not None else 0),
+                         in_process_s=round(seconds, 3),
+                         device_peak_bytes=max(peaks) if peaks else None, backend=backend,
+                         error=error)
     return int(rc or 0)
 
 

@@ -34,7 +34,8 @@
 # --print-commands prints the four commands and the sweep's config, and runs nothing.
 #
 # Record, in one folder (default benchmarks/speed/gpu_check/<date>-<short commit>/):
-#   log.txt          everything printed (also on the terminal, unbuffered)
+#   log.txt          everything printed (also on the terminal, unbuffered), lfjax's progress
+#                    bars included (one update per 5 s: TQDM_MININTERVAL)
 #   run.json         command, date, commit (and whether the tree was modified), limit,
 #                    caches, the JAX_/XLA_/LFJAX_/CUDA_ environment, total time
 #   device.json      jax's backend, devices (memory limits), versions; nvidia-smi.txt
@@ -79,20 +80,23 @@ while [ $# -gt 0 ]; do
     esac
     shift
 done
-[[ $LIMIT =~ ^[0-9]+$ ]] && [ "$LIMIT" -ge 30 ] || refuse "--limit must be whole seconds >= 30, got '$LIMIT'"
+[[ $LIMIT =~ ^[0-9]+$ ]] && [ "$LIMIT" -ge 30 ] \
+    || refuse "--limit must be whole seconds >= 30, got '$LIMIT'"
 [ -z "$CHUNK" ] || { [[ $CHUNK =~ ^[0-9]+$ ]] && [ "$CHUNK" -ge 1 ]; } \
     || refuse "--chunk must be a whole number >= 1, got '$CHUNK'"
 
 PY=${PYTHON:-$(command -v python || command -v python3)}
 [ -n "$PY" ] || refuse "no python found (set PYTHON)"
-export PYTHONUNBUFFERED=1
+# lfjax's own progress bars go into the log too (where a stopped step had got to), one
+# update every 5 s at most
+export PYTHONUNBUFFERED=1 TQDM_MININTERVAL=${TQDM_MININTERVAL:-5}
 
 # ---------------------------------------------------------------- the commands
 # commands TOML CHUNK: sets REPRODUCE, OPTIMISE and N_EYES, writes the sweep's config to TOML
 commands() {
     local toml=$1 chunk=$2
     if [ "$TINY" = 1 ]; then
-        REPRODUCE=(reproduce --quick --no-progress)
+        REPRODUCE=(reproduce --quick)
         N_EYES=1
         cat >"$toml" <<TOML
 # gpu_check.sh --tiny: 1 eye + the average eye x 1 layout x 2 depths, coarse grids
@@ -110,10 +114,9 @@ wavelengths_nm = [400.0, 700.0, 100.0]
 chunk_size = $chunk
 TOML
         OPTIMISE=(optimise --train-eyes 1 --test-eyes 0 --wavelengths 550 --freq-step 2
-                  --depths 1 3 --n-depths 2 --max-diameter 2 --steps 1 --report-accuracy fit
-                  --no-progress)
+                  --depths 1 3 --n-depths 2 --max-diameter 2 --steps 1 --report-accuracy fit)
     else
-        REPRODUCE=(reproduce --no-progress)
+        REPRODUCE=(reproduce)
         N_EYES=10000
         cat >"$toml" <<TOML
 # gpu_check.sh: 10,000 eyes (+ the average eye) x the paper's four layouts x 9 depths;
@@ -123,7 +126,7 @@ n_eyes = $N_EYES
 [run]
 chunk_size = $chunk
 TOML
-        OPTIMISE=(optimise --no-progress)
+        OPTIMISE=(optimise)
     fi
 }
 
@@ -132,7 +135,7 @@ if [ "$PRINT" = 1 ]; then  # what would run (the test suite parses it); nothing 
     commands "$toml" "${CHUNK:-$([ "$TINY" = 1 ] && echo 2 || echo 256)}"
     echo "reproduce_cold: lfjax ${REPRODUCE[*]} --out \$WORK/reproduce_cold"
     echo "reproduce_warm: lfjax ${REPRODUCE[*]} --out \$WORK/reproduce_warm"
-    echo "sweep: lfjax sweep \$WORK/sweep.toml --out \$WORK/sweep.zarr --no-progress"
+    echo "sweep: lfjax sweep \$WORK/sweep.toml --out \$WORK/sweep.zarr"
     echo "optimise: lfjax ${OPTIMISE[*]} --out \$WORK/optimise"
     echo "--- sweep.toml"
     cat "$toml"
@@ -250,7 +253,11 @@ run_step() {  # NAME CAP [KEY JSON]... -- LFJAX-ARGS...
         | tee "$OUT/steps/$name.log"
     rc=${PIPESTATUS[0]}
     t1=$(date +%s.%N)
-    if [ -n "$SMI_PID" ]; then kill "$SMI_PID" 2>/dev/null; wait "$SMI_PID" 2>/dev/null; SMI_PID=""; fi
+    if [ -n "$SMI_PID" ]; then
+        kill "$SMI_PID" 2>/dev/null
+        wait "$SMI_PID" 2>/dev/null
+        SMI_PID=""
+    fi
     wall=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
     [ "$rc" = 0 ] || FAILED=1
     "$PY" "$HELPER" step "$OUT" "$name" --field command "$cmd" --field wall_s "$wall" \
@@ -269,7 +276,7 @@ AVAIL=$(left)
 run_step reproduce_cold $((AVAIL * 30 / 100)) -- "${REPRODUCE[@]}" --out "$WORK/reproduce_cold"
 run_step reproduce_warm $((AVAIL * 12 / 100)) -- "${REPRODUCE[@]}" --out "$WORK/reproduce_warm"
 run_step sweep $((AVAIL * 38 / 100)) store "\"$WORK/sweep.zarr\"" n_eyes "$N_EYES" \
-    chunk_size "$CHUNK" -- sweep "$WORK/sweep.toml" --out "$WORK/sweep.zarr" --no-progress
+    chunk_size "$CHUNK" -- sweep "$WORK/sweep.toml" --out "$WORK/sweep.zarr"
 run_step optimise "$LIMIT" -- "${OPTIMISE[@]}" --out "$WORK/optimise"
 
 for name in reproduce_cold reproduce_warm; do
