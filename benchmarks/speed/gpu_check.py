@@ -350,8 +350,8 @@ def cmd_summary(out: Path) -> int:
             f"| {name} | `{s.get('command', '—')}` | {wall} | {_status(s)} | "
             f"{_mib(rss * 1024) if rss else 'n/a'} | {device_peak} |")
     if sweep.get("chunk_size"):
-        lines += ["", f"The sweep ran {sweep.get('n_eyes')} eyes (plus the average eye) in "
-                      f"chunks of {sweep['chunk_size']} (run.chunk_size)"
+        lines += ["", f"The sweep's config: {sweep.get('n_eyes')} eyes (plus the average "
+                      f"eye) in chunks of {sweep['chunk_size']} (run.chunk_size)"
                       + (f"; {sweep_note}" if sweep_note else "") + "."]
     lines += ["", "## Targets (issue #36 item 7, on one GPU)", "",
               "| target | goal | measured | verdict |", "| --- | --- | --- | --- |"]
