@@ -348,6 +348,7 @@ def test_the_folders_are_the_layers():
 PROJECT_WIDE_TESTS = {
     "test_docs.py": "the documentation site, the README's and guides' examples",
     "test_errors.py": "bad input at every public entry point",
+    "test_gpu_check.py": "benchmarks/speed/gpu_check.sh, the one-command GPU check, on the CPU",
     "test_import_layers.py": "this file: the layers and the tests' tree",
     "test_isetbio_style.py": "the ISETBio-style baseline kept beside the tests",
     "test_precision.py": "every matrix product asks for full precision",
