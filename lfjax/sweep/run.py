@@ -22,7 +22,7 @@ import jax
 import numpy as np
 from jax.experimental import multihost_utils
 
-from lfjax.sweep.compute import ChunkEvaluator, build_tasks, population, sweep_spectrum
+from lfjax.sweep.compute import ChunkEvaluator, build_tasks, population
 from lfjax.sweep.config import SweepConfig
 from lfjax.sweep.guard import check_fits, estimate
 from lfjax.sweep.store import (
@@ -108,7 +108,8 @@ def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | 
 
     ``progress``: say on stderr what is being drawn and planned, and how long it took.
 
-    Returns ``(eyes, is_average, spectrum, tasks, estimate)``.
+    Returns ``(eyes, is_average, spectrum, tasks, estimate)``; ``spectrum`` is None: each
+    task carries its own (``Task.spectrum``, :func:`~lfjax.sweep.compute.sweep_spectra`).
     """
     n_devices = len(jax.local_devices() if devices is None else devices)
     # sizes known from the config alone first: planning an impossible grid would itself
@@ -116,13 +117,13 @@ def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | 
     check_fits(estimate(config, n_devices=n_devices), store=store)
     t0 = time.perf_counter()
     eyes, is_average = population(config)
-    spectrum = sweep_spectrum(config)
+    spectrum = None  # each task carries its own (build_tasks: sweep_spectra)
     n_tasks = len(config.pupil_diameters_mm) * len(config.layouts)
     if progress:
         _say(f"drew {config.n_total_eyes} eyes; "
              + ("reading the stored sampling of" if samplings else "planning the sampling of")
              + f" {n_tasks} (pupil, layout) pair(s) on them ...")
-    tasks = build_tasks(config, eyes, spectrum, samplings)
+    tasks = build_tasks(config, eyes, None, samplings)
     if progress:
         _say(f"planned in {time.perf_counter() - t0:.1f} s")
     est = estimate(config, tasks, n_devices=n_devices)
