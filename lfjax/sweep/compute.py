@@ -196,10 +196,12 @@ def _plan(config: SweepConfig, eyes: Eyes, layout: Layout, pupil_mm: float, dept
 
 
 def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = None,
-                samplings: dict | None = None) -> list[Task]:
+                samplings: dict | None = None, spectra: dict | None = None) -> list[Task]:
     """One :class:`Task` per (pupil, layout), sampling checked against the whole population.
 
-    ``spectrum``: one spectrum for every task; None: each task's own (:func:`sweep_spectra`).
+    ``spectrum``: one spectrum for every task; else ``spectra`` ({(pupil_index,
+    layout_index): Spectrum}, a resumed store's) or each task's planned one
+    (:func:`sweep_spectra`).
 
     ``samplings`` maps (pupil_index, layout_index) to a
     :class:`~lfjax.base.sampling.Sampling` to use instead of planning (a resumed store's);
@@ -208,7 +210,8 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
     (:func:`lfjax.vision.prepare.with_aliasing_retry`). Each task is prepared by
     :func:`lfjax.vision.prepare.prepare`.
     """
-    spectra = sweep_spectra(config) if spectrum is None else None
+    if spectrum is None and spectra is None:
+        spectra = sweep_spectra(config)
     validate_coefficients(np.asarray(eyes.zernike_um))  # before planning reads the eyes
     all_depths = config.depths_D
     cdp_slot = int(np.argmin(np.abs(all_depths - config.cdp_D)))
@@ -216,7 +219,7 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
     for pi, pupil in enumerate(config.pupil_diameters_mm):
         for li, entry in enumerate(config.layouts):
             layout = resolve_layout(config, entry, pupil)
-            task_spectrum = spectrum if spectra is None else spectra[(pi, li)]
+            task_spectrum = spectrum if spectrum is not None else spectra[(pi, li)]
             slots = (cdp_slot,) if entry == "natural" else tuple(range(all_depths.size))
             depths = all_depths[list(slots)]
             states = States.grid(config.accommodation_D, depths, config.window_D)

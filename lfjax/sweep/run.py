@@ -33,6 +33,7 @@ from lfjax.sweep.store import (
     create_store,
     record_run,
     stored_samplings,
+    stored_spectra,
     template,
     unmark_chunks,
     utc_now,
@@ -99,7 +100,7 @@ def _say(text: str) -> None:
 
 
 def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | None = None,
-               progress: bool = False):
+               progress: bool = False, spectra: dict | None = None):
     """Everything a sweep decides before it creates anything: the population, the spectrum,
     each (pupil, layout)'s task (sampling planned on the whole population) and the
     :class:`~lfjax.sweep.guard.SweepEstimate`; refuses (:class:`SweepTooLargeError`, with
@@ -107,6 +108,8 @@ def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | 
     host and its devices. Writes nothing.
 
     ``progress``: say on stderr what is being drawn and planned, and how long it took.
+    ``samplings`` and ``spectra``: a resumed store's (:func:`~lfjax.sweep.store.stored_samplings`,
+    :func:`~lfjax.sweep.store.stored_spectra`), used instead of planning.
 
     Returns ``(eyes, is_average, spectrum, tasks, estimate)``; ``spectrum`` is None: each
     task carries its own (``Task.spectrum``, :func:`~lfjax.sweep.compute.sweep_spectra`).
@@ -123,7 +126,7 @@ def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | 
         _say(f"drew {config.n_total_eyes} eyes; "
              + ("reading the stored sampling of" if samplings else "planning the sampling of")
              + f" {n_tasks} (pupil, layout) pair(s) on them ...")
-    tasks = build_tasks(config, eyes, None, samplings)
+    tasks = build_tasks(config, eyes, None, samplings, spectra)
     if progress:
         _say(f"planned in {time.perf_counter() - t0:.1f} s")
     est = estimate(config, tasks, n_devices=n_devices)
@@ -186,8 +189,10 @@ def run_sweep(
             lock = _take_lock(store)
     try:
         samplings = stored_samplings(store) if exists else None
+        spectra = stored_spectra(store, config) if exists else None  # what its chunks summed
         eyes, is_average, spectrum, tasks, est = plan_sweep(
-            config, None if exists else store, devices, samplings, progress=progress and pid == 0)
+            config, None if exists else store, devices, samplings, progress=progress and pid == 0,
+            spectra=spectra)
         if on_plan is not None and pid == 0:
             on_plan(est)
         created = False

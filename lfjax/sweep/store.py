@@ -295,6 +295,26 @@ def stored_samplings(path) -> dict:
     return out
 
 
+def stored_spectra(path, config: SweepConfig) -> dict | None:
+    """{(pupil_index, layout_index): Spectrum} a store's chunks were computed with, so a
+    resumed sweep sums exactly those (not a rule planned again by other code): from
+    ``spectra_json``, or, for a store made before rules were planned per layout, its one
+    ``wavelengths_nm`` grid with V(λ) weights. None for a display's spectrum without
+    ``spectra_json`` (the config derives it as it did)."""
+    from lfjax.model.spectral import make_spectrum
+
+    attrs = _open_group(path).attrs
+    if "spectra_json" in attrs:
+        return {tuple(int(x) for x in key.split(",")): make_spectrum(
+                    np.asarray(r["wavelengths_nm"]), config.options, weights=np.asarray(r["weights"]))
+                for key, r in json.loads(attrs["spectra_json"]).items()}
+    if config.display_spectrum is not None or "wavelengths_nm" not in attrs:
+        return None
+    shared = make_spectrum(np.asarray(json.loads(attrs["wavelengths_nm"])), config.options)
+    return {(pi, li): shared for pi in range(len(config.pupil_diameters_mm))
+            for li in range(len(config.layouts))}
+
+
 def _encoding(ds, chunk_size: int, n_eye: int | None = None) -> dict:
     enc = {}
     if n_eye is not None:  # the eye coordinates in one chunk, after create_store resizes them
@@ -693,6 +713,7 @@ __all__ = [
     "open_store",
     "stored_samplings",
     "spectral_record",
+    "stored_spectra",
     "study_view",
     "template",
     "write_chunk",

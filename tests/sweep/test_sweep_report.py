@@ -512,6 +512,12 @@ def test_planned_rules_are_recorded_per_layout(tmp_path):
         np.testing.assert_allclose(record["wavelengths_nm"], np.asarray(spectrum.wavelengths_nm))
         np.testing.assert_allclose(record["weights"], np.asarray(spectrum.weights), rtol=1e-6)
         assert int(stored.n_wavelengths.values[pi, li]) == spectrum.n_wavelengths
+    from lfjax.sweep.store import stored_spectra
+
+    resumed = stored_spectra(path, config)  # what a resumed sweep sums: the stored rules
+    for key, spectrum in expected.items():
+        np.testing.assert_allclose(resumed[key].wavelengths_nm, spectrum.wavelengths_nm)
+        np.testing.assert_allclose(resumed[key].weights, spectrum.weights, rtol=1e-6)
     gauss = spectra["0,1"]
     assert gauss["rule"] == "gauss" and gauss["step_nm"] is None  # the 4x4 views
     assert "Gauss rule in V(λ)" in gauss["reason"]
@@ -520,3 +526,25 @@ def test_planned_rules_are_recorded_per_layout(tmp_path):
     assert f"| Gauss rule in V(λ), {gauss['n_wavelengths']} nodes |" in summary
     nodes = ", ".join(f"{w:.1f}" for w in gauss["wavelengths_nm"])
     assert f"3 mm 4x4: Gauss rule in V(λ), {gauss['n_wavelengths']} nodes: {nodes}." in summary
+
+
+def test_a_store_without_recorded_rules_resumes_on_its_one_grid(store, tmp_path):
+    """A store made before rules were recorded per layout resumes on its one recorded grid
+    with V(λ) weights (what its chunks summed), not on a rule planned now."""
+    import zarr
+
+    from lfjax.model.spectral import make_spectrum
+    from lfjax.sweep.store import stored_spectra
+
+    old = tmp_path / "old.zarr"
+    shutil.copytree(store, old)
+    group = zarr.open_group(str(old), mode="r+", zarr_format=2)
+    del group.attrs["spectra_json"]
+    zarr.consolidate_metadata(str(old), zarr_format=2)
+    config = config_from_dict(TINY)
+    spectra = stored_spectra(old, config)
+    assert set(spectra) == {(0, 0), (0, 1), (0, 2)}
+    expected = make_spectrum([450.0, 550.0, 650.0], config.options)
+    for spectrum in spectra.values():
+        np.testing.assert_allclose(spectrum.wavelengths_nm, expected.wavelengths_nm)
+        np.testing.assert_allclose(spectrum.weights, expected.weights, rtol=1e-12)
