@@ -8,27 +8,41 @@ with fewer wavelengths). Both are planned and prepared on the same eyes; the wor
 is the sweep guard's model (``SweepEstimate``: FFT work of grid and peak states, which its
 time estimate scales), so the ratio is the arithmetic saved, not a timing.
 
-Run:  .venv/bin/python benchmarks/validation/spectral_rule_sweep.py
+With ``--time`` also the chunk function itself, before and after side by side in one
+process: one warm chunk of ``chunk_size`` eyes per layout, best of ``--repeat`` (compilation
+excluded), the two spectra alternating so that load on a shared machine hits both alike.
+
+Run:  .venv/bin/python benchmarks/validation/spectral_rule_sweep.py [--time] [--repeat 2]
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import time
 
 import numpy as np
 
-from lfjax.sweep.compute import build_tasks, population, spectral_plans, sweep_spectrum
+from lfjax.sweep.compute import (ChunkEvaluator, build_tasks, population, spectral_plans,
+                                 sweep_spectrum)
 from lfjax.sweep.config import SweepConfig
 from lfjax.sweep.guard import estimate
 
 
 def main() -> None:
-    print("command: .venv/bin/python benchmarks/validation/spectral_rule_sweep.py", flush=True)
-    config = dataclasses.replace(SweepConfig(), n_eyes=2)  # the defaults; eyes only for the guard
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--time", action="store_true", help="also time one chunk per layout")
+    parser.add_argument("--repeat", type=int, default=2)
+    args = parser.parse_args()
+    print("command: .venv/bin/python benchmarks/validation/spectral_rule_sweep.py"
+          + (f" --time --repeat {args.repeat}" if args.time else ""), flush=True)
+    defaults = SweepConfig()
+    # the defaults; as many eyes as one chunk (the guard's model is per eye)
+    config = dataclasses.replace(defaults, n_eyes=int(defaults.chunk_size))
     eyes, _ = population(config)
     t0 = time.perf_counter()
-    before = estimate(config, build_tasks(config, eyes, sweep_spectrum(config)))
+    before_tasks = build_tasks(config, eyes, sweep_spectrum(config))
+    before = estimate(config, before_tasks)
     after_tasks = build_tasks(config, eyes)
     after = estimate(config, after_tasks)
     plans = spectral_plans(config)
@@ -51,6 +65,34 @@ def main() -> None:
           f" -> {after.seconds / config.n_eyes * 1000 / 60:.0f} min per 1,000 eyes, the guard's "
           f"model) |", flush=True)
     assert np.isfinite(total_a / total_b)
+    if args.time:
+        _time(config, eyes, before_tasks, after_tasks, args.repeat)
+
+
+def _time(config, eyes, before_tasks, after_tasks, repeat: int) -> None:
+    """Seconds per eye of one warm chunk per layout, before and after, side by side."""
+    evaluator = ChunkEvaluator(config, eyes.measured_pupil_mm)
+    z = np.asarray(eyes.zernike_um)[: int(config.chunk_size)]
+    print(f"\nchunk of {z.shape[0]} eyes, peaks {config.peak_method!r}, best of {repeat} "
+          f"(compilation excluded), s per eye:")
+    print("| layout | before | after | after / before |")
+    print("| --- | --- | --- | --- |")
+    total = [0.0, 0.0]
+    for tb, ta in zip(before_tasks, after_tasks):
+        evaluator.evaluate(tb, z)  # compile both first
+        evaluator.evaluate(ta, z)
+        best = [float("inf"), float("inf")]
+        for _ in range(repeat):
+            for i, task in enumerate((tb, ta)):
+                t0 = time.perf_counter()
+                evaluator.evaluate(task, z)
+                best[i] = min(best[i], time.perf_counter() - t0)
+        sb, sa = best[0] / z.shape[0], best[1] / z.shape[0]
+        total[0] += sb
+        total[1] += sa
+        print(f"| {ta.layout_label} | {sb:.3f} | {sa:.3f} | {sa / sb:.2f} |", flush=True)
+    print(f"| all | {total[0]:.2f} ({total[0] * 1000 / 60:.0f} min / 1,000 eyes) | {total[1]:.2f} "
+          f"({total[1] * 1000 / 60:.0f} min) | **{total[1] / total[0]:.2f}** |", flush=True)
 
 
 if __name__ == "__main__":

@@ -37,6 +37,7 @@ from lfjax.base.files import owned_temp_dir, pid_alive, remove_orphans
 from lfjax._version import __version__
 from lfjax.vision.peaks import METRICS
 from lfjax.base.sampling import Sampling
+from lfjax.model.spectral import make_spectrum
 from lfjax.sweep.compute import (FREQUENCIES_CPD, Task, layout_name, spectral_plans,
                                  sweep_spectra)
 from lfjax.sweep.config import SweepConfig, config_differences, config_to_toml
@@ -301,8 +302,6 @@ def stored_spectra(path, config: SweepConfig) -> dict | None:
     ``spectra_json``, or, for a store made before rules were planned per layout, its one
     ``wavelengths_nm`` grid with V(λ) weights. None for a display's spectrum without
     ``spectra_json`` (the config derives it as it did)."""
-    from lfjax.model.spectral import make_spectrum
-
     attrs = _open_group(path).attrs
     if "spectra_json" in attrs:
         return {tuple(int(x) for x in key.split(",")): make_spectrum(
