@@ -7,7 +7,10 @@ and weights from the Lanczos recurrence on the 1 nm CIE table, 400–700 nm) put
 where V is large. This experiment compares both against a 5 nm reference on real eyes,
 with the pipeline itself (not the planner's aberration-free proxy): continuous VSOTF peaks
 (``local``), VSOTF over the window, and cut-offs at the reference's grid peak. An
-experiment, not a feature: lfjax plans uniform steps.
+experiment (RESULTS §19); the feature it led to is ``lfjax.model.spectral.gauss_rule``
+(exact moments of the piecewise-linear weight, not this 1 nm point sum), chosen per layout by
+the planner with ``Overrides(spectral_rule="auto")`` and validated by ``spectral_rule.py``
+(RESULTS §23).
 
 Run:  .venv/bin/python benchmarks/validation/spectral_quadrature.py [natural|2x2|3x3|4x4 ...]
 """

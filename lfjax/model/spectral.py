@@ -201,6 +201,116 @@ def make_spectrum(
     )
 
 
+GAUSS_MAX_NODES = 40
+"""Most nodes :func:`gauss_rule` builds (the sweep plans at most 16; beyond ~40 the discrete
+measure's 1 nm pieces, not the rule, would limit what it resolves)."""
+
+
+def _gauss_weight_pieces(start_nm: float, stop_nm: float, source):
+    """Breakpoints (nm) of ρ(λ) = V(λ)·S(λ) on [start, stop] — every table point of V and of
+    the source inside the interval — and ρ as a callable (numpy, nm → unnormalised)."""
+    wl_v, v = lef_data()
+    points = [wl_v]
+    if source is None:
+        def rho(x):
+            return np.interp(x, wl_v, v)
+    else:
+        src_wl, src = source
+        points.append(src_wl)
+
+        def rho(x):
+            return np.interp(x, wl_v, v) * np.interp(x, src_wl, src)
+    inner = np.concatenate(points)
+    inner = inner[(inner > start_nm) & (inner < stop_nm)]
+    edges = np.unique(np.concatenate([[start_nm, stop_nm], inner]))
+    return edges, rho
+
+
+def gauss_rule(n_nodes: int, start_nm: float = 400.0, stop_nm: float = 700.0,
+               source=None) -> tuple[np.ndarray, np.ndarray]:
+    """The ``n_nodes``-point Gauss rule for the weight ρ(λ) = V(λ)·S(λ) on [start, stop] nm.
+
+    Returns ``(nodes_nm, weights)``, each (n_nodes,): increasing nodes strictly inside the
+    interval and positive weights summing to 1, such that Σ wᵢ p(λᵢ) = ∫ p ρ dλ / ∫ ρ dλ for
+    every polynomial p of degree ≤ 2·n_nodes − 1 (to float64 rounding). V(λ) is
+    :func:`luminous_efficiency` (the CIE 2008 LEF, linear between its 1 nm samples); S is
+    the source's relative spectral power, 1 (equal-energy white) or ``source`` =
+    (wavelengths nm, power) tabulated, linear between its samples and covering the interval.
+
+    How: ρ is piecewise linear × piecewise linear, so between consecutive table points
+    (of V or S) it is a polynomial of degree ≤ 2, and p·ρ of degree ≤ 2n + 1. Gauss–Legendre
+    with n + 1 points on each piece therefore integrates it exactly: the discrete measure
+    μ = Σⱼ mⱼ δ(λ − xⱼ) (the pieces' Legendre points xⱼ, masses mⱼ = Legendre weight ×
+    ρ(xⱼ) × half the piece) has exactly ρ's moments up to degree 2n + 1. The three-term
+    recurrence of μ's orthogonal polynomials (Stieltjes' procedure, carried out as Lanczos
+    on diag(x) from √m, fully re-orthogonalised, in t = (2λ − start − stop)/(stop − start)
+    ∈ [−1, 1] for conditioning) gives the n × n Jacobi matrix; its eigenvalues are the nodes
+    and the squared first components of its eigenvectors the weights (Golub & Welsch 1969;
+    Gautschi 2004, §2.2 "discretized Stieltjes procedure", exact here because the
+    discretisation is).
+    """
+    if isinstance(n_nodes, bool) or not isinstance(n_nodes, (int, np.integer)) \
+            or not (1 <= n_nodes <= GAUSS_MAX_NODES):
+        raise ParameterError("n_nodes", "{n_nodes} must be an integer in 1–{hi}, got {got!r}",
+                             hi=GAUSS_MAX_NODES, got=n_nodes)
+    lo, hi = lef_range_nm()
+    start_nm, stop_nm = float(start_nm), float(stop_nm)
+    if not (lo <= start_nm < stop_nm <= hi):
+        raise ParameterError("start_nm", "{start_nm} < {stop_nm} must lie in {lo:g}–{hi:g} nm "
+                             "(CIE 2008 LEF data); got {a:g}, {b:g}", lo=lo, hi=hi,
+                             a=start_nm, b=stop_nm)
+    if source is not None:
+        src_wl, src = (np.asarray(x, float).reshape(-1) for x in source)
+        if (src_wl.shape != src.shape or src_wl.size < 2 or np.any(np.diff(src_wl) <= 0)
+                or np.any(src < 0) or not np.all(np.isfinite(src))
+                or src_wl[0] > start_nm or src_wl[-1] < stop_nm):
+            raise ParameterError(
+                "source", "{source} must be (wavelengths nm, power): increasing wavelengths "
+                "covering {a:g}–{b:g} nm and finite non-negative power of the same length",
+                a=start_nm, b=stop_nm)
+        source = (src_wl, src)
+    n = int(n_nodes)
+    edges, rho = _gauss_weight_pieces(start_nm, stop_nm, source)
+    x_leg, w_leg = np.polynomial.legendre.leggauss(n + 1)
+    half = 0.5 * np.diff(edges)
+    mid = 0.5 * (edges[1:] + edges[:-1])
+    x = (mid[:, None] + half[:, None] * x_leg[None, :]).reshape(-1)  # nm
+    mass = (half[:, None] * w_leg[None, :]).reshape(-1) * rho(x)
+    if not np.sum(mass) > 0:
+        raise ParameterError("source", "V(λ)·{source} vanishes on {a:g}–{b:g} nm",
+                             a=start_nm, b=stop_nm)
+    t = (2.0 * x - start_nm - stop_nm) / (stop_nm - start_nm)
+    q = np.sqrt(mass / np.sum(mass))
+    basis, alpha, beta = [q], [], []
+    for k in range(n):
+        v = t * basis[-1]
+        alpha.append(float(basis[-1] @ v))
+        for _ in range(2):  # re-orthogonalise twice against every earlier vector ("twice is enough")
+            for b in basis:
+                v -= (b @ v) * b
+        if k < n - 1:
+            beta.append(float(np.linalg.norm(v)))
+            basis.append(v / beta[-1])
+    jacobi = np.diag(alpha) + np.diag(beta, 1) + np.diag(beta, -1)
+    nodes_t, vectors = np.linalg.eigh(jacobi)
+    weights = vectors[0] ** 2
+    nodes = 0.5 * (start_nm + stop_nm) + 0.5 * (stop_nm - start_nm) * nodes_t
+    return nodes, weights / weights.sum()
+
+
+def gauss_spectrum(n_nodes: int, start_nm: float = 400.0, stop_nm: float = 700.0,
+                   options: ModelOptions = ModelOptions(), source=None,
+                   parameters: ModelParameters | None = None) -> Spectrum:
+    """Spectrum on the ``n_nodes``-point Gauss rule for V(λ)·S(λ) on [start, stop] nm
+    (:func:`gauss_rule`): its nodes as the wavelengths, its weights as the spectral
+    weights, LCA and SCE of ``options`` (or ``parameters``) as :func:`make_spectrum` gives
+    them. The pipeline's Σ_λ w_λ OTF_λ is then the Gauss quadrature of ∫ V S OTF dλ / ∫ V S
+    dλ: exact for an OTF polynomial of degree ≤ 2n − 1 in λ, where the uniform grid's
+    rectangle rule spends samples at the ends of the range, which V(λ) hardly weighs."""
+    nodes, weights = gauss_rule(n_nodes, start_nm, stop_nm, source)
+    return make_spectrum(nodes, options, weights=weights, parameters=parameters)
+
+
 def sce_rho_table(wavelengths_nm, options: ModelOptions = ModelOptions()) -> np.ndarray:
     """ρ(λ) of ``options.sce_table`` at ``wavelengths_nm``, mm⁻² (host); zeros when
     ``options.sce == "off"`` (the table, 400–700 nm, is then not read)."""
@@ -244,6 +354,9 @@ __all__ = [
     "sce_rho_data",
     "Spectrum",
     "make_spectrum",
+    "gauss_rule",
+    "gauss_spectrum",
+    "GAUSS_MAX_NODES",
     "model_spectrum",
     "sce_rho_table",
     "monochromatic_spectrum",

@@ -25,6 +25,9 @@ objects, each checked when built. How each choice is made (all on the host, in n
 * **Wavelength step** (when only a range is given): proxy through-focus curves at each
   candidate step against a 5 nm reference; the step must keep the VSOTF error within its
   share of the tolerance and leave every proxy peak where it was.
+  With ``Overrides(spectral_rule="auto")`` the Gauss rule for V(λ)
+  (:func:`lfjax.model.spectral.gauss_rule`) competes on the same criteria: its fewest nodes
+  that meet them replace the step when they are fewer wavelengths (:attr:`Plan.spectral_rule`).
 * **Zernike order**: the eyes' wavefront RMS above the kept order, converted to a VSOTF
   change by the Maréchal approximation (2πσ/λ)².
 * **Targets in the question's units** (``Targets.peak_D``, ``Targets.cutoff_cpd``):
@@ -58,7 +61,7 @@ from lfjax.base.units import DEGREES_PER_RADIAN
 from lfjax.base.zernike import n_modes_for_order, nm_from_ansi, zernike_basis
 from lfjax.kernel.optics import field_radius_arcmin
 from lfjax.model.options import ModelOptions
-from lfjax.model.spectral import Spectrum, make_spectrum
+from lfjax.model.spectral import Spectrum, gauss_rule, make_spectrum
 from lfjax.planner.cost import cost_s, fft_work
 from lfjax.planner.proxy import Estimates, Proxy, grid_peaks, peak_shift_D
 from lfjax.planner.scene import PlanScene
@@ -71,6 +74,16 @@ MFT_PUPIL_LADDER = (16, 20, 24, 28, 32, 40, 48, 56, 64, 80, 96, 112, 128, 160, 1
 
 WAVELENGTH_STEPS_NM = (50.0, 30.0, 25.0, 20.0, 10.0, 5.0)
 """Wavelength steps the planner chooses from (coarsest first)."""
+
+SPECTRAL_RULES = ("uniform", "auto")
+"""How a planned spectrum may sample its range: ``"uniform"``, a step from
+:data:`WAVELENGTH_STEPS_NM`; ``"auto"``, that step or the Gauss rule for V(λ)
+(:func:`lfjax.model.spectral.gauss_rule`), whichever meets the targets with fewer
+wavelengths."""
+
+GAUSS_NODE_CANDIDATES = tuple(range(4, 17))
+"""Node counts of the Gauss rule in V(λ) the planner tries (fewest first), each only while
+it is fewer than the uniform step's wavelengths."""
 
 SPECTRAL_REFERENCE_STEP_NM = 5.0
 """Wavelength step of the proxy's converged spectrum, against which candidate steps are
@@ -113,6 +126,11 @@ class Plan:
     bands : wavelength bands and FFT sizes ((start, stop, n_fft), …).
     fft_work : relative FFT work per eye and state, Σ n_λ·n_sub·n_fft²·log2(n_fft).
     reasons : one-line explanations.
+    spectral_weights : the weights of ``wavelengths_nm`` when they are not V(λ)·Δλ (a
+        display's spectrum given in the scene, or the Gauss rule's weights), else None.
+    spectral_rule : how the wavelengths were chosen: ``"uniform"`` (a planned step),
+        ``"gauss"`` (the Gauss rule for V(λ) on the scene's range, its nodes and weights)
+        or ``"given"`` (the scene's spectrum, used as given).
     """
 
     sampling: Sampling
@@ -128,6 +146,7 @@ class Plan:
     options: ModelOptions = ModelOptions()
     reasons: list = field(default_factory=list)
     spectral_weights: tuple | None = None
+    spectral_rule: str = "uniform"
 
     def spectrum(self) -> Spectrum:
         """The planned spectrum (V(λ) weights, or the ``spectral_weights`` planned for; LCA
@@ -146,7 +165,10 @@ class Plan:
         """Printable explanation of the choice."""
         s = self.sampling
         wl = np.asarray(self.wavelengths_nm)
-        step = f"{wl[1] - wl[0]:g} nm steps" if wl.size > 1 else "one wavelength"
+        if self.spectral_rule == "gauss":
+            step = f"Gauss rule in V(λ), {wl.size} nodes"
+        else:
+            step = f"{wl[1] - wl[0]:g} nm steps" if wl.size > 1 else "one wavelength"
         transform = (
             f"MFT with {s.mft_pupil_samples} pupil samples" if s.transform == "mft"
             else "FFT (pupil sampled at λ·df)"
@@ -156,7 +178,7 @@ class Plan:
             f"freq_step_cpd = {s.freq_step_cpd:.4g} cpd (PSF field {s.field_arcmin:.1f} arcmin; "
             f"guard allows ≤ {self.guard_freq_step_cpd:.4g})",
             f"transform: {transform}; aperture edge {s.edge_width_samples:g} samples",
-            f"wavelengths: {wl[0]:g}–{wl[-1]:g} nm, {step} ({wl.size})",
+            f"wavelengths: {wl[0]:.4g}–{wl[-1]:.4g} nm, {step} ({wl.size})",
             "Zernike order: " + ("all" if self.max_zernike_order is None else str(self.max_zernike_order)),
             f"estimated VSOTF error: {e.get('total', float('nan')):.2g} (pupil "
             f"{e.get('pupil', float('nan')):.2g}, spectral {e.get('spectral', float('nan')):.2g}, "
@@ -236,6 +258,10 @@ class Overrides:
         on one machine. The MFT's pupil samples are planned for ``Targets.vsotf``.
     mft_pupil_samples : pupil samples across the MFT window
     wavelength_step_nm : wavelength step over ``PlanScene.wavelength_range_nm``, nm, in (0, 100]
+        (a uniform grid, whatever ``spectral_rule`` says)
+    spectral_rule : one of :data:`SPECTRAL_RULES` — how a planned spectrum samples its range:
+        ``"uniform"`` (default, a step), or ``"auto"`` (a step or the Gauss rule for V(λ),
+        whichever meets the targets with fewer wavelengths)
     max_zernike_order : radial order of the eyes' Zernike terms kept
     edge_width_samples : the apertures' logistic edge, pupil samples
     """
@@ -246,12 +272,15 @@ class Overrides:
     wavelength_step_nm: float | None = None
     max_zernike_order: int | None = None
     edge_width_samples: float = 0.25
+    spectral_rule: str = "uniform"
 
     def __post_init__(self):
         if self.transform not in TRANSFORMS:
             raise ValueError(f"transform must be 'auto', 'fft' or 'mft', got {self.transform!r}")
         if self.wavelength_step_nm is not None and not (0 < self.wavelength_step_nm <= 100):
             raise ValueError(f"wavelength_step_nm must be in (0, 100] nm, got {self.wavelength_step_nm}")
+        if self.spectral_rule not in SPECTRAL_RULES:
+            raise ValueError(f"spectral_rule must be one of {SPECTRAL_RULES}, got {self.spectral_rule!r}")
 
 
 @dataclass(frozen=True)
@@ -325,6 +354,8 @@ class _Planning:
     errors: dict = field(default_factory=dict)
     reasons: list = field(default_factory=list)
     wl: np.ndarray | None = None  # the spectrum, nm (None while its step is to be chosen)
+    weights: np.ndarray | None = None  # its weights when not V(λ)·Δλ (given, or the Gauss rule's)
+    rule: str = "given"  # how wl was chosen: "given", "uniform" or "gauss"
     budget: float = math.inf  # what is left of the VSOTF target
     order_kept: int | None = None
     radius: float = math.nan  # the blur the field must hold, arcmin
@@ -336,6 +367,8 @@ class _Planning:
     def __post_init__(self):
         if self.scene.wavelengths_nm is not None:
             self.wl = np.atleast_1d(np.asarray(self.scene.wavelengths_nm, float))
+            if self.scene.spectral_weights is not None:
+                self.weights = np.asarray(self.scene.spectral_weights, float)
         # Without a VSOTF target the VSOTF budget is unbounded: the D/cpd targets decide.
         self.budget = math.inf if self.targets.vsotf is None else float(self.targets.vsotf)
         self.order_kept = self.overrides.max_zernike_order
@@ -355,11 +388,11 @@ class _Planning:
 
     def plan(self, sampling, bands, cost, cheaper) -> Plan:
         s = self.scene
-        weights = (None if s.spectral_weights is None
-                   else tuple(float(w) for w in s.spectral_weights))
+        weights = None if self.weights is None else tuple(float(w) for w in self.weights)
         return Plan(sampling, tuple(float(x) for x in self.wl), self.order_kept,
                     float(self.radius), float(self.df_guard), self.errors, cost, cheaper, bands,
-                    fft_work(bands, s.layout.n_subapertures), s.options, self.reasons, weights)
+                    fft_work(bands, s.layout.n_subapertures), s.options, self.reasons, weights,
+                    self.rule)
 
 
 def _choose_zernike_order(p: _Planning) -> None:
@@ -413,7 +446,9 @@ def _apply_field_guard(p: _Planning) -> None:
 
 def _choose_wavelength_step(p: _Planning) -> None:
     """The coarsest candidate step whose proxy curves keep within half of each target against
-    a 5 nm reference (or the given step); then the guard again on the chosen grid. A given
+    a 5 nm reference (or the given step); with ``Overrides.spectral_rule="auto"`` also the
+    Gauss rule for V(λ) with the fewest nodes that does the same, taken when it has fewer
+    wavelengths than that step. Then the guard again on the chosen wavelengths. A given
     spectrum is kept (with a warning for steps over 20 nm)."""
     s, t = p.scene, p.targets
     if p.wl is not None:
@@ -428,17 +463,14 @@ def _choose_wavelength_step(p: _Planning) -> None:
     peak = _peak_neighbourhood(s.pair_depth)
     lo, hi = map(float, s.wavelength_range_nm)
 
-    def proxy_spectrum(step):
-        grid = np.arange(lo, hi + 1e-6, step)
-        return Proxy(s, make_spectrum(grid, s.options), p.overrides.edge_width_samples,
-                     n_wavelengths=grid.size)
-
-    def curves(proxy_step):
+    def curves(wavelengths, weights=None):
+        proxy = Proxy(s, make_spectrum(wavelengths, s.options, weights=weights),
+                      p.overrides.edge_width_samples, n_wavelengths=wavelengths.size)
         if t.cutoff_cpd is None:
-            return proxy_step.vsotf(spec_proxy_df, peak), None
-        return proxy_step.vsotf_and_cutoffs(spec_proxy_df, peak, t.cutoff_threshold)
+            return proxy.vsotf(spec_proxy_df, peak), None
+        return proxy.vsotf_and_cutoffs(spec_proxy_df, peak, t.cutoff_threshold)
 
-    ref, ref_cut = curves(proxy_spectrum(SPECTRAL_REFERENCE_STEP_NM))
+    ref, ref_cut = curves(np.arange(lo, hi + 1e-6, SPECTRAL_REFERENCE_STEP_NM))
     ref_peak = grid_peaks(ref, peak)
     # Cut-offs at each depth's peak state and its neighbours 0.1 D away, not the peak
     # alone: a real eye's aberrations blur it like a little defocus, and a blurred MTF
@@ -447,14 +479,12 @@ def _choose_wavelength_step(p: _Planning) -> None:
     # crossing jumps between lobes: no predicted accommodation sits there.
     near_peak = np.abs(peak[0] - np.asarray(ref_peak)[
         np.searchsorted(np.unique(peak[1]), peak[1])]) <= 0.1 + 1e-9
-    candidates = [step_choice] if step_choice is not None else [
-        step for step in WAVELENGTH_STEPS_NM
-        if abs((hi - lo) / step - round((hi - lo) / step)) < 1e-9
-        and step > SPECTRAL_REFERENCE_STEP_NM]
-    chosen = None
     budget = p.budget
-    for step in candidates:
-        v, cuts = curves(proxy_spectrum(step))
+
+    def measure(wavelengths, weights=None):
+        """(meets every target, errors, what they are against their budgets) of one spectrum
+        on the proxy against the reference."""
+        v, cuts = curves(wavelengths, weights)
         err = float(np.max(np.abs(v - ref)))
         same_peak = grid_peaks(v, peak) == ref_peak
         shift = peak_shift_D(v, ref, peak)
@@ -463,19 +493,26 @@ def _choose_wavelength_step(p: _Planning) -> None:
         ok = err <= 0.5 * budget
         ok &= shift <= 0.5 * t.peak_D if t.peak_D is not None else same_peak
         ok &= t.cutoff_cpd is None or cut <= 0.5 * t.cutoff_cpd
-        if step_choice is not None or ok:
-            chosen, p.errors["spectral"] = step, err
-            p.errors["spectral_peak_D"], p.errors["spectral_cutoff_cpd"] = shift, cut
-            p.reasons.append(
-                f"wavelength step {step:g} nm against {SPECTRAL_REFERENCE_STEP_NM:g} nm on the proxy: VSOTF error "
-                f"{err:.2g} (budget {0.5 * budget:.2g}), peaks "
+        text = (f"VSOTF error {err:.2g} (budget {0.5 * budget:.2g}), peaks "
                 + (f"moved ≤ {shift:.2g} D (budget {0.5 * t.peak_D:.2g})"
-                   if t.peak_D is not None else
-                   ('unchanged' if same_peak else 'MOVED'))
+                   if t.peak_D is not None else ('unchanged' if same_peak else 'MOVED'))
                 + (f", cut-offs moved ≤ {cut:.2g} cpd (budget {0.5 * t.cutoff_cpd:.2g})"
-                   if t.cutoff_cpd is not None else "")
-                + (" (user's step)" if step_choice is not None else "")
-            )
+                   if t.cutoff_cpd is not None else ""))
+        return bool(ok), (err, shift, cut), text
+
+    candidates = [step_choice] if step_choice is not None else [
+        step for step in WAVELENGTH_STEPS_NM
+        if abs((hi - lo) / step - round((hi - lo) / step)) < 1e-9
+        and step > SPECTRAL_REFERENCE_STEP_NM]
+    chosen = None
+    for step in candidates:
+        ok, errors, text = measure(np.arange(lo, hi + 1e-6, step))
+        if step_choice is not None or ok:
+            chosen = step
+            p.errors["spectral"], p.errors["spectral_peak_D"], p.errors["spectral_cutoff_cpd"] = errors
+            p.reasons.append(
+                f"wavelength step {step:g} nm against {SPECTRAL_REFERENCE_STEP_NM:g} nm on the proxy: "
+                + text + (" (user's step)" if step_choice is not None else ""))
             break
     if chosen is None:  # no coarser step meets the targets: the reference's own step
         chosen = SPECTRAL_REFERENCE_STEP_NM
@@ -483,18 +520,51 @@ def _choose_wavelength_step(p: _Planning) -> None:
         p.errors["spectral_peak_D"] = p.errors["spectral_cutoff_cpd"] = 0.0
         p.reasons.append(f"wavelength step {chosen:g} nm: the reference step (no coarser "
                          f"candidate met the targets)")
-    p.wl = np.arange(lo, hi + 1e-6, chosen)
+    p.wl, p.weights, p.rule = np.arange(lo, hi + 1e-6, chosen), None, "uniform"
+    if step_choice is None and p.overrides.spectral_rule == "auto":
+        _try_gauss_rule(p, measure, lo, hi)
     # The guard ran on a 5 nm grid; on the chosen, coarser grid each wavelength carries
     # more of the weight, so the blue and red ends may no longer be light enough to let
     # wrap. The field must hold the spectrum the pipeline will sum.
-    p.radius = max(p.radius, p.field_radius(make_spectrum(p.wl, s.options)))
+    p.radius = max(p.radius, p.field_radius(make_spectrum(p.wl, s.options, weights=p.weights)))
     if 30.0 / (p.radius * p.guard.margin) < p.df_guard:
         p.df_guard = 30.0 / (p.radius * p.guard.margin)
         p.df_top = ladder_floor(min(p.df_guard, p.df_floor_samples))
-        p.reasons.append(f"field guard on the chosen {chosen:g} nm grid: blur reaches "
+        what = (f"{p.wl.size}-node Gauss rule" if p.rule == "gauss" else f"{chosen:g} nm grid")
+        p.reasons.append(f"field guard on the chosen {what}: blur reaches "
                          f"{p.radius:.1f} arcmin → df ≤ {p.df_guard:.3g} cpd")
     if np.isfinite(p.errors["spectral"]):
         p.budget -= p.errors["spectral"]
+
+
+def _try_gauss_rule(p: _Planning, measure, lo: float, hi: float) -> None:
+    """The Gauss rule for V(λ) on [lo, hi] with the fewest nodes (of
+    :data:`GAUSS_NODE_CANDIDATES`, each fewer than the uniform step's wavelengths) that
+    meets the same criteria on the proxy as the step (``measure``); it replaces the step
+    when found. Either way the reasons say which rule and why."""
+    n_uniform = p.wl.size
+    rejected = None
+    for n in GAUSS_NODE_CANDIDATES:
+        if n >= n_uniform:
+            break
+        nodes, weights = gauss_rule(n, lo, hi)
+        ok, errors, text = measure(nodes, weights)
+        if not ok:
+            rejected = (n, text)
+            continue
+        p.wl, p.weights, p.rule = nodes, weights, "gauss"
+        p.errors["spectral"], p.errors["spectral_peak_D"], p.errors["spectral_cutoff_cpd"] = errors
+        p.reasons.append(
+            f"wavelengths: Gauss rule in V(λ), {n} nodes ({nodes[0]:.1f}–{nodes[-1]:.1f} nm) "
+            f"against {SPECTRAL_REFERENCE_STEP_NM:g} nm on the proxy: {text}; {n} wavelengths "
+            f"instead of the uniform step's {n_uniform}"
+            + (f" ({rejected[0]} nodes: {rejected[1]})" if rejected is not None else ""))
+        return
+    p.reasons.append(
+        f"wavelengths: the uniform step kept ({n_uniform} wavelengths): "
+        + (f"no Gauss rule in V(λ) with fewer nodes met the targets ({rejected[0]} nodes: "
+           f"{rejected[1]})" if rejected is not None
+           else "no Gauss rule candidate has fewer nodes"))
 
 
 def _guard_only_plan(p: _Planning) -> Plan:
@@ -516,7 +586,7 @@ def _accuracy_plan(p: _Planning) -> Plan:
     """The frequency step (and the MFT's pupil samples) the proxy's estimates accept, the
     cheaper neighbours and why they fail, and the plan's error totals."""
     s, t, o = p.scene, p.targets, p.overrides
-    spectrum = make_spectrum(p.wl, s.options, weights=s.spectral_weights)
+    spectrum = make_spectrum(p.wl, s.options, weights=p.weights)
     proxy = Proxy(s, spectrum, o.edge_width_samples)
     pairs = (s.pair_acc, s.pair_depth)  # all of them: the error peaks anywhere
     if o.freq_step_cpd is not None:
@@ -735,4 +805,5 @@ def _peak_neighbourhood(pair_depth) -> tuple[np.ndarray, np.ndarray]:
 
 __all__ = ["Plan", "Targets", "Overrides", "FieldGuard", "plan_sampling", "ladder_floor",
            "ladder_up", "STEPS_PER_OCTAVE", "MFT_PUPIL_LADDER", "WAVELENGTH_STEPS_NM",
-           "SPECTRAL_REFERENCE_STEP_NM", "PEAK_NEIGHBOURHOOD_D", "TRANSFORMS"]
+           "SPECTRAL_REFERENCE_STEP_NM", "PEAK_NEIGHBOURHOOD_D", "TRANSFORMS", "SPECTRAL_RULES",
+           "GAUSS_NODE_CANDIDATES"]

@@ -33,7 +33,7 @@ from lfjax.kernel.optics import validate_coefficients
 from lfjax.vision.peaks import METRICS, peaks_from_grid
 from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
 from lfjax.planner.cache import cached_plan_sampling
-from lfjax.planner.plan import Overrides, Targets
+from lfjax.planner.plan import Overrides, Plan, Targets
 from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import Spectrum, make_spectrum
@@ -62,6 +62,8 @@ class Task:
     scene, accommodation : pipeline pytrees
     sampling : Sampling used (planned on the whole population or given)
     pipeline_config : static configuration of the compiled function
+    spectrum : the wavelengths and weights this task sums (:func:`sweep_spectra`: its own
+        planned rule, or the sweep's shared spectrum); None: the evaluator's
     """
 
     pupil_index: int
@@ -76,6 +78,7 @@ class Task:
     accommodation: Accommodation
     sampling: Sampling
     pipeline_config: PipelineConfig
+    spectrum: Spectrum | None = None
 
     @property
     def key(self) -> tuple[int, int]:
@@ -94,9 +97,12 @@ def population(config: SweepConfig) -> tuple[Eyes, np.ndarray]:
 
 
 def sweep_spectrum(config: SweepConfig) -> Spectrum:
-    """V(λ) white on the config's wavelength grid, or the display's white
-    (``display_spectrum``, cells of the grid's step) on the wavelengths that carry it.
-    Without a step in ``wavelengths_nm``, the grid's step is :func:`planned_wavelength_step`."""
+    """The spectrum shared by every (pupil, layout) of a sweep with a wavelength step: V(λ)
+    white on the config's grid, or the display's white (``display_spectrum``, cells of the
+    grid's step) on the wavelengths that carry it. Without a step in ``wavelengths_nm`` each
+    (pupil, layout) has its own planned rule (:func:`sweep_spectra`, what the sweep uses);
+    this then returns the uniform grid at :func:`planned_wavelength_step`, the one spectrum
+    the sweep shared before its rules were planned per layout."""
     if config.display_spectrum is not None:
         return display_spectrum(config.display_spectrum, "white", config.options,
                                 step_nm=max(float(config.wavelengths_nm[2]), 5.0))
@@ -107,22 +113,36 @@ def sweep_spectrum(config: SweepConfig) -> Spectrum:
     return make_spectrum(config.wavelength_grid_nm, config.options)
 
 
-def planned_wavelength_step(config: SweepConfig) -> float:
-    """The wavelength step (nm) of a sweep whose ``wavelengths_nm`` gives none: for every
-    (pupil, layout) the planner's coarsest step whose proxy peaks stay within
-    ``peak_tolerance_D`` and cut-offs within ``cutoff_tolerance_cpd``
-    (:func:`lfjax.planner.plan.plan_sampling`), and the finest of those. Eye-independent and
-    deterministic (a resumed sweep plans the same step); 3–10 s per (pupil, layout) the
-    first time, then remembered (:mod:`lfjax.planner.cache`: in the process and, from the
-    command line, on disk)."""
+def sweep_spectra(config: SweepConfig) -> dict[tuple[int, int], Spectrum]:
+    """The spectrum of each (pupil_index, layout_index): with a step in ``wavelengths_nm``
+    (or a display's spectrum) the shared :func:`sweep_spectrum`; without one, each
+    (pupil, layout)'s planned rule (:func:`spectral_plans`: a uniform step or the Gauss rule
+    in V(λ), whichever meets the targets with fewer wavelengths)."""
+    if config.wavelength_step_planned and config.display_spectrum is None:
+        return {key: plan.spectrum() for key, plan in spectral_plans(config).items()}
+    shared = sweep_spectrum(config)
+    return {(pi, li): shared for pi in range(len(config.pupil_diameters_mm))
+            for li in range(len(config.layouts))}
+
+
+def spectral_plans(config: SweepConfig, rule: str = "auto") -> dict[tuple[int, int], Plan]:
+    """For a sweep whose ``wavelengths_nm`` gives no step, each (pupil_index, layout_index)'s
+    plan of its spectrum (:func:`lfjax.planner.plan.plan_sampling` with
+    ``Overrides(spectral_rule=rule)``): the coarsest uniform step whose proxy peaks stay within
+    ``peak_tolerance_D`` and cut-offs within ``cutoff_tolerance_cpd`` or, with ``rule="auto"``,
+    the Gauss rule for V(λ) with the fewest nodes that does so when they are fewer
+    wavelengths (:attr:`~lfjax.planner.plan.Plan.spectral_rule`, its reasons say why).
+    Eye-independent and deterministic (a resumed sweep plans the same rules); 5–15 s per
+    (pupil, layout) the first time, then remembered (:mod:`lfjax.planner.cache`: in the
+    process and, from the command line, on disk)."""
     start, stop = config.wavelengths_nm
     all_depths = config.depths_D
     cdp = all_depths[[int(np.argmin(np.abs(all_depths - config.cdp_D)))]]
-    steps = []
-    for pupil in config.pupil_diameters_mm:
-        for entry in config.layouts:
+    plans = {}
+    for pi, pupil in enumerate(config.pupil_diameters_mm):
+        for li, entry in enumerate(config.layouts):
             layout = resolve_layout(config, entry, pupil)
-            plan = cached_plan_sampling(PlanScene(
+            plans[(pi, li)] = cached_plan_sampling(PlanScene(
                 layout=layout, pupil_diameter_mm=pupil, cdp_D=config.cdp_D,
                 depths_D=cdp if entry == "natural" else all_depths,
                 accommodation_D=config.accommodation_D, accommodation_window_D=config.window_D,
@@ -130,9 +150,21 @@ def planned_wavelength_step(config: SweepConfig) -> float:
                 display=config.display_optics(),
             ), Targets(vsotf=None, peak_D=config.peak_tolerance_D,
                        cutoff_cpd=config.cutoff_tolerance_cpd,
-                       cutoff_threshold=config.cutoff_threshold), estimate_accuracy=False)
-            wl = plan.wavelengths_nm
-            steps.append(float(wl[1] - wl[0]) if len(wl) > 1 else float(stop - start))
+                       cutoff_threshold=config.cutoff_threshold), estimate_accuracy=False,
+                overrides=Overrides(spectral_rule=rule))
+    return plans
+
+
+def planned_wavelength_step(config: SweepConfig) -> float:
+    """The uniform wavelength step (nm) of a sweep whose ``wavelengths_nm`` gives none, as
+    the sweep shared it before its rules were planned per layout: for every (pupil, layout)
+    the planner's coarsest step meeting the targets (:func:`spectral_plans` with
+    ``rule="uniform"``), and the finest of those."""
+    start, stop = config.wavelengths_nm
+    steps = []
+    for plan in spectral_plans(config, "uniform").values():
+        wl = plan.wavelengths_nm
+        steps.append(float(wl[1] - wl[0]) if len(wl) > 1 else float(stop - start))
     return min(steps)
 
 
@@ -164,8 +196,12 @@ def _plan(config: SweepConfig, eyes: Eyes, layout: Layout, pupil_mm: float, dept
 
 
 def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = None,
-                samplings: dict | None = None) -> list[Task]:
+                samplings: dict | None = None, spectra: dict | None = None) -> list[Task]:
     """One :class:`Task` per (pupil, layout), sampling checked against the whole population.
+
+    ``spectrum``: one spectrum for every task; else ``spectra`` ({(pupil_index,
+    layout_index): Spectrum}, a resumed store's) or each task's planned one
+    (:func:`sweep_spectra`).
 
     ``samplings`` maps (pupil_index, layout_index) to a
     :class:`~lfjax.base.sampling.Sampling` to use instead of planning (a resumed store's);
@@ -174,7 +210,8 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
     (:func:`lfjax.vision.prepare.with_aliasing_retry`). Each task is prepared by
     :func:`lfjax.vision.prepare.prepare`.
     """
-    spectrum = sweep_spectrum(config) if spectrum is None else spectrum
+    if spectrum is None and spectra is None:
+        spectra = sweep_spectra(config)
     validate_coefficients(np.asarray(eyes.zernike_um))  # before planning reads the eyes
     all_depths = config.depths_D
     cdp_slot = int(np.argmin(np.abs(all_depths - config.cdp_D)))
@@ -182,6 +219,7 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
     for pi, pupil in enumerate(config.pupil_diameters_mm):
         for li, entry in enumerate(config.layouts):
             layout = resolve_layout(config, entry, pupil)
+            task_spectrum = spectrum if spectrum is not None else spectra[(pi, li)]
             slots = (cdp_slot,) if entry == "natural" else tuple(range(all_depths.size))
             depths = all_depths[list(slots)]
             states = States.grid(config.accommodation_D, depths, config.window_D)
@@ -190,7 +228,7 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
             # program carries no traced checks: JAX's persistent cache can then keep it for
             # the next process (a resumed sweep, another host)
             def prepared_at(sampling, check_aliasing=True, layout=layout, states=states,
-                            pupil=pupil):
+                            pupil=pupil, spectrum=task_spectrum):
                 return prepare(eyes, layout, states, pupil_diameter_mm=pupil,
                                cdp_D=config.cdp_D, spectrum=spectrum, options=config.options,
                                sampling=sampling, check_aliasing=check_aliasing,
@@ -200,12 +238,13 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
                 prepared = prepared_at(samplings[(pi, li)], check_aliasing=False)
             else:
                 prepared, _ = with_aliasing_retry(
-                    prepared_at, _plan(config, eyes, layout, pupil, depths, states.pairs, spectrum),
+                    prepared_at, _plan(config, eyes, layout, pupil, depths, states.pairs,
+                                       task_spectrum),
                     refine=config.freq_step_cpd is None, what=f"layout {entry} at {pupil:g} mm")
             tasks.append(Task(
                 pi, li, float(pupil), entry, layout, slots, depths, states.allowed,
                 prepared.scene, prepared.accommodation(config.options), prepared.sampling,
-                prepared.config,
+                prepared.config, task_spectrum,
             ))
     return tasks
 
@@ -306,8 +345,8 @@ class ChunkEvaluator:
     in this process compiled it), which :meth:`assert_no_retrace` checks.
     """
 
-    def __init__(self, config: SweepConfig, measured_pupil_mm: float, spectrum: Spectrum,
-                 devices=None):
+    def __init__(self, config: SweepConfig, measured_pupil_mm: float,
+                 spectrum: Spectrum | None = None, devices=None):
         self.config = config
         self.measured_pupil_mm = float(measured_pupil_mm)
         self.spectrum = spectrum
@@ -341,7 +380,8 @@ class ChunkEvaluator:
         if n < size:
             z = np.concatenate([z, np.repeat(z[-1:], size - n, axis=0)])
         key, function = self._function(task)
-        out = function(jnp.asarray(z), task.scene, self.spectrum, task.accommodation)
+        spectrum = task.spectrum if task.spectrum is not None else self.spectrum
+        out = function(jnp.asarray(z), task.scene, spectrum, task.accommodation)
         self.traces[task.key] = TRACES.get(key, 0) - self._start[task.key]
         return {k: np.asarray(v)[:n] for k, v in out.items()}
 
@@ -362,5 +402,7 @@ __all__ = [
     "resolve_layout",
     "layout_name",
     "planned_wavelength_step",
+    "spectral_plans",
+    "sweep_spectra",
     "sweep_spectrum",
 ]

@@ -271,11 +271,13 @@ class SweepConfig(DepthGrid):
     Eyes come from ``sample_eyes(seed, n_eyes)`` on the Thibos fit of ``fit_pupil_mm`` and are
     evaluated inside every pupil of ``pupil_diameters_mm``. Each depth ``cdp_D + offset`` is
     evaluated on the states of the absolute grid 0 … ``max_D`` within ±``window_D`` of it.
-    Without a wavelength step the sweep plans it (:func:`lfjax.sweep.compute.sweep_spectrum`):
-    the coarsest whose proxy peaks stay within ``peak_tolerance_D`` and cut-offs within
-    ``cutoff_tolerance_cpd`` in every (pupil, layout) of the sweep (25 nm for the paper's
-    scene); a planned frequency step comes from :func:`lfjax.planner.plan.plan_sampling` on
-    the whole population.
+    Without a wavelength step each (pupil, layout) gets its own planned spectrum
+    (:func:`lfjax.sweep.compute.sweep_spectra`): the coarsest uniform step whose proxy peaks
+    stay within ``peak_tolerance_D`` and cut-offs within ``cutoff_tolerance_cpd``, or the
+    Gauss rule in V(λ) with the fewest nodes that does so when they are fewer (11, 9, 6 and 5
+    nodes for the paper's natural view, 2×2, 3×3 and 4×4); a step given is one uniform grid
+    for every layout. A planned frequency step comes from
+    :func:`lfjax.planner.plan.plan_sampling` on the whole population.
     """
 
     n_eyes: int = field(default=1000, metadata=_key(

@@ -27,7 +27,7 @@ import jax
 from lfjax.vision.peaks import METRICS, STATE_COST, TYPICAL_REFINED_FRACTION, resolved_method
 from lfjax.base.grids import grid_size
 from lfjax.base.sampling import EYE_BLOCK
-from lfjax.sweep.compute import sweep_spectrum
+from lfjax.sweep.compute import sweep_spectra
 from lfjax.sweep.config import SweepConfig
 
 N_FREQUENCIES = 61  # the stored MTF's 0 ... 60 cpd axis (compute.FREQUENCIES_CPD)
@@ -154,11 +154,12 @@ class SweepEstimate:
             f"layouts     {', '.join(self.layouts)}",
             f"depths      {len(self.depths_D)}: {depths} D",
             f"states      {self.n_accommodation} accommodation states on the grid",
-            f"wavelengths {self.n_wavelengths}",
+            f"wavelengths {self.n_wavelengths}" + (" (the most of any layout)" if self.tasks else ""),
         ]
         for t in self.tasks:
             lines.append(f"sampling    {t.pupil_mm:g} mm {t.layout}: df {t.freq_step_cpd:.4g} cpd, "
-                         f"FFT {t.n_fft}, {t.n_states} states x {t.n_subapertures} views"
+                         f"FFT {t.n_fft}, {t.bands[-1][1]} wavelengths, {t.n_states} states x "
+                         f"{t.n_subapertures} views"
                          + (f" + {t.n_refined} peak states" if t.n_refined else ""))
         if not self.tasks:
             lines.append("sampling    planned when the sweep starts")
@@ -249,7 +250,8 @@ def refinement_states(config: SweepConfig) -> int:
 
 
 def _display_wavelengths(config: SweepConfig):
-    return sweep_spectrum(config).wavelengths_nm
+    """The wavelengths of the (pupil, layout) with the most (each plans its own rule)."""
+    return max((s.wavelengths_nm for s in sweep_spectra(config).values()), key=len)
 
 
 def host_memory_bytes() -> float:

@@ -308,11 +308,26 @@ def _headline(table, pupil: float, layout: str) -> list[str]:
             "–" if v0 is None else f"{v0.p50:.3f}"]
 
 
+def _rule_label(record) -> str:
+    """``"Gauss rule in V(λ), 8 nodes"`` / ``"uniform 25 nm (13)"`` for a ``spectra_json``
+    entry (``"?"`` for a store made before rules were recorded)."""
+    if record is None:
+        return "?"
+    n = record["n_wavelengths"]
+    if record["rule"] == "gauss":
+        return f"Gauss rule in V(λ), {n} nodes"
+    if record.get("step_nm") is not None:
+        return f"uniform {record['step_nm']:g} nm ({n})"
+    return f"{record['rule']} ({n})"
+
+
 def _summary(path: Path, store: Path, ds, config, table, samplings: dict, files: dict,
              counts: dict, ten: dict) -> None:
     lines = []
     add = lines.append
     a = ds.attrs
+    spectra_all = json.loads(a.get("spectra_json", "{}"))  # each (pupil, layout)'s rule
+    spectra = spectra_all if config.wavelength_step_planned and config.display_spectrum is None else {}
     add(f"# Sweep report: `{store.name}`")
     add("")
     add(f"Store `{store}` (lfjax {a.get('lfjax_version', '?')}, JAX {a.get('jax_version', '?')}).")
@@ -336,8 +351,10 @@ def _summary(path: Path, store: Path, ds, config, table, samplings: dict, files:
         f"{', '.join(f'{d:+g}' for d in ds.depth_rel_cdp.values)} D from the CDP (natural "
         f"view: the CDP only); accommodation grid 0–{config.accommodation_max_D:g} D in "
         f"{config.accommodation_step_D:g} D steps, ±{config.window_D:g} D around each depth; "
-        f"{config.wavelengths_nm[0]:g}–{config.wavelengths_nm[1]:g} nm in "
-        f"{_wavelength_step(ds, config):g} nm steps"
+        f"{config.wavelengths_nm[0]:g}–{config.wavelengths_nm[1]:g} nm "
+        + (f"in {_wavelength_step(ds, config):g} nm steps" if not spectra else
+           "sampled per layout (below: a uniform step or the Gauss rule in V(λ), whichever "
+           "met the targets with fewer wavelengths)")
         + (f" (planned for peaks to {config.peak_tolerance_D:g} D and cut-offs to "
            f"{config.cutoff_tolerance_cpd:g} cpd)." if config.wavelength_step_planned else "."))
     add(f"- Peaks: grid peak of each metric; continuous peaks ({config.peak_method!r}) for "
@@ -347,8 +364,8 @@ def _summary(path: Path, store: Path, ds, config, table, samplings: dict, files:
     add("## Sampling per layout")
     add("")
     add("| pupil (mm) | layout | views | subaperture (mm) | frequency step (cpd) | PSF field "
-        "(arcmin) | FFT size | transform |")
-    add("|---|---|---|---|---|---|---|---|")
+        "(arcmin) | FFT size | transform | wavelengths |")
+    add("|---|---|---|---|---|---|---|---|---|")
     for pi, pupil in enumerate(ds.pupil.values):
         for li, layout in enumerate(ds.layout.values):
             step = float(ds.freq_step_cpd.values[pi, li])
@@ -356,8 +373,19 @@ def _summary(path: Path, store: Path, ds, config, table, samplings: dict, files:
             add(f"| {pupil:g} | {layout} | {int(ds.n_subapertures.values[pi, li])} | "
                 f"{float(ds.subaperture_diameter_mm.values[pi, li]):.3g} | {step:.4g} | "
                 f"{60.0 / step:.1f} | {int(ds.n_fft.values[pi, li])} | "
-                f"{s.get('transform', '?')} |")
+                f"{s.get('transform', '?')} | {_rule_label(spectra_all.get(f'{pi},{li}'))} |")
     add("")
+    if spectra:
+        add("Wavelengths (nm) each layout sums, and why the planner chose them:")
+        add("")
+        for pi, pupil in enumerate(ds.pupil.values):
+            for li, layout in enumerate(ds.layout.values):
+                r = spectra.get(f"{pi},{li}")
+                if r is None:
+                    continue
+                nodes = ", ".join(f"{w:.1f}" for w in r["wavelengths_nm"])
+                add(f"- {pupil:g} mm {layout}: {_rule_label(r)}: {nodes}. {r['reason']}")
+        add("")
     add("## Headline numbers")
     add("")
     add("Median [5th, 95th percentile] over the virtual eyes. Error: VSOTF-predicted "

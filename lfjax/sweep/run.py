@@ -22,7 +22,7 @@ import jax
 import numpy as np
 from jax.experimental import multihost_utils
 
-from lfjax.sweep.compute import ChunkEvaluator, build_tasks, population, sweep_spectrum
+from lfjax.sweep.compute import ChunkEvaluator, build_tasks, population
 from lfjax.sweep.config import SweepConfig
 from lfjax.sweep.guard import check_fits, estimate
 from lfjax.sweep.store import (
@@ -33,6 +33,7 @@ from lfjax.sweep.store import (
     create_store,
     record_run,
     stored_samplings,
+    stored_spectra,
     template,
     unmark_chunks,
     utc_now,
@@ -99,7 +100,7 @@ def _say(text: str) -> None:
 
 
 def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | None = None,
-               progress: bool = False):
+               progress: bool = False, spectra: dict | None = None):
     """Everything a sweep decides before it creates anything: the population, the spectrum,
     each (pupil, layout)'s task (sampling planned on the whole population) and the
     :class:`~lfjax.sweep.guard.SweepEstimate`; refuses (:class:`SweepTooLargeError`, with
@@ -107,8 +108,11 @@ def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | 
     host and its devices. Writes nothing.
 
     ``progress``: say on stderr what is being drawn and planned, and how long it took.
+    ``samplings`` and ``spectra``: a resumed store's (:func:`~lfjax.sweep.store.stored_samplings`,
+    :func:`~lfjax.sweep.store.stored_spectra`), used instead of planning.
 
-    Returns ``(eyes, is_average, spectrum, tasks, estimate)``.
+    Returns ``(eyes, is_average, spectrum, tasks, estimate)``; ``spectrum`` is None: each
+    task carries its own (``Task.spectrum``, :func:`~lfjax.sweep.compute.sweep_spectra`).
     """
     n_devices = len(jax.local_devices() if devices is None else devices)
     # sizes known from the config alone first: planning an impossible grid would itself
@@ -116,13 +120,13 @@ def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | 
     check_fits(estimate(config, n_devices=n_devices), store=store)
     t0 = time.perf_counter()
     eyes, is_average = population(config)
-    spectrum = sweep_spectrum(config)
+    spectrum = None  # each task carries its own (build_tasks: sweep_spectra)
     n_tasks = len(config.pupil_diameters_mm) * len(config.layouts)
     if progress:
         _say(f"drew {config.n_total_eyes} eyes; "
              + ("reading the stored sampling of" if samplings else "planning the sampling of")
              + f" {n_tasks} (pupil, layout) pair(s) on them ...")
-    tasks = build_tasks(config, eyes, spectrum, samplings)
+    tasks = build_tasks(config, eyes, None, samplings, spectra)
     if progress:
         _say(f"planned in {time.perf_counter() - t0:.1f} s")
     est = estimate(config, tasks, n_devices=n_devices)
@@ -185,8 +189,10 @@ def run_sweep(
             lock = _take_lock(store)
     try:
         samplings = stored_samplings(store) if exists else None
+        spectra = stored_spectra(store, config) if exists else None  # what its chunks summed
         eyes, is_average, spectrum, tasks, est = plan_sweep(
-            config, None if exists else store, devices, samplings, progress=progress and pid == 0)
+            config, None if exists else store, devices, samplings, progress=progress and pid == 0,
+            spectra=spectra)
         if on_plan is not None and pid == 0:
             on_plan(est)
         created = False

@@ -37,7 +37,9 @@ from lfjax.base.files import owned_temp_dir, pid_alive, remove_orphans
 from lfjax._version import __version__
 from lfjax.vision.peaks import METRICS
 from lfjax.base.sampling import Sampling
-from lfjax.sweep.compute import FREQUENCIES_CPD, Task, layout_name, sweep_spectrum
+from lfjax.model.spectral import make_spectrum
+from lfjax.sweep.compute import (FREQUENCIES_CPD, Task, layout_name, spectral_plans,
+                                 sweep_spectra)
 from lfjax.sweep.config import SweepConfig, config_differences, config_to_toml
 
 STORE_FORMAT = "lfjax-sweep-store/1"
@@ -66,6 +68,39 @@ def _stored_record(config: SweepConfig) -> dict:
     return {"config": config.as_dict(), "lfjax_version": __version__}
 
 
+def spectral_record(config: SweepConfig, tasks: list[Task]) -> dict[str, dict]:
+    """Each (pupil, layout)'s spectrum as the store records it (``spectra_json``), keyed
+    ``"pupil_index,layout_index"``: ``rule`` — ``"gauss"`` (the Gauss rule for V(λ), planned),
+    ``"uniform"`` (a planned step), ``"given"`` (the config's step) or ``"display"`` (a
+    display's white) —, ``n_wavelengths``, ``step_nm`` (uniform rules, else None),
+    ``wavelengths_nm`` and ``weights`` (summing to 1) as the pipeline sums them, and ``reason``
+    (the planner's, for a planned rule)."""
+    planned = config.wavelength_step_planned and config.display_spectrum is None
+    plans = spectral_plans(config) if planned else {}
+    spectra = sweep_spectra(config) if any(t.spectrum is None for t in tasks) else {}
+    out = {}
+    for t in tasks:
+        spectrum = t.spectrum if t.spectrum is not None else spectra[t.key]
+        wl = [float(w) for w in np.asarray(spectrum.wavelengths_nm)]
+        plan = plans.get(t.key)
+        if plan is not None:
+            rule = plan.spectral_rule
+            reason = " ".join(r for r in plan.reasons if r.startswith("wavelength"))
+        else:
+            rule = "display" if config.display_spectrum is not None else "given"
+            reason = ("the display's white" if rule == "display"
+                      else "the step given in spectrum.wavelengths_nm")
+        uniform = rule != "gauss" and len(wl) > 1 and np.allclose(np.diff(wl), wl[1] - wl[0])
+        out[f"{t.pupil_index},{t.layout_index}"] = {
+            "rule": rule, "n_wavelengths": len(wl),
+            "step_nm": float(wl[1] - wl[0]) if uniform else None,
+            "wavelengths_nm": wl,
+            "weights": [float(w) for w in np.asarray(spectrum.weights)],
+            "reason": reason,
+        }
+    return out
+
+
 def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> "xr.Dataset":  # noqa: F821
     """The store as an xarray Dataset before any chunk is computed, for the eyes given
     (``zernike_um`` (n, n_modes) µm, ``is_average`` (n,)): all of them, or the first chunk's
@@ -86,7 +121,10 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
     n_sub = np.zeros((n_pupil, n_layout), np.int32)
     sub_diam = np.full((n_pupil, n_layout), np.nan)
     samplings = {}
+    spectra = spectral_record(config, tasks)
+    n_wl = np.zeros((n_pupil, n_layout), np.int32)
     for t in tasks:
+        n_wl[t.key] = spectra[f"{t.pupil_index},{t.layout_index}"]["n_wavelengths"]
         steps[t.key] = t.sampling.freq_step_cpd
         n_fft[t.key] = t.pipeline_config.n_fft
         n_sub[t.key] = t.layout.n_subapertures
@@ -112,7 +150,10 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         "measured_pupil_mm": float(config.fit_pupil_mm),
         "config_cutoff_threshold": float(config.cutoff_threshold),
         "config_dof_fraction": float(config.dof_fraction),
-        "wavelengths_nm": json.dumps([float(w) for w in sweep_spectrum(config).wavelengths_nm]),
+        # every wavelength any (pupil, layout) sums; each one's own rule in spectra_json
+        "wavelengths_nm": json.dumps(sorted({w for r in spectra.values()
+                                             for w in r["wavelengths_nm"]})),
+        "spectra_json": json.dumps(spectra, sort_keys=True),
         "display": json.dumps({"lenslet_distance_mm": config.lenslet_distance_mm,
                                "pixel_width_arcmin": config.pixel_width_arcmin,
                                "spectrum": config.display_spectrum or "V(lambda) white"}),
@@ -160,6 +201,9 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
                 "long_name": "frequency step of the OTF grid (PSF field 60/df arcmin)",
                 "units": "cpd"}),
             n_fft=(("pupil", "layout"), n_fft, {"long_name": "FFT size of the OTF grid"}),
+            n_wavelengths=(("pupil", "layout"), n_wl, {
+                "long_name": "wavelengths summed (the rule, its nodes and weights: attribute "
+                             "spectra_json)"}),
             chunk_complete=(("chunk",), np.zeros(config.n_chunks, bool), {
                 "long_name": "the chunk's eyes are written (eyes chunk*chunk_size …)"}),
             chunk_checksum=(("chunk",), np.zeros(config.n_chunks, np.uint64), {
@@ -250,6 +294,24 @@ def stored_samplings(path) -> dict:
         pi, li = (int(x) for x in key.split(","))
         out[(pi, li)] = Sampling(**value)
     return out
+
+
+def stored_spectra(path, config: SweepConfig) -> dict | None:
+    """{(pupil_index, layout_index): Spectrum} a store's chunks were computed with, so a
+    resumed sweep sums exactly those (not a rule planned again by other code): from
+    ``spectra_json``, or, for a store made before rules were planned per layout, its one
+    ``wavelengths_nm`` grid with V(λ) weights. None for a display's spectrum without
+    ``spectra_json`` (the config derives it as it did)."""
+    attrs = _open_group(path).attrs
+    if "spectra_json" in attrs:
+        return {tuple(int(x) for x in key.split(",")): make_spectrum(
+                    np.asarray(r["wavelengths_nm"]), config.options, weights=np.asarray(r["weights"]))
+                for key, r in json.loads(attrs["spectra_json"]).items()}
+    if config.display_spectrum is not None or "wavelengths_nm" not in attrs:
+        return None
+    shared = make_spectrum(np.asarray(json.loads(attrs["wavelengths_nm"])), config.options)
+    return {(pi, li): shared for pi in range(len(config.pupil_diameters_mm))
+            for li in range(len(config.layouts))}
 
 
 def _encoding(ds, chunk_size: int, n_eye: int | None = None) -> dict:
@@ -649,6 +711,8 @@ __all__ = [
     "is_store",
     "open_store",
     "stored_samplings",
+    "spectral_record",
+    "stored_spectra",
     "study_view",
     "template",
     "write_chunk",

@@ -126,3 +126,90 @@ def test_model_options_validation_and_hashing():
     d = ModelOptions().as_dict()
     assert d["sce"] == "amplitude" and d["accommodation_sa"] == "scaled"
     assert d["sa_slope_um_per_D"] == -0.0435 and d["lca_A"] == 633.26
+
+
+# ----------------------------------------------------------------------------- Gauss rule in V(λ)
+
+
+def _exact_legendre_moments(k_max, start, stop, source=None):
+    """∫ P_k(t) ρ dλ / ∫ ρ dλ for k = 0..k_max, t = (2λ − start − stop)/(stop − start),
+    ρ = V (linear between its 1 nm samples) × the source (linear between its samples):
+    exactly, piece by piece, with Legendre-series products and antiderivatives (no
+    quadrature), independent of gauss_rule's discretisation."""
+    from numpy.polynomial import Legendre
+
+    wl_v, v = spectral.lef_data()
+    edges = [wl_v]
+    if source is not None:
+        edges.append(np.asarray(source[0], float))
+    edges = np.concatenate(edges)
+    edges = np.unique(np.concatenate([[start, stop], edges[(edges > start) & (edges < stop)]]))
+    to_t = lambda lam: (2.0 * lam - start - stop) / (stop - start)  # noqa: E731
+    moments = np.zeros(k_max + 1)
+    for a, b in zip(edges[:-1], edges[1:]):
+        ta, tb = to_t(a), to_t(b)
+
+        def linear(values_at):  # the table's linear piece as a series in t
+            fa, fb = values_at(a), values_at(b)
+            slope = (fb - fa) / (tb - ta)
+            return Legendre([fa - slope * ta, slope])
+
+        rho = linear(lambda lam: np.interp(lam, wl_v, v))
+        if source is not None:
+            rho = rho * linear(lambda lam: np.interp(lam, source[0], source[1]))
+        for k in range(k_max + 1):
+            f = (Legendre.basis(k) * rho).integ()
+            moments[k] += f(tb) - f(ta)
+    return moments / moments[0]
+
+
+@pytest.mark.parametrize("n, start, stop, source", [
+    (1, 400.0, 700.0, None),
+    (5, 400.0, 700.0, None),
+    (8, 400.0, 700.0, None),
+    (12, 420.0, 680.5, None),
+    # a tabulated source on its own breakpoints (a ramp with a kink), not V's
+    (8, 400.0, 700.0, ([380.0, 512.3, 650.0, 760.0], [1.0, 2.5, 0.4, 3.0])),
+])
+def test_gauss_rule_exact_to_degree_2n_minus_1(n, start, stop, source):
+    """The n-node rule integrates every polynomial of degree ≤ 2n − 1 against V(λ)·S(λ)
+    exactly (to float64 rounding), and degree 2n not: it is the Gauss rule, not a finer
+    one. Nodes increase strictly inside the interval; weights are positive and sum to 1."""
+    nodes, weights = spectral.gauss_rule(n, start, stop, source)
+    assert nodes.shape == weights.shape == (n,)
+    assert np.all(nodes > start) and np.all(nodes < stop) and np.all(np.diff(nodes) > 0)
+    assert np.all(weights > 0) and weights.sum() == pytest.approx(1.0, abs=1e-15)
+    exact = _exact_legendre_moments(2 * n, start, stop, source)
+    t = (2.0 * nodes - start - stop) / (stop - start)
+    rule = np.array([weights @ np.polynomial.legendre.Legendre.basis(k)(t)
+                     for k in range(2 * n + 1)])
+    np.testing.assert_allclose(rule[: 2 * n], exact[: 2 * n], rtol=0, atol=2e-14)
+    assert abs(rule[2 * n] - exact[2 * n]) > 1e-8
+
+
+def test_gauss_spectrum_matches_rule_and_model():
+    """gauss_spectrum: the rule's nodes as wavelengths and its weights as the spectral weights
+    (not V(λ)·Δλ of the nodes), LCA and SCE as make_spectrum gives them at those nodes."""
+    nodes, weights = spectral.gauss_rule(8)
+    s = spectral.gauss_spectrum(8)
+    np.testing.assert_allclose(np.asarray(s.wavelengths_nm), nodes, rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(s.weights), weights, rtol=1e-6)
+    m = spectral.make_spectrum(nodes)
+    np.testing.assert_allclose(np.asarray(s.lca_D), np.asarray(m.lca_D), rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(s.sce_rho_per_mm2), np.asarray(m.sce_rho_per_mm2), rtol=1e-6)
+    assert not np.allclose(np.asarray(m.weights), weights, rtol=1e-2)
+
+
+@pytest.mark.parametrize("call, name", [
+    (lambda: spectral.gauss_rule(0), "n_nodes"),
+    (lambda: spectral.gauss_rule(2.0), "n_nodes"),
+    (lambda: spectral.gauss_rule(spectral.GAUSS_MAX_NODES + 1), "n_nodes"),
+    (lambda: spectral.gauss_rule(4, 700.0, 400.0), "start_nm"),
+    (lambda: spectral.gauss_rule(4, 380.0, 700.0), "start_nm"),
+    (lambda: spectral.gauss_rule(4, source=([450.0, 700.0], [1.0, 1.0])), "source"),
+    (lambda: spectral.gauss_rule(4, source=([400.0, 700.0], [1.0, -1.0])), "source"),
+    (lambda: spectral.gauss_rule(4, source=([400.0, 700.0], [0.0, 0.0])), "source"),
+])
+def test_gauss_rule_errors(call, name):
+    with pytest.raises(ValueError, match=name):
+        call()

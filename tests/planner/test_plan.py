@@ -429,3 +429,57 @@ def test_plans_are_remembered_by_value_in_memory_and_on_disk(tmp_path, monkeypat
     finally:
         _plan_cache.enable_plan_cache(None)
         _plan_cache.clear_memory()
+
+
+def test_spectral_rule_auto_takes_the_gauss_rule_when_it_needs_fewer_wavelengths():
+    """``Overrides(spectral_rule="auto")``: the Gauss rule for V(λ) with the fewest nodes that
+    meets the same proxy criteria as the step replaces the step when it has fewer
+    wavelengths. The plan carries the rule's nodes and weights (not V(λ)·Δλ of the nodes),
+    its measured errors are within half of each target, its reasons name the rule, its node
+    count and the uniform count it beat, and one node fewer is on record as failing. The
+    default (``"uniform"``) plans exactly what the planner planned before."""
+    from lfjax.model.spectral import gauss_rule
+
+    scene = PlanScene(lfjax.grid_layout(2, 3.0), depths_D=[1.0, 2.0], accommodation_window_D=0.6,
+                      wavelength_range_nm=(400.0, 700.0))
+    targets = Targets(vsotf=None, peak_D=0.01, cutoff_cpd=0.25)
+    uniform = plan_sampling(scene, targets, estimate_accuracy=False)
+    auto = plan_sampling(scene, targets, estimate_accuracy=False,
+                         overrides=Overrides(spectral_rule="auto"))
+    assert uniform.spectral_rule == "uniform" and uniform.spectral_weights is None
+    wl_u = np.asarray(uniform.wavelengths_nm)
+    assert np.allclose(np.diff(wl_u), wl_u[1] - wl_u[0]) and wl_u[0] == 400.0
+    assert auto.spectral_rule == "gauss"
+    n = len(auto.wavelengths_nm)
+    assert n < wl_u.size
+    nodes, weights = gauss_rule(n, 400.0, 700.0)
+    np.testing.assert_allclose(auto.wavelengths_nm, nodes, rtol=1e-12)
+    np.testing.assert_allclose(auto.spectral_weights, weights, rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(auto.spectrum().weights), weights, rtol=1e-6)
+    assert auto.errors["spectral_peak_D"] <= 0.5 * 0.01
+    assert auto.errors["spectral_cutoff_cpd"] <= 0.5 * 0.25
+    (reason,) = [r for r in auto.reasons if "Gauss rule in V(λ)" in r]
+    assert f"{n} nodes" in reason and f"uniform step's {wl_u.size}" in reason
+    if n > planner.GAUSS_NODE_CANDIDATES[0]:
+        assert f"({n - 1} nodes:" in reason
+    assert "Gauss rule in V(λ)" in auto.summary()
+
+
+def test_spectral_rule_keeps_the_step_when_no_rule_meets_the_targets(monkeypatch):
+    """Without a Gauss rule that meets the targets with fewer nodes (here only 2 nodes are
+    tried), "auto" keeps the uniform step and says why; a step given by the user is a
+    uniform grid whatever the rule."""
+    monkeypatch.setattr(planner, "GAUSS_NODE_CANDIDATES", (2,))
+    scene = PlanScene(lfjax.grid_layout(2, 3.0), depths_D=[2.0], accommodation_window_D=0.6,
+                      wavelength_range_nm=(400.0, 700.0))
+    targets = Targets(vsotf=None, peak_D=0.01, cutoff_cpd=0.25)
+    kept = plan_sampling(scene, targets, estimate_accuracy=False,
+                         overrides=Overrides(spectral_rule="auto"))
+    assert kept.spectral_rule == "uniform" and kept.spectral_weights is None
+    assert any("uniform step kept" in r and "(2 nodes:" in r for r in kept.reasons)
+    given = plan_sampling(scene, targets, estimate_accuracy=False,
+                          overrides=Overrides(spectral_rule="auto", wavelength_step_nm=30.0))
+    np.testing.assert_allclose(given.wavelengths_nm, np.arange(400.0, 701.0, 30.0))
+    assert given.spectral_rule == "uniform"
+    with pytest.raises(ValueError, match="spectral_rule"):
+        Overrides(spectral_rule="gauss-legendre")

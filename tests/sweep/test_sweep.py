@@ -147,23 +147,41 @@ def test_config_round_trips_through_toml(tmp_path):
 
 
 def test_a_step_less_spectrum_is_planned_for_the_peak_and_cutoff_targets():
-    """``wavelengths_nm = [start, stop]`` (the default) asks the planner for the step:
-    the finest of each (pupil, layout)'s coarsest step meeting the targets; a tighter
-    target never gets a coarser step; the store, guard and report see the planned grid."""
-    from lfjax.sweep.compute import planned_wavelength_step
+    """``wavelengths_nm = [start, stop]`` (the default) asks the planner for each (pupil,
+    layout)'s spectrum: the uniform step (``planned_wavelength_step``: the finest of each
+    layout's coarsest step meeting the targets; a tighter target never gets a coarser one)
+    or the Gauss rule for V(λ) when it meets the targets with fewer wavelengths. The tasks
+    sum exactly the planned rule (its nodes and weights), and the guard counts it."""
+    from lfjax.model.spectral import gauss_rule
+    from lfjax.sweep.compute import planned_wavelength_step, spectral_plans, sweep_spectra
     from lfjax.sweep.guard import estimate
 
     planned = tiny_config(spectrum={"wavelengths_nm": [400.0, 700.0]},
                           display={"layouts": ["4x4"]})
     step = planned_wavelength_step(planned)
     assert 10.0 < step < 50.0
-    spectrum = sweep_spectrum(planned)
-    np.testing.assert_allclose(np.diff(spectrum.wavelengths_nm), step)
-    assert spectrum.wavelengths_nm[0] == 400.0 and spectrum.wavelengths_nm[-1] == 700.0
+    uniform = sweep_spectrum(planned)
+    np.testing.assert_allclose(np.diff(uniform.wavelengths_nm), step)
+    assert uniform.wavelengths_nm[0] == 400.0 and uniform.wavelengths_nm[-1] == 700.0
+    (plan,) = spectral_plans(planned).values()
+    (spectrum,) = sweep_spectra(planned).values()
+    assert plan.spectral_rule == "gauss" and spectrum.n_wavelengths < uniform.n_wavelengths
+    nodes, weights = gauss_rule(spectrum.n_wavelengths, 400.0, 700.0)
+    np.testing.assert_allclose(spectrum.wavelengths_nm, nodes, rtol=1e-12)
+    np.testing.assert_allclose(spectrum.weights, weights, rtol=1e-6)
+    eyes, _ = population(planned)
+    (task,) = build_tasks(planned, eyes)
+    assert task.spectrum is not None
+    np.testing.assert_array_equal(task.spectrum.wavelengths_nm, spectrum.wavelengths_nm)
+    assert task.pipeline_config.bands[-1][1] == spectrum.n_wavelengths
     assert estimate(planned).n_wavelengths == spectrum.n_wavelengths
     tight = tiny_config(spectrum={"wavelengths_nm": [400.0, 700.0]},
                         display={"layouts": ["4x4"]}, sampling={"peak_tolerance_D": 1e-4})
     assert planned_wavelength_step(tight) < step
+    # a step given is a uniform grid, shared by every (pupil, layout)
+    given = tiny_config(spectrum={"wavelengths_nm": [400.0, 700.0, 30.0]})
+    for s in sweep_spectra(given).values():
+        np.testing.assert_allclose(s.wavelengths_nm, np.arange(400.0, 701.0, 30.0))
     with pytest.raises(SweepConfigError, match="needs a step with spectrum.display"):
         tiny_config(spectrum={"wavelengths_nm": [400.0, 700.0], "display": "oled"})
     with pytest.raises(SweepConfigError, match="peak_tolerance_D"):

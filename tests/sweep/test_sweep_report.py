@@ -468,3 +468,83 @@ def test_tables_print_zero_not_roundoff():
     text = printable(table).to_csv(index=False, float_format="%.6g")
     assert text.splitlines()[1] == "0,1,a" and "e-17" not in text
     assert np.isnan(printable(table).p50[2]) and printable(table).p50[1] == 0.25
+
+
+# ------------------------------------------------------------------ spectral rules
+
+
+def test_given_step_is_recorded_as_a_uniform_rule(ds, report):
+    """A step given in the config is one uniform grid for every layout: the store's
+    ``spectra_json`` and ``n_wavelengths`` say so, and the report's sampling table too."""
+    import json
+
+    spectra = json.loads(ds.attrs["spectra_json"])
+    assert set(spectra) == {f"0,{li}" for li in range(3)}
+    for record in spectra.values():
+        assert record["rule"] == "given" and record["step_nm"] == 100.0
+        assert record["wavelengths_nm"] == [450.0, 550.0, 650.0]
+        assert sum(record["weights"]) == pytest.approx(1.0)
+    np.testing.assert_array_equal(ds.n_wavelengths.values, [[3, 3, 3]])
+    summary = report[1]["summary"].read_text()
+    assert "450–650 nm in 100 nm steps." in summary
+    assert summary.count("| uniform 100 nm (3) |") == 3
+
+
+def test_planned_rules_are_recorded_per_layout(tmp_path):
+    """Without a step each layout sums its own planned rule; the store records the rule, its
+    nodes and weights and the planner's reason, and the report lists them per layout."""
+    import json
+
+    from lfjax.sweep.compute import spectral_plans, sweep_spectra
+
+    config = config_from_dict({**TINY, "population": {"n_eyes": 1, "seed": 0},
+                               "display": {"layouts": ["natural", "4x4"], "depth_offsets_D": [0.0]},
+                               "spectrum": {"wavelengths_nm": [400.0, 700.0]},
+                               "run": {"chunk_size": 2}})
+    path = tmp_path / "planned.zarr"
+    run_sweep(config, path, progress=False)
+    stored = open_store(path)
+    spectra = json.loads(stored.attrs["spectra_json"])
+    plans, expected = spectral_plans(config), sweep_spectra(config)
+    for (pi, li), spectrum in expected.items():
+        record = spectra[f"{pi},{li}"]
+        assert record["rule"] == plans[(pi, li)].spectral_rule
+        np.testing.assert_allclose(record["wavelengths_nm"], np.asarray(spectrum.wavelengths_nm))
+        np.testing.assert_allclose(record["weights"], np.asarray(spectrum.weights), rtol=1e-6)
+        assert int(stored.n_wavelengths.values[pi, li]) == spectrum.n_wavelengths
+    from lfjax.sweep.store import stored_spectra
+
+    resumed = stored_spectra(path, config)  # what a resumed sweep sums: the stored rules
+    for key, spectrum in expected.items():
+        np.testing.assert_allclose(resumed[key].wavelengths_nm, spectrum.wavelengths_nm)
+        np.testing.assert_allclose(resumed[key].weights, spectrum.weights, rtol=1e-6)
+    gauss = spectra["0,1"]
+    assert gauss["rule"] == "gauss" and gauss["step_nm"] is None  # the 4x4 views
+    assert "Gauss rule in V(λ)" in gauss["reason"]
+    summary = sr.sweep_report(path, tmp_path / "report", draws=30, seed=1)["summary"].read_text()
+    assert "sampled per layout" in summary
+    assert f"| Gauss rule in V(λ), {gauss['n_wavelengths']} nodes |" in summary
+    nodes = ", ".join(f"{w:.1f}" for w in gauss["wavelengths_nm"])
+    assert f"3 mm 4x4: Gauss rule in V(λ), {gauss['n_wavelengths']} nodes: {nodes}." in summary
+
+
+def test_a_store_without_recorded_rules_resumes_on_its_one_grid(store, tmp_path):
+    """A store made before rules were recorded per layout resumes on its one recorded grid
+    with V(λ) weights (what its chunks summed), not on a rule planned now."""
+    import zarr
+
+    from lfjax.model.spectral import make_spectrum
+    from lfjax.sweep.store import stored_spectra
+
+    old = tmp_path / "old.zarr"
+    shutil.copytree(store, old)
+    group = zarr.open_group(str(old), mode="r+", zarr_format=2)
+    del group.attrs["spectra_json"]
+    zarr.consolidate_metadata(str(old), zarr_format=2)
+    config = config_from_dict(TINY)
+    spectra = stored_spectra(old, config)
+    assert set(spectra) == {(0, 0), (0, 1), (0, 2)}
+    expected = make_spectrum([450.0, 550.0, 650.0], config.options)
+    for spectrum in spectra.values():
+        np.testing.assert_allclose(spectrum.wavelengths_nm, expected.wavelengths_nm)
+        np.testing.assert_allclose(spectrum.weights, expected.weights, rtol=1e-12)
