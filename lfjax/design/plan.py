@@ -34,14 +34,21 @@ REPORT_PASSES = 2.0
 and the perceivable resolution at the predicted accommodation (one eye per call, its
 compilation and host work amortised over the eyes)."""
 
+COMPILE_SECONDS = 30.0
+"""Compilation per count (its shapes differ from every other count's): the fit's value and
+gradient, the report's evaluation and its perceivable resolution; about 10 s each with a
+cold cache (RESULTS §21, 21 s for the near-eye 2x2 gradient under a load of 9 on 2 cores)."""
+
 FORWARD_ALLOWANCE = 3.0
 """Working set of a forward evaluation over the largest arrays of one eye (elemental OTFs
 and the rendered block): FFT workspaces and temporaries (the sweep's
 :data:`lfjax.sweep.guard.DEVICE_ALLOWANCE`)."""
 
-REVERSE_ALLOWANCE = 4.6
-"""Working set of the reverse pass of one eye over the same arrays: the phone preset's 3x3
-fit kept 2.1 GB per training eye over 0.46 GB of them (RESULTS §15)."""
+REVERSE_ALLOWANCE = 6.8
+"""Working set of one chunk's checkpointed reverse pass (the recomputed forward and its
+reverse) over the same arrays of one eye: the phone preset's 3x3 fit, one eye per chunk,
+peaked at 3.93 GB with 0.46 GB of them (RESULTS §21; all at once it kept 2.1 GB per
+training eye, §15)."""
 
 BASE_BYTES = 0.8e9
 """Resident memory of the process before any transform: the interpreter, JAX, XLA's
@@ -167,7 +174,8 @@ def count_plan(n_per_side: int, fit_problem, report_problem, train_eyes: int, re
         report_fft=int(report_problem.config.n_fft),
         report_df_cpd=float(report_problem.config.freq_step_cpd), report_states=report_states,
         report_wavelengths=int(report_problem.spectrum.wavelengths_nm.shape[0]),
-        fit_seconds=evaluations * GRADIENT_COST * fit_units * train_eyes * SECONDS_PER_UNIT,
+        fit_seconds=0.0 if steps == 0 else (
+            evaluations * GRADIENT_COST * fit_units * train_eyes * SECONDS_PER_UNIT + COMPILE_SECONDS),
         report_seconds=2 * REPORT_PASSES * report_units * report_eyes * SECONDS_PER_UNIT,
         fit_bytes=0.0 if steps == 0 else REVERSE_ALLOWANCE * fit_arrays * eye_chunk,
         report_bytes=FORWARD_ALLOWANCE * report_arrays)
