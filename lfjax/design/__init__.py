@@ -17,5 +17,5 @@ from lfjax.design.fit import (
     save_design,
 )
 
-__all__ = ["fit", "plan", "REPORT_ACCURACIES", "DesignConstraints", "DesignResult", "check_design", "design_cdp_D",
-           "design_panel", "fig_design", "fit_design", "panel_specification", "save_design"]
+__all__ = ["fit", "plan", "REPORT_ACCURACIES", "DesignConstraints", "DesignResult", "check_design",
+           "design_cdp_D", "design_panel", "fig_design", "fit_design", "panel_specification", "save_design"]

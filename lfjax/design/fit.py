@@ -491,8 +491,11 @@ def _solve(x0, problem, template, n, constraints, steps: int, tol: float,
     def fun(x):
         key = np.asarray(x, float).tobytes()
         if key not in seen:
-            value, grad = _chunked_value_and_grad(jnp.asarray(x, dtype), problem, template, n,
-                                                  constraints, eye_chunk)
+            if eye_chunk is None:  # all at once: no checkpoint, no recomputation
+                value, grad = _value_and_grad(jnp.asarray(x, dtype), problem, template, n, constraints)
+            else:
+                value, grad = _chunked_value_and_grad(jnp.asarray(x, dtype), problem, template, n,
+                                                      constraints, eye_chunk)
             value = float(value)
             if not math.isfinite(value):
                 raise FloatingPointError("the design loss is not finite")
@@ -619,7 +622,8 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
         (:class:`lfjax.design.plan.DesignPlan`: each count's sampling, estimated time and
         memory) before any fit, then a line per solver step and per report
     eye_chunk : training eyes per chunk of the gradient (:func:`design_loss_chunked`;
-        default 1: the reverse pass holds one eye's intermediates; None: all at once)
+        default 1: the reverse pass holds one eye's intermediates; None: all at once,
+        :func:`design_loss` without checkpoints, one forward evaluation less per step)
 
     Refuses (:func:`check_design`: a :class:`~lfjax.base.errors.ParameterError` naming the
     parameter, before anything is traced) a CDP outside the depth range, counts outside
@@ -631,6 +635,7 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
     depths, cdp, counts = check_design(panel, depth_range_D, n_depths, cdp_D, views_per_side,
                                        wavelengths_nm, steps, report_accuracy)
     chunk = eye_chunk_size(train_eyes.n_eyes, eye_chunk)
+    solver_chunk = None if eye_chunk is None else chunk
     say = progress if callable(progress) else (
         (lambda line: print(line, flush=True)) if progress else None)
     lo, hi = (float(v) for v in depth_range_D)
@@ -676,7 +681,7 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
         problem, report = prepared[n]
         tell = None if say is None else (lambda line, n=n: say(f"design {n}x{n}: {line}"))
         x0 = jnp.asarray(start_box(panel, n, cdp, constraints), jnp.result_type(float))
-        x, history = _solve(x0, problem, panel, n, constraints, steps, tol, chunk, tell)
+        x, history = _solve(x0, problem, panel, n, constraints, steps, tol, solver_chunk, tell)
         fitted = panel_from_box(np.asarray(x), panel, n, cdp, constraints)
         start = panel_from_box(np.asarray(x0), panel, n, cdp, constraints)
         fit = DesignFit(n, Panel(*_host_leaves(fitted), **_statics(fitted)),
