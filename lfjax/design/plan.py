@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import jax
 
-from lfjax.sweep.guard import SECONDS_PER_UNIT
+from lfjax.sweep.guard import SECONDS_PER_UNIT, host_memory_bytes
 
 EVALUATIONS_PER_STEP = 1.3
 """L-BFGS-B's loss-and-gradient evaluations per step (its line search mostly accepts the
@@ -126,6 +126,7 @@ class DesignPlan:
     eye_chunk: int = 1
     steps: int = 0
     report_accuracy: str = ""
+    available_bytes: float | None = None  # memory this process may use (None: MemAvailable)
 
     @property
     def seconds(self) -> float:
@@ -151,6 +152,11 @@ class DesignPlan:
                 f"memory ~{_bytes(c.peak_bytes)}")
         lines.append(f"  total ~{_duration(self.seconds)} on 2 CPU cores (estimated), peak memory "
                      f"~{_bytes(self.peak_bytes)}")
+        available = host_memory_bytes() if self.available_bytes is None else self.available_bytes
+        if self.peak_bytes > available:
+            lines.append(f"  warning: more memory than the {_bytes(available)} available here; "
+                         f"fewer --views, a coarser --freq-step or --diffraction off need less "
+                         f"(the fit's gradient already takes one training eye at a time)")
         return "\n".join(lines)
 
 
