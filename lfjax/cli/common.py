@@ -190,12 +190,13 @@ def add_depths(parser, default, n_default: int, help: str) -> None:
 
 
 def add_fit_setting(parser, steps_default: int, steps_help: str, wavelengths_help: str,
-                    report_help: str, freq_step_help: str) -> None:
+                    report_help: str, freq_step_help: str, report_choices=("full", "fit"),
+                    report_default: str = "full") -> None:
     """--wavelengths, --steps, --report-accuracy and --freq-step of a fit and its report."""
     parser.add_argument("--wavelengths", metavar="NM", nargs="+", type=finite_float,
                         default=[550.0], help=wavelengths_help)
     parser.add_argument("--steps", metavar="N", type=count, default=steps_default, help=steps_help)
-    parser.add_argument("--report-accuracy", choices=("full", "fit"), default="full",
+    parser.add_argument("--report-accuracy", choices=tuple(report_choices), default=report_default,
                         help=report_help)
     parser.add_argument("--freq-step", metavar="CPD", type=finite_float, default=None,
                         help=freq_step_help)

@@ -10,6 +10,7 @@ from lfjax.base.files import check_output_folder
 from lfjax.base.sampling import Sampling
 from lfjax.cli import common
 from lfjax.design import (
+    REPORT_ACCURACIES,
     DesignConstraints,
     check_design,
     design_cdp_D,
@@ -44,7 +45,10 @@ def add_parser(sub) -> None:
             "accommodation error, and the perceivable resolution (MTF 0.05 cut-off capped at the\n"
             "display's sampling limit, cpd; median and 5-95 %). A design whose views collapse\n"
             "(1x1) or that drives no accommodation is refused with the reason; a CDP outside the\n"
-            "depth range is refused before anything runs.\n\n"
+            "depth range is refused before anything runs. A plan comes first: each count's\n"
+            "sampling, estimated time and peak memory; then a line per solver step and report.\n"
+            "The fit's gradient takes the training eyes one at a time (memory does not grow\n"
+            "with --train-eyes).\n\n"
             "Outputs in DIR: design.json (every count's build specification: pixel pitch,\n"
             "lenslet pitch, aperture, focal length, gap, distance, with units; derived CDP,\n"
             "Fresnel number, pixel and lenslet angles, eye box; held-out scores; the chosen\n"
@@ -81,12 +85,15 @@ def add_parser(sub) -> None:
     common.add_fit_setting(
         des, 10, "L-BFGS-B steps per count, >= 0 (default 10)",
         wavelengths_help="the fit's wavelengths, nm, increasing, 400-700 (default 550)",
-        report_help="setting of the held-out report (default full: 31 wavelengths)",
-        freq_step_help="frequency step, cpd (default: the planner's aliasing guard)")
+        report_help="setting of the held-out report: fast (11 wavelengths, 400-700 nm in 30 nm "
+                    "steps, peaks at the grid vertex; default), full (31 wavelengths, refined "
+                    "peaks; several times slower) or fit (the fit's own wavelengths)",
+        freq_step_help="frequency step, cpd (default: the planner's aliasing guard)",
+        report_choices=REPORT_ACCURACIES, report_default="fast")
     common.add_out(des, "lfjax-design", "output folder; must be new or empty unless --force "
                                         "(default ./lfjax-design)")
     common.add_force(des, "write into a non-empty DIR")
-    common.add_no_progress(des, "print no per-count progress")
+    common.add_no_progress(des, "print the plan only, no progress per step and per count")
 
 
 def run(args) -> int:
@@ -113,7 +120,7 @@ def run(args) -> int:
         result = fit_design(
             panel, train_eyes=sample_eyes(args.seed, args.train_eyes),
             test_eyes=sample_eyes(args.seed + 1, args.test_eyes) if args.test_eyes > 0 else None,
-            constraints=constraints, sampling=sampling, progress=not args.no_progress, **fit)
+            constraints=constraints, sampling=sampling, progress=_printer(args.no_progress), **fit)
         result.provenance["seed_train"] = args.seed
         result.provenance["panel_preset"] = args.panel
         files = save_design(result, out, command=common.command_line(args.argv))
@@ -127,3 +134,12 @@ def run(args) -> int:
     print(f"{prog}: wrote {len(files)} files to {out} in "
           f"{time.perf_counter() - args.t_start:.1f} s")
     return 0
+
+
+def _printer(plan_only: bool):
+    """What :func:`lfjax.design.fit_design` says: the plan (sampling, estimated time and
+    memory of every count) always, before any work, and the progress unless ``plan_only``."""
+    def say(line: str) -> None:
+        if not plan_only or line.startswith("plan:"):
+            print(line, flush=True)
+    return say

@@ -63,13 +63,17 @@ from lfjax.layout_opt import (
     Objective,
     check_depth_range,
     depth_grid,
+    combine,
     evaluate_layout,
     layout_loss,
     make_problem,
+    objective_terms,
     parallax_warning,
 )
 from lfjax.model.options import ModelOptions
 from lfjax.model.layout_files import jsonable
+from lfjax.design.plan import CountPlan, DesignPlan, count_plan
+from lfjax.sweep.guard import REFINEMENT_STATES
 from lfjax.model.layout_plots import draw_layout
 from lfjax.display.panel import PRESETS, Panel
 from lfjax.model.spectral import make_spectrum
@@ -221,6 +225,51 @@ def design_loss(x, problem, template: Panel, n_per_side: int, constraints: Desig
 _value_and_grad = eqx.filter_jit(jax.value_and_grad(design_loss))
 
 
+def eye_chunk_size(n_eyes: int, eye_chunk: int | None) -> int:
+    """Eyes per chunk of :func:`design_loss_chunked`: the largest divisor of ``n_eyes`` not
+    above ``eye_chunk`` (None: all of them), so that every chunk has one shape and the
+    chunks' means average to the population's exactly."""
+    n = int(n_eyes)
+    if eye_chunk is None:
+        return n
+    if isinstance(eye_chunk, bool) or int(eye_chunk) != eye_chunk or eye_chunk < 1:
+        raise ParameterError("eye_chunk", "{eye_chunk} must be an integer >= 1 or None, got {got!r}",
+                             got=eye_chunk)
+    return max(c for c in range(1, min(int(eye_chunk), n) + 1) if n % c == 0)
+
+
+def design_loss_chunked(x, problem, template: Panel, n_per_side: int,
+                        constraints: DesignConstraints, eye_chunk: int | None = 1):
+    """:func:`design_loss` with the training eyes taken ``eye_chunk`` at a time
+    (:func:`eye_chunk_size`), each chunk under ``jax.checkpoint``: the same scalar (to the
+    float summation order), whose reverse pass keeps one chunk's intermediates at a time
+    instead of every eye's, at the price of one more forward evaluation.
+
+    Every objective term is a mean over (eye, depth) with the same depths for every eye,
+    so the population's mean is the mean of equal chunks' means; the loss then combines
+    the population's terms (:func:`lfjax.layout_opt.combine`), so the accommodation
+    penalty — a function of the population's RMSE, not a sum over eyes — is applied once,
+    as in :func:`design_loss`, and its chain rule runs through the mean."""
+    z = problem.eyes.zernike_um
+    chunk = eye_chunk_size(z.shape[0], eye_chunk)
+
+    @jax.checkpoint
+    def chunk_terms(x_, zernike_um):
+        # x enters explicitly (not closed over) so that the reverse pass recomputes the
+        # chunk's panel and pipeline from it
+        p = panel_from_box(x_, template, n_per_side, problem.cdp_D, constraints)
+        sub = eqx.tree_at(lambda q: q.eyes.zernike_um, _with_display(problem, p), zernike_um)
+        return objective_terms(p.layout(n_per_side), sub)
+
+    per_chunk = jax.lax.map(lambda zc: chunk_terms(x, zc), z.reshape(-1, chunk, z.shape[-1]))
+    terms = {k: jnp.mean(v) for k, v in per_chunk.items()}
+    loss = combine(terms, problem.objective)
+    return eqx.error_if(loss, ~jnp.isfinite(loss), "layout objective is not finite (NaN or inf)")
+
+
+_chunked_value_and_grad = eqx.filter_jit(jax.value_and_grad(design_loss_chunked))
+
+
 def _worst_optics(template: Panel, n_per_side: int, cdp_D: float,
                   constraints: DesignConstraints) -> DisplayOptics:
     """The display the sampling is planned for: the widest pixel blur over the box (the
@@ -252,6 +301,34 @@ def design_problem(template: Panel, n_per_side: int, eyes: Eyes, depths_D, cdp_D
                         options=ModelOptions(vsotf_reference="open_pupil"),
                         display=_worst_optics(template, n_per_side, cdp_D, constraints),
                         planning_eyes=planning_eyes, sampling=sampling)
+
+
+REPORT_ACCURACIES = ("fast", "full", "fit")
+"""Settings of the held-out report: ``"fast"`` (default) — :data:`FAST_REPORT_WAVELENGTHS_NM`,
+the full setting's peak window, each peak at the grid parabola's vertex (no states beyond
+the grid); ``"full"`` — :func:`lfjax.layout_opt.make_problem`'s full setting (31
+wavelengths, peaks refined by ``local``); ``"fit"`` — the fit's own setting (its
+wavelengths, 550 nm by default). RESULTS §21 compares "fast" with "full" on the presets."""
+
+FAST_REPORT_WAVELENGTHS_NM = tuple(float(w) for w in np.arange(400.0, 701.0, 30.0))
+"""The fast report's spectrum: 400–700 nm in 30 nm steps (11 wavelengths), V(λ)-weighted."""
+
+
+def report_problem(problem, eyes: Eyes, report_accuracy: str = "fast", sampling=None):
+    """The problem the held-out report evaluates: ``problem``'s scene (its display, the
+    box's widest pixel blur) on ``eyes`` at the setting ``report_accuracy``
+    (:data:`REPORT_ACCURACIES`), its sampling planned anew unless ``sampling`` is given."""
+    if report_accuracy not in REPORT_ACCURACIES:
+        raise ParameterError("report_accuracy", "{report_accuracy} must be one of {allowed}, got {got!r}",
+                             allowed=", ".join(REPORT_ACCURACIES), got=report_accuracy)
+    if report_accuracy != "fast":
+        return problem.at_accuracy(report_accuracy, eyes=eyes, sampling=sampling)
+    return make_problem(eyes, np.asarray(problem.depths_D, float), problem.constraints,
+                        problem.objective, cdp_D=float(problem.cdp_D), options=problem.options,
+                        window_D=problem.window_D,
+                        spectrum=make_spectrum(np.asarray(FAST_REPORT_WAVELENGTHS_NM), problem.options),
+                        display=problem.display, accuracy="full", peak_method="vertex",
+                        sampling=sampling)
 
 
 # ----------------------------------------------------------------------------- evaluation
@@ -395,10 +472,13 @@ def design_notes(panel: Panel, depth_range_D, wavelength_nm: float = 550.0) -> l
     return notes
 
 
-def _solve(x0, problem, template, n, constraints, steps: int, tol: float):
+def _solve(x0, problem, template, n, constraints, steps: int, tol: float,
+           eye_chunk: int | None = 1, say=None):
     """L-BFGS-B (SciPy's, on the host) in the box [0, 1]^k around the compiled loss and
-    gradient: at most ``steps`` iterations, stopping when the projected gradient is below
-    ``tol``. Returns (x, loss history: the start, then each iteration's)."""
+    gradient (:func:`design_loss_chunked`, ``eye_chunk`` eyes at a time): at most ``steps``
+    iterations, stopping when the projected gradient is below ``tol``. ``say`` (a
+    callable, or None) receives a line per iteration. Returns (x, loss history: the
+    start, then each iteration's)."""
     from scipy.optimize import minimize
 
     x = np.asarray(x0, float)
@@ -411,7 +491,11 @@ def _solve(x0, problem, template, n, constraints, steps: int, tol: float):
     def fun(x):
         key = np.asarray(x, float).tobytes()
         if key not in seen:
-            value, grad = _value_and_grad(jnp.asarray(x, dtype), problem, template, n, constraints)
+            if eye_chunk is None:  # all at once: no checkpoint, no recomputation
+                value, grad = _value_and_grad(jnp.asarray(x, dtype), problem, template, n, constraints)
+            else:
+                value, grad = _chunked_value_and_grad(jnp.asarray(x, dtype), problem, template, n,
+                                                      constraints, eye_chunk)
             value = float(value)
             if not math.isfinite(value):
                 raise FloatingPointError("the design loss is not finite")
@@ -419,10 +503,19 @@ def _solve(x0, problem, template, n, constraints, steps: int, tol: float):
             seen[key] = (value, np.asarray(grad, float))
         return seen[key]
 
+    t0 = time.perf_counter()
     history = [fun(x)[0]]
+
+    def step(xk):
+        history.append(fun(xk)[0])
+        if say is not None:
+            say(f"step {len(history) - 1}/{steps}: loss {history[-1]:.5f} "
+                f"({time.perf_counter() - t0:.0f} s)")
+
+    if say is not None:
+        say(f"start: loss {history[0]:.5f} ({time.perf_counter() - t0:.0f} s, with compilation)")
     result = minimize(fun, x, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * x.size,
-                      callback=lambda xk: history.append(fun(xk)[0]),
-                      options=dict(maxiter=steps, gtol=tol))
+                      callback=step, options=dict(maxiter=steps, gtol=tol))
     return jnp.asarray(result.x, dtype), history
 
 
@@ -472,7 +565,7 @@ def design_panel(preset: str, cdp_D: float, *, distance_mm: float | None = None,
 
 def check_design(panel: Panel, depth_range_D, n_depths: int = 3, cdp_D: float | None = None,
                  views_per_side=(1, 2, 3, 4), wavelengths_nm=(550.0,), steps: int = 10,
-                 report_accuracy: str = "full"):
+                 report_accuracy: str = "fast"):
     """:func:`fit_design`'s checks of its arguments (of the same names), on the host and
     before anything is traced; :func:`fit_design` makes them first. Returns (depths_D,
     cdp_D, counts). A refused value is a :class:`~lfjax.base.errors.ParameterError` naming
@@ -480,9 +573,9 @@ def check_design(panel: Panel, depth_range_D, n_depths: int = 3, cdp_D: float | 
     if not isinstance(panel, Panel):
         raise ParameterError("panel", "{panel} must be lfjax.display.panel.Panel, got {got}",
                              got=type(panel).__name__)
-    if report_accuracy not in ("full", "fit"):
-        raise ParameterError("report_accuracy", "{report_accuracy} must be 'full' or 'fit', got {got!r}",
-                             got=report_accuracy)
+    if report_accuracy not in REPORT_ACCURACIES:
+        raise ParameterError("report_accuracy", "{report_accuracy} must be one of {allowed}, got {got!r}",
+                             allowed=", ".join(REPORT_ACCURACIES), got=report_accuracy)
     lo, hi = check_depth_range(depth_range_D, allow_empty=True)
     depths = depth_grid(lo, hi, n_depths)
     cdp = _cdp_within(float(panel.cdp_D) if cdp_D is None else finite_scalar("cdp_D", cdp_D, 0.0),
@@ -502,7 +595,8 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
                n_depths: int = 3, cdp_D: float | None = None, views_per_side=(1, 2, 3, 4),
                constraints: DesignConstraints = DesignConstraints(), objective=None,  # noqa: B008
                wavelengths_nm=(550.0,), steps: int = 10, tol: float = 1e-4,
-               report_accuracy: str = "full", sampling=None, progress: bool = False) -> DesignResult:
+               report_accuracy: str = "fast", sampling=None, progress=False,
+               eye_chunk: int | None = 1) -> DesignResult:
     """Fit ``panel``'s lenslet array to ``train_eyes`` for each views-per-pupil count.
 
     Parameters
@@ -519,10 +613,17 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
     objective : the layout optimiser's objective (default the accommodation-aware one)
     wavelengths_nm : the fit's spectrum (V(λ)-weighted), nm
     steps, tol : L-BFGS-B steps per count and its tolerance on the projected gradient
-    report_accuracy : ``"full"`` (31 wavelengths, refined peaks) or ``"fit"`` — the
-        held-out report's setting (:func:`lfjax.layout_opt.make_problem`'s ``accuracy``)
+    report_accuracy : the held-out report's setting, one of :data:`REPORT_ACCURACIES`:
+        ``"fast"`` (default; 11 wavelengths, peaks at the grid vertex), ``"full"`` (31
+        wavelengths, refined peaks) or ``"fit"`` (:func:`report_problem`)
     sampling : a :class:`~lfjax.base.sampling.Sampling` for both settings (default: planned by
         the layout optimiser's aliasing guard for the widest pixel blur of each count's box)
+    progress : False, True (print) or a callable taking one line: the plan
+        (:class:`lfjax.design.plan.DesignPlan`: each count's sampling, estimated time and
+        memory) before any fit, then a line per solver step and per report
+    eye_chunk : training eyes per chunk of the gradient (:func:`design_loss_chunked`;
+        default 1: the reverse pass holds one eye's intermediates; None: all at once,
+        :func:`design_loss` without checkpoints, one forward evaluation less per step)
 
     Refuses (:func:`check_design`: a :class:`~lfjax.base.errors.ParameterError` naming the
     parameter, before anything is traced) a CDP outside the depth range, counts outside
@@ -533,41 +634,67 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
     """
     depths, cdp, counts = check_design(panel, depth_range_D, n_depths, cdp_D, views_per_side,
                                        wavelengths_nm, steps, report_accuracy)
+    chunk = eye_chunk_size(train_eyes.n_eyes, eye_chunk)
+    solver_chunk = None if eye_chunk is None else chunk
+    say = progress if callable(progress) else (
+        (lambda line: print(line, flush=True)) if progress else None)
     lo, hi = (float(v) for v in depth_range_D)
     objective = Objective.parse(objective) if objective is not None else Objective()
     steps = int(steps)
     planning = train_eyes if test_eyes is None else Eyes(
         np.concatenate([np.asarray(train_eyes.zernike_um), np.asarray(test_eyes.zernike_um)]),
         train_eyes.measured_pupil_mm)
-    fits = []
+    report_eyes = test_eyes if test_eyes is not None else train_eyes
+    # The plan first: every count's problems (their sampling) and what they will cost,
+    # before the first fit, so that a run too long or too large is seen at once.
+    prepared, plan = {}, DesignPlan(train_eyes=train_eyes.n_eyes, report_eyes=report_eyes.n_eyes,
+                                    eye_chunk=chunk, steps=steps, report_accuracy=report_accuracy)
+    t_plan = time.perf_counter()
     for n in counts:
-        t0 = time.perf_counter()
         why = feasibility(panel, n, cdp, constraints)
         if why is not None:
-            fits.append(DesignFit(n, refused=f"infeasible: {why}"))
-            continue
-        if n == 1:
+            why = f"infeasible: {why}"
+        elif n == 1:
             # one view is one aperture whatever the lenslets: no parallax, no light field
-            fits.append(DesignFit(n, refused=(
-                "the views have collapsed into one aperture: 1x1 puts a single view in the "
-                "pupil, so the rendered depth moves nothing on the retina and the eye focuses "
-                "on the CDP (choose views_per_side >= 2)")))
+            why = ("the views have collapsed into one aperture: 1x1 puts a single view in the "
+                   "pupil, so the rendered depth moves nothing on the retina and the eye focuses "
+                   "on the CDP (choose views_per_side >= 2)")
+        if why is not None:
+            prepared[n] = why
+            plan.counts.append(CountPlan(n, refused=why))
             continue
         problem = design_problem(panel, n, train_eyes, depths, cdp, constraints, objective,
                                  wavelengths_nm, "fit", planning, sampling)
+        report = problem if report_accuracy == "fit" and test_eyes is None else report_problem(
+            problem, report_eyes, report_accuracy, sampling)
+        prepared[n] = (problem, report)
+        plan.counts.append(count_plan(n, problem, report, train_eyes.n_eyes, report_eyes.n_eyes,
+                                      steps, chunk, REFINEMENT_STATES.get(report.peak_method, 0)))
+    if say is not None:
+        say(plan.summary() + f"\n  (planned in {time.perf_counter() - t_plan:.0f} s)")
+    fits = []
+    for n in counts:
+        t0 = time.perf_counter()
+        if isinstance(prepared[n], str):
+            fits.append(DesignFit(n, refused=prepared[n]))
+            continue
+        problem, report = prepared[n]
+        tell = None if say is None else (lambda line, n=n: say(f"design {n}x{n}: {line}"))
         x0 = jnp.asarray(start_box(panel, n, cdp, constraints), jnp.result_type(float))
-        x, history = _solve(x0, problem, panel, n, constraints, steps, tol)
+        x, history = _solve(x0, problem, panel, n, constraints, steps, tol, solver_chunk, tell)
         fitted = panel_from_box(np.asarray(x), panel, n, cdp, constraints)
         start = panel_from_box(np.asarray(x0), panel, n, cdp, constraints)
         fit = DesignFit(n, Panel(*_host_leaves(fitted), **_statics(fitted)),
                         Panel(*_host_leaves(start), **_statics(start)), history=history)
-        report = problem if report_accuracy == "fit" and test_eyes is None else problem.at_accuracy(
-            report_accuracy, eyes=test_eyes if test_eyes is not None else train_eyes, sampling=sampling)
         scores = {}
         for key, candidate in (("fit", fit.panel), ("start", fit.start)):
+            t1 = time.perf_counter()
             evaluation = evaluate_layout(candidate.layout(n), _with_display(report, candidate))
             res = perceivable_resolution(candidate, n, report, evaluation["values"]["peak_D"])
             scores[key] = (_summary_numbers(evaluation, res), evaluation)
+            if tell is not None:
+                tell(f"report of the {'fitted' if key == 'fit' else 'starting'} panel on "
+                     f"{report.eyes.n_eyes} eyes: {time.perf_counter() - t1:.0f} s")
         if test_eyes is not None:
             fit.test = scores["fit"][0]
         else:
@@ -579,13 +706,13 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
                            f"{constraints.min_eye_box_mm:g} mm even at the fastest lenslets")
         fit.notes = design_notes(fit.panel, (lo, hi))
         fit.time_s = time.perf_counter() - t0
-        if progress:
-            print(f"design {n}x{n}: {fit.time_s:.1f} s", flush=True)
+        if tell is not None:
+            tell(f"done in {fit.time_s:.1f} s")
         fits.append(fit)
     provenance = {"train_eyes": train_eyes.n_eyes,
                   "test_eyes": None if test_eyes is None else test_eyes.n_eyes,
                   "wavelengths_nm": [float(w) for w in wavelengths_nm], "steps": steps,
-                  "report_accuracy": report_accuracy,
+                  "report_accuracy": report_accuracy, "eye_chunk": chunk,
                   "freq_step_cpd": None if sampling is None else float(sampling.freq_step_cpd)}
     return DesignResult(fits, cdp, depths.tolist(), constraints, objective, provenance)
 
@@ -746,6 +873,11 @@ __all__ = [
     "feasibility",
     "design_problem",
     "design_loss",
+    "design_loss_chunked",
+    "eye_chunk_size",
+    "report_problem",
+    "REPORT_ACCURACIES",
+    "FAST_REPORT_WAVELENGTHS_NM",
     "perceivable_resolution",
     "design_notes",
     "design_cdp_D",

@@ -13,17 +13,24 @@ import pytest
 
 import helpers as H
 from lfjax import cli
+from lfjax.base.errors import ParameterError
 from lfjax.design.fit import (
+    FAST_REPORT_WAVELENGTHS_NM,
     DesignConstraints,
     design_loss,
+    design_loss_chunked,
+    eye_chunk_size,
     design_notes,
     design_problem,
     feasibility,
     fit_design,
     panel_from_box,
     panel_specification,
+    report_problem,
     start_box,
 )
+from lfjax.design.plan import COMPILE_SECONDS, DesignPlan, count_plan
+from lfjax.layout_opt import Objective
 from lfjax.display.lenslets import lenslets_for_layout
 from lfjax.model.eyes import sample_eyes
 from lfjax.display.panel import Panel, near_eye_microdisplay, phone_panel, sampling_limit_cpd
@@ -113,6 +120,71 @@ def test_design_gradient_matches_finite_differences():
     assert np.allclose(grad, fd, rtol=1e-3, atol=1e-5 * np.max(np.abs(fd))), (grad, fd)
 
 
+def test_gradient_over_eye_chunks_equals_the_gradient_over_all_eyes():
+    """design_loss_chunked (one eye per chunk under jax.checkpoint, the terms' population
+    means combined once) gives design_loss's value and gradient on 3 eyes, with the
+    accommodation penalty active (a tolerance of 1 mD: the penalty is a function of the
+    population's RMSE, not a sum over eyes, so its chain rule must run through the chunks'
+    mean; summing per-chunk losses would give another gradient)."""
+    template = near_eye_microdisplay()
+    c = DesignConstraints()
+    objective = Objective(accommodation_tolerance_D=0.001)
+    problem = design_problem(template, 2, sample_eyes(0, 3), np.array([1.0, 2.0]), 1.5, c,
+                             objective=objective, sampling=Sampling(2.0))
+    x = np.array([0.4, 0.6, 0.5])
+    whole = jax.jit(jax.value_and_grad(lambda x, p: design_loss(x, p, template, 2, c)))
+    value, grad = (np.asarray(v) for v in whole(x, problem))
+    unconstrained = problem.with_objective(dataclasses.replace(objective, accommodation_tolerance_D=None))
+    assert float(value) - float(jax.jit(lambda x, p: design_loss(x, p, template, 2, c))(
+        x, unconstrained)) > 1e-3  # the penalty counts here
+    chunked = jax.jit(jax.value_and_grad(lambda x, p: design_loss_chunked(x, p, template, 2, c, 1)))
+    v, g = (np.asarray(a) for a in chunked(x, problem))
+    assert v == pytest.approx(float(value), rel=1e-12)
+    assert np.max(np.abs(grad)) > 1e-3
+    np.testing.assert_allclose(g, grad, rtol=1e-9, atol=1e-12 * np.max(np.abs(grad)))
+
+
+def test_eye_chunk_size_divides_the_population():
+    assert [eye_chunk_size(10, k) for k in (1, 2, 3, 4, 5, 10, 99, None)] == [1, 2, 2, 2, 5, 10, 10, 10]
+    assert eye_chunk_size(7, 3) == 1
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ParameterError, match="eye_chunk"):
+            eye_chunk_size(4, bad)
+
+
+def test_fast_report_and_the_plan_of_a_count():
+    """The fast report: 11 V(lambda)-weighted wavelengths, the full setting's peak window,
+    vertex peaks, the fit's display. The plan's fit memory grows with the eye chunk, not
+    with the training eyes (the reverse pass holds one chunk), and its time with both."""
+    template = near_eye_microdisplay()
+    c = DesignConstraints()
+    depths = np.array([1.0, 2.0])
+    fit = design_problem(template, 2, sample_eyes(0, 2), depths, 1.5, c, sampling=Sampling(2.0))
+    fast = report_problem(fit, sample_eyes(1, 3), "fast", Sampling(2.0))
+    full = report_problem(fit, sample_eyes(1, 3), "full", Sampling(2.0))
+    assert np.asarray(fast.spectrum.wavelengths_nm).tolist() == list(FAST_REPORT_WAVELENGTHS_NM)
+    assert len(FAST_REPORT_WAVELENGTHS_NM) == 11
+    assert float(np.sum(fast.spectrum.weights)) == pytest.approx(1.0)
+    assert fast.peak_method == "vertex" and full.peak_method == "local"
+    assert fast.peak_margin_D == full.peak_margin_D == 0.75 and fast.eyes.n_eyes == 3
+    assert np.asarray(full.spectrum.wavelengths_nm).size == 31
+    assert float(fast.display.pixel_width_arcmin) == float(fit.display.pixel_width_arcmin)
+    with pytest.raises(ParameterError, match="report_accuracy"):
+        report_problem(fit, sample_eyes(1, 3), "quick")
+    one = count_plan(2, fit, fast, 10, 3, 10, 1)
+    two = count_plan(2, fit, fast, 10, 3, 10, 2)
+    more = count_plan(2, fit, fast, 40, 3, 10, 1)
+    assert two.fit_bytes == pytest.approx(2 * one.fit_bytes) and more.fit_bytes == one.fit_bytes
+    assert more.fit_seconds - COMPILE_SECONDS == pytest.approx(4 * (one.fit_seconds - COMPILE_SECONDS))
+    assert one.fit_seconds > COMPILE_SECONDS and count_plan(2, fit, fast, 10, 3, 0, 1).fit_bytes == 0
+    assert one.report_wavelengths == 11 and one.fit_wavelengths == 1
+    assert count_plan(2, fit, full, 10, 3, 10, 1, 3).report_seconds > one.report_seconds
+    plan = DesignPlan([one], 10, 3, 1, 10, "fast", available_bytes=one.peak_bytes * 1.01)
+    assert "2x2  fit FFT" in plan.summary() and "warning" not in plan.summary()
+    plan.available_bytes = one.peak_bytes * 0.99
+    assert "warning: more memory than" in plan.summary()
+
+
 def test_design_notes_name_where_the_model_stops():
     near = design_notes(near_eye_microdisplay(), (1.0, 2.0))
     assert len(near) == 1 and "depth step 2.24 D" in near[0]
@@ -145,6 +217,12 @@ def test_cli_design_tiny_case(capsys, tmp_path, monkeypatch):
     code = cli.main([*TINY, "--out", str(out)])
     captured = capsys.readouterr()
     assert code == 0, captured.err[-2000:]
+    # the plan comes first, before any work, even with --no-progress (which drops the rest)
+    lines = captured.out.splitlines()
+    assert lines[0].startswith("plan: 1 training eyes in chunks of 1, 1 L-BFGS-B steps")
+    assert lines[1].startswith("  1x1  refused before fitting") and lines[2].startswith("  2x2  fit FFT")
+    assert "estimated" in captured.out and "peak memory" in captured.out
+    assert not any(line.startswith("design 2x2:") for line in lines)
     assert "chosen: 2x2" in captured.out and str(out) in captured.out.strip().splitlines()[-1]
     assert {p.name for p in out.iterdir()} == {"design.json", "design.png"}
     assert (out / "design.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -175,6 +253,23 @@ def test_cli_design_tiny_case(capsys, tmp_path, monkeypatch):
     # a second run into the same folder needs --force
     assert cli.main([*TINY, "--out", str(out)]) == 2
     assert "--force" in capsys.readouterr().err
+
+
+def test_fit_design_says_its_plan_before_its_progress():
+    """fit_design's progress: the plan (each count, refused ones too) before the first step,
+    then a line per step and per report, in order."""
+    said = []
+    result = fit_design(near_eye_microdisplay(), depth_range_D=(1.0, 2.0), n_depths=2,
+                        views_per_side=(1, 2), train_eyes=sample_eyes(0, 1),
+                        test_eyes=sample_eyes(1, 1), steps=1, report_accuracy="fit",
+                        sampling=Sampling(2.0), progress=said.append,
+                        constraints=DesignConstraints())
+    assert said[0].startswith("plan:") and "1x1  refused" in said[0] and "2x2  fit FFT" in said[0]
+    rest = said[1:]
+    assert rest[0].startswith("design 2x2: start: loss") and rest[1].startswith("design 2x2: step 1/1")
+    assert "report of the fitted panel on 1 eyes" in rest[2]
+    assert "report of the starting panel" in rest[3] and rest[4].startswith("design 2x2: done in")
+    assert result.provenance["eye_chunk"] == 1 and result.best.n_per_side == 2
 
 
 @pytest.mark.parametrize("args, message", [

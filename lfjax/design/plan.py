@@ -1,0 +1,190 @@
+"""What a design will cost, known before the first fit: per views-per-side count the fit's
+and the report's sampling, their transforms, and an estimate of time and peak memory.
+
+:func:`fit_design` prints :meth:`DesignPlan.summary` first (``lfjax design`` always), then
+its progress. The estimates follow the sweep's (:mod:`lfjax.sweep.guard`): a cost unit is one
+complex FFT point·log2 size or one rendered view-pixel, timed at
+:data:`lfjax.sweep.guard.SECONDS_PER_UNIT` on 2 CPU cores; memory is the largest arrays
+of one eye (the fit's gradient holds one chunk of eyes at a time,
+:func:`lfjax.design.fit.design_loss_chunked`) times a measured allowance. They are
+estimates, calibrated on the measurements of benchmarks/RESULTS.md §21; the progress lines
+give the measured time as it goes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import jax
+
+from lfjax.sweep.guard import SECONDS_PER_UNIT, host_memory_bytes
+
+EVALUATIONS_PER_STEP = 1.3
+"""L-BFGS-B's loss-and-gradient evaluations per step (its line search mostly accepts the
+first point; measured 1.1–1.5 on the presets' counts), plus the start's."""
+
+GRADIENT_COST = 4.0
+"""Time of one value and gradient through checkpointed eye chunks over one forward
+evaluation: the forward, its recomputation in the reverse pass, and the reverse pass
+(about twice a forward)."""
+
+REPORT_PASSES = 2.0
+"""Forward evaluations of the report per panel and eye: the peak grid (:func:`lfjax.layout_opt.evaluate_layout`)
+and the perceivable resolution at the predicted accommodation (one eye per call, its
+compilation and host work amortised over the eyes)."""
+
+COMPILE_SECONDS = 30.0
+"""Compilation per count (its shapes differ from every other count's): the fit's value and
+gradient, the report's evaluation and its perceivable resolution; about 10 s each with a
+cold cache (RESULTS §21, 21 s for the near-eye 2x2 gradient under a load of 9 on 2 cores)."""
+
+FORWARD_ALLOWANCE = 3.0
+"""Working set of a forward evaluation over the largest arrays of one eye (elemental OTFs
+and the rendered block): FFT workspaces and temporaries (the sweep's
+:data:`lfjax.sweep.guard.DEVICE_ALLOWANCE`)."""
+
+REVERSE_ALLOWANCE = 6.8
+"""Working set of one chunk's checkpointed reverse pass (the recomputed forward and its
+reverse) over the same arrays of one eye: the phone preset's 3x3 fit, one eye per chunk,
+peaked at 3.93 GB with 0.46 GB of them (RESULTS §21; all at once it kept 2.1 GB per
+training eye, §15)."""
+
+BASE_BYTES = 0.8e9
+"""Resident memory of the process before any transform: the interpreter, JAX, XLA's
+compiled programs and the host arrays (measured 0.5–0.8 GB)."""
+
+
+def _bytes(n: float) -> str:
+    if not math.isfinite(n):
+        return "inf"
+    for unit, size in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n:.0f} B"
+
+
+def _duration(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "inf"
+    return f"{seconds:.0f} s" if seconds < 90 else f"{seconds / 60:.1f} min"
+
+
+def evaluation_size(problem, n_views: int, states: int | None = None) -> tuple[float, float]:
+    """(cost units, bytes) of one forward evaluation of one eye of ``problem`` (a
+    :class:`~lfjax.layout_opt.LayoutProblem`) with ``n_views`` views on ``states``
+    accommodation states (default its peak grid's): every state transforms every view at
+    every wavelength of each band; every (depth, state) pair renders every view."""
+    config = problem.config
+    grid = problem.peak_grid
+    n_states = int(grid.states_D.shape[0]) if states is None else int(states)
+    n_depth, n_k = (int(s) for s in grid.pair_index.shape)
+    per_state = sum((b - a) * n_views * size * size * math.log2(max(size, 2))
+                    for a, b, size in config.bands)
+    n_fft = config.n_fft
+    plane = n_fft * (n_fft // 2 + 1) * (16 if jax.config.jax_enable_x64 else 8)
+    units = n_states * per_state + n_views * n_depth * n_k * n_fft * (n_fft // 2 + 1)
+    arrays = plane * (n_states * n_views + 2 * n_depth * n_k)
+    return float(units), float(arrays)
+
+
+@dataclass
+class CountPlan:
+    """One views-per-side count: what its fit and its report transform, and their cost."""
+
+    n_per_side: int
+    refused: str | None = None
+    fit_fft: int = 0
+    fit_df_cpd: float = float("nan")
+    fit_states: int = 0
+    fit_wavelengths: int = 0
+    report_fft: int = 0
+    report_df_cpd: float = float("nan")
+    report_states: int = 0
+    report_wavelengths: int = 0
+    fit_seconds: float = 0.0
+    report_seconds: float = 0.0
+    fit_bytes: float = 0.0
+    report_bytes: float = 0.0
+
+    @property
+    def seconds(self) -> float:
+        return self.fit_seconds + self.report_seconds
+
+    @property
+    def peak_bytes(self) -> float:
+        return BASE_BYTES + max(self.fit_bytes, self.report_bytes)
+
+
+@dataclass
+class DesignPlan:
+    """Every count's :class:`CountPlan`, and the run's settings."""
+
+    counts: list = field(default_factory=list)
+    train_eyes: int = 0
+    report_eyes: int = 0
+    eye_chunk: int = 1
+    steps: int = 0
+    report_accuracy: str = ""
+    available_bytes: float | None = None  # memory this process may use (None: MemAvailable)
+
+    @property
+    def seconds(self) -> float:
+        return sum(c.seconds for c in self.counts)
+
+    @property
+    def peak_bytes(self) -> float:
+        return max([c.peak_bytes for c in self.counts if c.refused is None] or [BASE_BYTES])
+
+    def summary(self) -> str:
+        lines = [f"plan: {self.train_eyes} training eyes in chunks of {self.eye_chunk}, "
+                 f"{self.steps} L-BFGS-B steps per count; report ({self.report_accuracy}) on "
+                 f"{self.report_eyes} eyes, fitted and starting panels"]
+        for c in self.counts:
+            if c.refused is not None:
+                lines.append(f"  {c.n_per_side}x{c.n_per_side}  refused before fitting: {c.refused}")
+                continue
+            lines.append(
+                f"  {c.n_per_side}x{c.n_per_side}  fit FFT {c.fit_fft} (df {c.fit_df_cpd:.3g} cpd, "
+                f"{c.fit_states} states, {c.fit_wavelengths} wavelength(s)) ~{_duration(c.fit_seconds)}; "
+                f"report FFT {c.report_fft} (df {c.report_df_cpd:.3g} cpd, {c.report_states} states, "
+                f"{c.report_wavelengths} wavelengths) ~{_duration(c.report_seconds)}; "
+                f"memory ~{_bytes(c.peak_bytes)}")
+        lines.append(f"  total ~{_duration(self.seconds)} on 2 CPU cores (estimated), peak memory "
+                     f"~{_bytes(self.peak_bytes)}")
+        available = host_memory_bytes() if self.available_bytes is None else self.available_bytes
+        if self.peak_bytes > available:
+            lines.append(f"  warning: more memory than the {_bytes(available)} available here; "
+                         f"fewer --views, a coarser --freq-step or --diffraction off need less "
+                         f"(the fit's gradient already takes one training eye at a time)")
+        return "\n".join(lines)
+
+
+def count_plan(n_per_side: int, fit_problem, report_problem, train_eyes: int, report_eyes: int,
+               steps: int, eye_chunk: int, report_refined_states: int = 0) -> CountPlan:
+    """:class:`CountPlan` of one count from its fit and report problems
+    (:func:`lfjax.design.fit.design_problem`, :func:`lfjax.design.fit.report_problem`);
+    ``report_refined_states``: the states a refined peak adds per (eye, depth)."""
+    views = n_per_side * n_per_side
+    fit_units, fit_arrays = evaluation_size(fit_problem, views)
+    n_peak_depths = int(report_problem.peak_grid.pair_index.shape[0])
+    grid = report_problem.values_grid if report_problem.values_grid is not None else report_problem.peak_grid
+    report_states = int(grid.states_D.shape[0]) + n_peak_depths * int(report_refined_states)
+    report_units, report_arrays = evaluation_size(report_problem, views, report_states)
+    evaluations = 1 + EVALUATIONS_PER_STEP * steps if steps > 0 else 0
+    return CountPlan(
+        n_per_side,
+        fit_fft=int(fit_problem.config.n_fft), fit_df_cpd=float(fit_problem.config.freq_step_cpd),
+        fit_states=int(fit_problem.peak_grid.states_D.shape[0]),
+        fit_wavelengths=int(fit_problem.spectrum.wavelengths_nm.shape[0]),
+        report_fft=int(report_problem.config.n_fft),
+        report_df_cpd=float(report_problem.config.freq_step_cpd), report_states=report_states,
+        report_wavelengths=int(report_problem.spectrum.wavelengths_nm.shape[0]),
+        fit_seconds=0.0 if steps == 0 else (
+            evaluations * GRADIENT_COST * fit_units * train_eyes * SECONDS_PER_UNIT + COMPILE_SECONDS),
+        report_seconds=2 * REPORT_PASSES * report_units * report_eyes * SECONDS_PER_UNIT,
+        fit_bytes=0.0 if steps == 0 else REVERSE_ALLOWANCE * fit_arrays * eye_chunk,
+        report_bytes=FORWARD_ALLOWANCE * report_arrays)
+
+
+__all__ = ["CountPlan", "DesignPlan", "count_plan", "evaluation_size"]
