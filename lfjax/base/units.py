@@ -69,7 +69,32 @@ def field_arcmin_from_freq_step(freq_step_cpd):
     return 60.0 / freq_step_cpd
 
 
+def format_bytes(n: float) -> str:
+    """A size in bytes as a short human-readable string (binary units: KiB … TiB)."""
+    if not math.isfinite(n):
+        return "inf"
+    for unit, size in (("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n:.0f} B"
+
+
+def format_duration(seconds: float) -> str:
+    """A duration in seconds as a short human-readable string (s, min, h or days)."""
+    if not math.isfinite(seconds):
+        return "inf"
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 2 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
+
+
 __all__ = [
+    "format_bytes",
+    "format_duration",
     "ARCMIN_PER_RADIAN",
     "DEGREES_PER_RADIAN",
     "RETINAL_UM_PER_ARCMIN",

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 import jax
 
 from lfjax.sweep.guard import SECONDS_PER_UNIT, host_memory_bytes
+from lfjax.base.units import format_bytes as _bytes
+from lfjax.base.units import format_duration as _duration
 
 EVALUATIONS_PER_STEP = 1.3
 """L-BFGS-B's loss-and-gradient evaluations per step (its line search mostly accepts the
@@ -53,21 +55,6 @@ training eye, §15)."""
 BASE_BYTES = 0.8e9
 """Resident memory of the process before any transform: the interpreter, JAX, XLA's
 compiled programs and the host arrays (measured 0.5–0.8 GB)."""
-
-
-def _bytes(n: float) -> str:
-    if not math.isfinite(n):
-        return "inf"
-    for unit, size in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
-        if n >= size:
-            return f"{n / size:.3g} {unit}"
-    return f"{n:.0f} B"
-
-
-def _duration(seconds: float) -> str:
-    if not math.isfinite(seconds):
-        return "inf"
-    return f"{seconds:.0f} s" if seconds < 90 else f"{seconds / 60:.1f} min"
 
 
 def evaluation_size(problem, n_views: int, states: int | None = None) -> tuple[float, float]:

@@ -29,6 +29,8 @@ from lfjax.base.grids import grid_size
 from lfjax.base.sampling import EYE_BLOCK
 from lfjax.sweep.compute import sweep_spectra
 from lfjax.sweep.config import SweepConfig
+from lfjax.base.units import format_bytes as _bytes
+from lfjax.base.units import format_duration as _duration
 
 N_FREQUENCIES = 61  # the stored MTF's 0 ... 60 cpd axis (compute.FREQUENCIES_CPD)
 N_MODES = 45  # Zernike coefficients per eye (Thibos et al. 2002: OSA j = 0 ... 44)
@@ -68,27 +70,6 @@ class SweepTooLargeError(ValueError):
         lines = "\n".join(f"  - {p}" for p in self.problems)
         super().__init__(f"the sweep cannot run here ({len(self.problems)} problem(s); "
                          f"nothing was created):\n{lines}")
-
-
-def _bytes(n: float) -> str:
-    if not math.isfinite(n):
-        return "inf"
-    for unit, size in (("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
-        if n >= size:
-            return f"{n / size:.3g} {unit}"
-    return f"{n:.0f} B"
-
-
-def _duration(seconds: float) -> str:
-    if not math.isfinite(seconds):
-        return "inf"
-    if seconds < 90:
-        return f"{seconds:.0f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.0f} min"
-    if seconds < 2 * 86400:
-        return f"{seconds / 3600:.1f} h"
-    return f"{seconds / 86400:.1f} days"
 
 
 @dataclass
