@@ -74,7 +74,7 @@ from lfjax.reproduce.study import (
     layout_through_focus,
     run_study,
     study_sampling,
-    study_wavelength_steps,
+    study_wavelength_rules,
 )
 
 MARKER_FILE = ".lfjax-reproduce"
@@ -312,7 +312,8 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         examples = compute_examples(ds, config, stage=stage)
         claims = evaluate_claims(ds, config.dof_fraction)
         alternatives = (run_alternatives(config, stage=stage,
-                                         wavelength_steps_nm=study_wavelength_steps(ds))
+                                         wavelength_rules=study_wavelength_rules(ds),
+                                         study=ds)
                         if config.alternatives else {})
         population = None
         if population_store is not None:

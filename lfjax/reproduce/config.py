@@ -24,11 +24,15 @@ from lfjax.model.layouts import LF_LAYOUTS as LF_LAYOUTS
 from lfjax.model.layouts import PAPER_LAYOUTS
 from lfjax.model.options import ModelOptions
 from lfjax.planner.cache import cached_plan_sampling
-from lfjax.planner.plan import Targets
+from lfjax.model.spectral import gauss_rule
+from lfjax.planner.plan import Overrides, Targets
 from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 
 METRICS = ("vsotf", "strehl")
+
+SPECTRAL_RULES = ("auto", "uniform")
+"""How ``accuracy="claims"`` may sample each layout's spectrum (:attr:`StudyConfig.spectral_rule`)."""
 
 ACCURACY_PLANS = ("claims", "vsotf")
 """How the study samples the spectrum: ``"claims"`` plans each layout's wavelength step for
@@ -83,9 +87,16 @@ class StudyConfig(DepthGrid):
     cutoff_tolerance_cpd : float, cpd
         Cut-off target of the ``"claims"`` plan (the cut-off claims compare layouts that
         differ by several cpd).
-    wavelength_steps_nm : ((layout, step nm), ...)
-        Wavelength steps fixed per layout instead of planned (the alternatives reuse the
-        main study's plan, so each change is measured on the same spectrum).
+    spectral_rule : ``"auto"`` or ``"uniform"`` (:data:`SPECTRAL_RULES`)
+        With ``accuracy="claims"``: ``"auto"`` (default) lets the planner take, per layout,
+        the Gauss rule for V(λ) with the fewest nodes that meets the same peak and cut-off
+        targets when it needs fewer wavelengths than the planned uniform step
+        (:attr:`lfjax.planner.plan.Plan.spectral_rule`); ``"uniform"`` keeps the step.
+    wavelength_rules : ((layout, rule, value), ...)
+        Spectra fixed per layout instead of planned: ``("2x2", "uniform", 30.0)`` is a 30 nm
+        step over ``wavelengths_nm``' range, ``("3x3", "gauss", 6)`` the 6-node Gauss rule
+        for V(λ) on it (:func:`lfjax.model.spectral.gauss_rule`). The alternatives reuse the
+        main study's plan this way, so each change is measured on the same spectrum.
     mft_pupil_samples : ((layout, samples), ...)
         Layouts whose elemental PSFs come from the matrix Fourier transform with this many
         pupil samples across a view (:class:`~lfjax.base.sampling.Sampling`), at the field guard's
@@ -118,7 +129,8 @@ class StudyConfig(DepthGrid):
     accuracy: str = "claims"
     peak_tolerance_D: float = 0.01
     cutoff_tolerance_cpd: float = 0.25
-    wavelength_steps_nm: tuple[tuple[str, float], ...] = ()
+    spectral_rule: str = "auto"
+    wavelength_rules: tuple[tuple[str, str, float], ...] = ()
 
     def __post_init__(self):
         if int(self.n_eyes) != self.n_eyes or self.n_eyes < 1:
@@ -149,10 +161,15 @@ class StudyConfig(DepthGrid):
         if not (0 < self.cutoff_tolerance_cpd <= 10):
             raise ValueError(
                 f"cutoff_tolerance_cpd must be in (0, 10] cpd, got {self.cutoff_tolerance_cpd}")
-        for entry in self.wavelength_steps_nm:
-            if len(entry) != 2 or entry[0] not in PAPER_LAYOUTS or not (0 < entry[1] <= 100):
-                raise ValueError(f"wavelength_steps_nm must hold (layout, step in (0, 100] nm) "
-                                 f"pairs with a layout in {PAPER_LAYOUTS}, got {entry!r}")
+        if self.spectral_rule not in SPECTRAL_RULES:
+            raise ValueError(f"spectral_rule must be one of {SPECTRAL_RULES}, "
+                             f"got {self.spectral_rule!r}")
+        for entry in self.wavelength_rules:
+            if not _valid_rule(entry):
+                raise ValueError(
+                    f"wavelength_rules must hold (layout, 'uniform', step in (0, 100] nm) or "
+                    f"(layout, 'gauss', integer nodes in [1, 40]) entries with a layout in "
+                    f"{PAPER_LAYOUTS}, got {entry!r}")
         for entry in self.mft_pupil_samples:
             if (len(entry) != 2 or entry[0] not in PAPER_LAYOUTS
                     or int(entry[1]) != entry[1] or entry[1] < 16):
@@ -173,20 +190,22 @@ class StudyConfig(DepthGrid):
         base.update(changes)
         return cls(**base)
 
-    def reduced(self, wavelength_steps_nm=None) -> StudyConfig:
+    def reduced(self, wavelength_rules=None) -> StudyConfig:
         """The reduced set on which modelling-choice alternatives run: the same eyes and
         accommodation grid, rendered depths CDP−2 … CDP+2 in 1 D steps (a baseline is rerun
         on the same set, so changes are like for like). Wavelengths: with the ``"claims"``
-        plan, ``wavelength_steps_nm`` ({layout: step nm}, the main study's plan) or each
-        layout's own plan; with ``"vsotf"``, 20 nm steps."""
+        plan, ``wavelength_rules`` ({layout: (rule, value)}, the main study's plan,
+        :func:`~lfjax.reproduce.study.study_wavelength_rules`) or each layout's own plan;
+        with ``"vsotf"``, 20 nm steps."""
         offsets = tuple(d for d in self.depth_offsets_D if abs(d - round(d)) < 1e-9)
         start, stop, step = self.wavelengths_nm
         changes = dict(depth_offsets_D=offsets, alternatives=False, label=f"{self.label}-reduced")
         if self.accuracy == "vsotf":
             changes["wavelengths_nm"] = (start, stop, max(step, 20.0))
-        elif wavelength_steps_nm:
-            changes["wavelength_steps_nm"] = tuple(
-                (name, float(v)) for name, v in dict(wavelength_steps_nm).items())
+        elif wavelength_rules:
+            changes["wavelength_rules"] = tuple(
+                (name, str(rule), float(value))
+                for name, (rule, value) in dict(wavelength_rules).items())
         return dataclasses.replace(self, **changes)
 
     def replace(self, **changes) -> StudyConfig:
@@ -226,8 +245,9 @@ def study_eyes(config: StudyConfig) -> tuple[Eyes, list[str]]:
 # ----------------------------------------------------------------------------- sampling
 
 
-def planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, np.ndarray]:
-    """(Sampling, wavelengths in nm) of one layout's scene.
+def planned_sampling(eyes, layout, depths, config, options
+                     ) -> tuple[Sampling, np.ndarray, np.ndarray | None]:
+    """(Sampling, wavelengths in nm, their weights or None for V(λ)·Δλ) of one layout's scene.
 
     The frequency step is :func:`lfjax.planner.plan.plan_sampling`'s field guard (the largest
     ladder step whose PSF field holds the blur). The accuracy proxy for the frequency step
@@ -235,18 +255,26 @@ def planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, n
     it asks the 3×3/4×4 layouts for about half the guard's step (~4× the compute); at the
     guard's steps its estimate is about 1.7e-3 (benchmarks/RESULTS.md §7). The wavelengths
     are ``config.wavelength_grid_nm`` (``accuracy="vsotf"``), the step fixed in
-    ``config.wavelength_steps_nm``, or the step the planner chooses for the peak and cut-off
-    targets (``accuracy="claims"``, 3–10 s of host work per layout the first time; the plan
+    ``config.wavelength_rules``, or the rule the planner chooses for the peak and cut-off
+    targets (``accuracy="claims"``: a uniform step or, with ``spectral_rule="auto"``, a
+    Gauss rule for V(λ) with fewer nodes; 3–15 s of host work per layout the first time; the plan
     is then remembered, in the process and, from the command line, on disk:
     :mod:`lfjax.planner.cache`). The transform is the FFT, or the MFT for the layouts in
     ``config.mft_pupil_samples``."""
     start, stop, _ = config.wavelengths_nm
-    fixed_step = dict(config.wavelength_steps_nm).get(layout.name)
+    fixed = {name: (rule, value) for name, rule, value in config.wavelength_rules}.get(layout.name)
     spectrum = {"wavelengths_nm": config.wavelength_grid_nm}
     targets = Targets()
-    if config.accuracy == "claims" and fixed_step is not None:
-        spectrum = {"wavelengths_nm": inclusive_grid(start, stop, fixed_step)}
+    overrides = Overrides()
+    if config.accuracy == "claims" and fixed is not None:
+        rule, value = fixed
+        if rule == "gauss":
+            nodes, weights = gauss_rule(int(value), start, stop)
+            spectrum = {"wavelengths_nm": nodes, "spectral_weights": weights}
+        else:
+            spectrum = {"wavelengths_nm": inclusive_grid(start, stop, value)}
     elif config.accuracy == "claims":
+        overrides = Overrides(spectral_rule=config.spectral_rule)
         spectrum = {"wavelength_range_nm": (start, stop)}
         targets = Targets(vsotf=None, peak_D=config.peak_tolerance_D,
                           cutoff_cpd=config.cutoff_tolerance_cpd,
@@ -255,17 +283,29 @@ def planned_sampling(eyes, layout, depths, config, options) -> tuple[Sampling, n
         layout=layout, pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
         depths_D=np.asarray(depths, float), accommodation_D=config.accommodation_D,
         accommodation_window_D=config.window_D, eyes=eyes, options=options, **spectrum,
-    ), targets, estimate_accuracy=False)
+    ), targets, estimate_accuracy=False, overrides=overrides)
     wavelengths = np.asarray(plan.wavelengths_nm, float)
+    weights = None if plan.spectral_weights is None else np.asarray(plan.spectral_weights, float)
     mft_samples = dict(config.mft_pupil_samples).get(layout.name)
-    if mft_samples is None:
-        return plan.sampling, wavelengths
-    return (dataclasses.replace(plan.sampling, transform="mft", mft_pupil_samples=int(mft_samples)),
-            wavelengths)
+    sampling = plan.sampling
+    if mft_samples is not None:
+        sampling = dataclasses.replace(sampling, transform="mft", mft_pupil_samples=int(mft_samples))
+    return sampling, wavelengths, weights
+
+
+def _valid_rule(entry) -> bool:
+    """Is ``entry`` a (layout, rule, value) of :attr:`StudyConfig.wavelength_rules`?"""
+    if len(entry) != 3 or entry[0] not in PAPER_LAYOUTS:
+        return False
+    _, rule, value = entry
+    if rule == "uniform":
+        return 0 < float(value) <= 100
+    return rule == "gauss" and int(value) == value and 1 <= value <= 40
 
 
 __all__ = [
     "ACCURACY_PLANS",
+    "SPECTRAL_RULES",
     "LF_LAYOUTS",
     "METRICS",
     "StudyConfig",

@@ -33,7 +33,7 @@ from lfjax.kernel.optics import full_plane
 from lfjax.model.options import ModelOptions
 from lfjax.vision.psf import polychromatic_otf
 from lfjax.base.sampling import Sampling
-from lfjax.model.spectral import make_spectrum
+from lfjax.model.spectral import gauss_spectrum, make_spectrum
 from lfjax.vision.focus import ThroughFocus, through_focus, through_focus_variants
 from lfjax.vision.prepare import with_aliasing_retry
 from lfjax.reproduce.config import METRICS, StudyConfig, planned_sampling, study_eyes
@@ -59,10 +59,11 @@ def layout_through_focus(
 def _layout_run(eyes, layout, depths_D, config, spectrum=None, options=None):
     """:func:`layout_through_focus`, returning also the wavelengths (nm) it used."""
     options = config.options if options is None else options
-    sampling, wavelengths = planned_sampling(eyes, layout, depths_D, config, options)
+    sampling, wavelengths, weights = planned_sampling(eyes, layout, depths_D, config, options)
     if spectrum is None:
-        spectrum = make_spectrum(wavelengths, options)
+        spectrum = make_spectrum(wavelengths, options, weights=weights)
     wavelengths = np.asarray(spectrum.wavelengths_nm, float)
+    rule = _rule_of(config, wavelengths, weights)
 
     def run(sampling):
         return jax.block_until_ready(through_focus(
@@ -74,7 +75,17 @@ def _layout_run(eyes, layout, depths_D, config, spectrum=None, options=None):
         ))
 
     tf, sampling = with_aliasing_retry(run, sampling, what=f"layout {layout.name}")
-    return tf, sampling, wavelengths
+    return tf, sampling, (wavelengths, rule)
+
+
+def _rule_of(config, wavelengths, weights) -> tuple[str, float]:
+    """(rule, value) of a planned spectrum, as :attr:`StudyConfig.wavelength_rules` holds it:
+    ("gauss", nodes) for a Gauss rule's weights, ("uniform", step nm) for V(λ)·Δλ on a grid."""
+    if weights is not None:
+        return "gauss", float(len(wavelengths))
+    if len(wavelengths) > 1:
+        return "uniform", float(wavelengths[1] - wavelengths[0])
+    return "uniform", float(config.wavelengths_nm[1] - config.wavelengths_nm[0])
 
 
 def peak_settings(config: StudyConfig) -> dict:
@@ -165,11 +176,12 @@ def _layout_run_variants(eyes, layout, depths_D, config, options):
     """:func:`layout_through_focus_variants`, each with the wavelengths (nm) it used: the
     first variant's (the planned spectrum is the baseline's, so every variant is measured
     on the same wavelengths)."""
-    first, wavelengths = planned_sampling(eyes, layout, depths_D, config, options[0])
-    if config.accuracy == "claims" and layout.name not in dict(config.wavelength_steps_nm):
-        step = float(wavelengths[1] - wavelengths[0]) if wavelengths.size > 1 else 100.0
-        config = config.replace(wavelength_steps_nm=tuple(config.wavelength_steps_nm)
-                                + ((layout.name, step),))
+    first, wavelengths, weights = planned_sampling(eyes, layout, depths_D, config, options[0])
+    rule = _rule_of(config, wavelengths, weights)
+    if (config.accuracy == "claims"
+            and layout.name not in {entry[0] for entry in config.wavelength_rules}):
+        config = config.replace(wavelength_rules=tuple(config.wavelength_rules)
+                                + ((layout.name, *rule),))
     samplings = [first] + [planned_sampling(eyes, layout, depths_D, config, o)[0]
                            for o in options[1:]]
 
@@ -178,12 +190,12 @@ def _layout_run_variants(eyes, layout, depths_D, config, options):
             eyes, layout, np.asarray(depths_D, float), options,
             accommodation_D=config.accommodation_D, window_D=config.window_D,
             pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
-            wavelengths_nm=wavelengths, samplings=samplings,
+            wavelengths_nm=wavelengths, samplings=samplings, spectral_weights=weights,
             continuous_peaks=("vsotf",), refine_second_peaks=False, **peak_settings(config),
         ))
 
     tfs, samplings = with_aliasing_retry(run, samplings, what=f"layout {layout.name}")
-    return [(tf, sampling, wavelengths) for tf, sampling in zip(tfs, samplings)]
+    return [(tf, sampling, (wavelengths, rule)) for tf, sampling in zip(tfs, samplings)]
 
 
 def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool) -> dict:
@@ -228,11 +240,13 @@ def _study_dataset(config: StudyConfig, options: ModelOptions, eyes: Eyes, label
     peak = np.full_like(pred, np.nan)
     cutoff = np.full_like(pred, np.nan)
     native = {}
-    steps, nffts, times, samplings, spectra = [], [], [], {}, {}
+    steps, nffts, times, samplings, spectra, rules = [], [], [], {}, {}, {}
     cdp_index = int(np.argmin(np.abs(depths - config.cdp_D)))
-    for li, (name, (tf, sampling, wavelengths, seconds)) in enumerate(zip(names, per_layout)):
+    for li, (name, (tf, sampling, (wavelengths, rule), seconds)) in enumerate(
+            zip(names, per_layout)):
         times.append(seconds)
         spectra[name] = [float(w) for w in wavelengths]
+        rules[name] = rule
         slots = [cdp_index] if name == "natural" else list(range(n_depth))
         vs[li][:, slots] = np.asarray(tf.vsotf, float)
         sr[li][:, slots] = np.asarray(tf.strehl, float)
@@ -332,16 +346,29 @@ def _study_dataset(config: StudyConfig, options: ModelOptions, eyes: Eyes, label
     ds.attrs["wavelengths_json"] = json.dumps(spectra)
     ds["n_wavelengths"] = (("layout",), np.asarray([len(spectra[n]) for n in names], int), {
         "long_name": "wavelengths summed in the layout's polychromatic OTF", "units": "1"})
+    ds["spectral_rule"] = (("layout",), np.asarray([rules[n][0] for n in names]), {
+        "long_name": "how the layout's wavelengths were chosen: 'uniform' (a step, weights "
+                     "V(λ)·Δλ) or 'gauss' (the Gauss rule for V(λ): nodes and weights)"})
     ds["wavelength_step_nm"] = (("layout",), np.asarray(
-        [spectra[n][1] - spectra[n][0] if len(spectra[n]) > 1 else np.nan for n in names]), {
-        "long_name": "wavelength step of the layout's spectrum (400-700 nm)", "units": "nm"})
+        [rules[n][1] if rules[n][0] == "uniform" else np.nan for n in names]), {
+        "long_name": "wavelength step of the layout's uniform spectrum (400-700 nm; NaN for "
+                     "a Gauss rule)", "units": "nm"})
     return ds
 
 
-def study_wavelength_steps(ds) -> dict[str, float]:
-    """{layout: wavelength step in nm} a study Dataset used (its plan, to reuse)."""
-    return {str(n): float(v) for n, v in zip(ds.layout.values, ds.wavelength_step_nm.values)
-            if np.isfinite(v)}
+def study_wavelength_rules(ds) -> dict[str, tuple[str, float]]:
+    """{layout: (rule, value)} a study Dataset used (its plan, to reuse as
+    :attr:`~lfjax.reproduce.config.StudyConfig.wavelength_rules`): ("uniform", step nm) or
+    ("gauss", nodes)."""
+    rules = {}
+    for name in ds.layout.values:
+        layout_ds = ds.sel(layout=name)
+        rule = str(layout_ds.spectral_rule.values) if "spectral_rule" in ds else "uniform"
+        if rule == "gauss":
+            rules[str(name)] = ("gauss", float(layout_ds.n_wavelengths))
+        elif np.isfinite(float(layout_ds.wavelength_step_nm)):
+            rules[str(name)] = ("uniform", float(layout_ds.wavelength_step_nm))
+    return rules
 
 
 def study_sampling(ds, layout: str) -> Sampling:
@@ -372,7 +399,7 @@ def _dataset_attrs(config: StudyConfig, options: ModelOptions, eyes: Eyes) -> di
         "eyes_source": "Thibos, Bradley & Hong (2002) statistics, lfjax.sample_eyes(seed, n)",
         "wavelengths_nm": (json.dumps([float(w) for w in config.wavelength_grid_nm])
                            if config.accuracy == "vsotf" else
-                           "planned per layout: wavelengths_json, wavelength_step_nm"),
+                           "planned per layout: wavelengths_json, spectral_rule, wavelength_step_nm"),
         "accuracy_plan": config.accuracy,
         "model_options_json": json.dumps(options.as_dict()),
         "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
@@ -409,7 +436,12 @@ def compute_examples(ds, config: StudyConfig = StudyConfig(), stage=None):  # no
     eyes, labels = study_eyes(config)
     planned = json.loads(ds.attrs.get("wavelengths_json", "{}"))
 
-    def layout_spectrum(name):  # the wavelengths the study used for this layout
+    rules = study_wavelength_rules(ds)
+
+    def layout_spectrum(name):  # the spectrum the study used for this layout
+        start, stop, _ = config.wavelengths_nm
+        if name in rules and rules[name][0] == "gauss":
+            return gauss_spectrum(int(rules[name][1]), start, stop, options)
         return make_spectrum(planned.get(name, config.wavelength_grid_nm), options)
 
     spectrum = layout_spectrum("natural")
@@ -512,5 +544,5 @@ __all__ = [
     "run_study",
     "run_study_variants",
     "study_sampling",
-    "study_wavelength_steps",
+    "study_wavelength_rules",
 ]

@@ -273,6 +273,7 @@ def through_focus_variants(
     cdp_D: float = 2.0,
     wavelengths_nm=None,
     samplings: Sequence[Sampling | None] | None = None,
+    spectral_weights=None,
     accommodation_offsets_D=None,
     window_D: float | None = None,
     eye_chunk: int | None = None,
@@ -295,7 +296,9 @@ def through_focus_variants(
     would; variants whose samplings agree share one compiled, vmapped call. The spectrum is
     :func:`lfjax.model.spectral.make_spectrum`'s for ``wavelengths_nm`` (default 400–700 nm in
     10 nm steps), its chromatic leaves computed inside the program from each variant's
-    parameters (float32 rounding apart, the numbers :func:`through_focus` gives).
+    parameters (float32 rounding apart, the numbers :func:`through_focus` gives);
+    ``spectral_weights`` (n_wavelengths,) replaces V(λ)·Δλ as the wavelengths' weights (a
+    Gauss rule's, :func:`lfjax.model.spectral.gauss_rule`).
 
     ``batch``: how the variants run — ``"vmap"`` (one program, side by side: what an
     accelerator wants), ``"map"`` (one program, one variant after another inside it,
@@ -329,7 +332,7 @@ def through_focus_variants(
         raise ValueError(f"samplings must hold one entry per variant ({len(options)}), "
                          f"got {len(samplings)}")
     continuous_peaks = tuple(continuous_peaks)
-    spectra = [make_spectrum(wavelengths_nm, o) for o in options]
+    spectra = [make_spectrum(wavelengths_nm, o, weights=spectral_weights) for o in options]
     variants = list(zip(options, spectra, samplings))
     if batch == "loop":
         return _each_variant(variants, lambda o, spectrum, sampling: through_focus(

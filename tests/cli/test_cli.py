@@ -241,40 +241,58 @@ def test_config_validation():
     for bad, match in ((dict(accuracy="fast"), "accuracy"),
                        (dict(peak_tolerance_D=0.0), "peak_tolerance_D"),
                        (dict(cutoff_tolerance_cpd=-0.25), "cutoff_tolerance_cpd"),
-                       (dict(wavelength_steps_nm=(("5x5", 25.0),)), "wavelength_steps_nm")):
+                       (dict(spectral_rule="gauss"), "spectral_rule"),
+                       (dict(wavelength_rules=(("5x5", "uniform", 25.0),)), "wavelength_rules"),
+                       (dict(wavelength_rules=(("2x2", "uniform", 0.0),)), "wavelength_rules"),
+                       (dict(wavelength_rules=(("2x2", "gauss", 5.5),)), "wavelength_rules"),
+                       (dict(wavelength_rules=(("2x2", "simpson", 5),)), "wavelength_rules")):
         with pytest.raises(ValueError, match=match):
             rep.StudyConfig(**bad)
     reduced = rep.StudyConfig(accuracy="vsotf").reduced()
     assert reduced.mft_pupil_samples == (("4x4", 48),)
     assert reduced.depth_offsets_D == (-2.0, -1.0, 0.0, 1.0, 2.0)
     assert reduced.wavelengths_nm[2] == 20.0 and not reduced.alternatives
-    # the question's plan: the alternatives reuse the main study's planned steps
-    reduced = rep.StudyConfig().reduced({"2x2": 25.0, "natural": 20.0})
-    assert dict(reduced.wavelength_steps_nm) == {"2x2": 25.0, "natural": 20.0}
+    # the question's plan: the alternatives reuse the main study's planned rules
+    reduced = rep.StudyConfig().reduced({"2x2": ("gauss", 6), "natural": ("uniform", 20.0)})
+    assert reduced.wavelength_rules == (("2x2", "gauss", 6.0), ("natural", "uniform", 20.0))
     assert reduced.accuracy == "claims" and not reduced.alternatives
 
 
-def test_accuracy_plans_the_wavelength_step_per_layout():
-    """``accuracy="claims"`` asks the planner for each layout's wavelength step (the
-    peak and cut-off targets), ``"vsotf"`` keeps the fixed grid, and a step fixed in
-    ``wavelength_steps_nm`` is used as given."""
+def test_accuracy_plans_the_spectrum_per_layout():
+    """``accuracy="claims"`` asks the planner for each layout's spectrum (the peak and
+    cut-off targets): a uniform step with ``spectral_rule="uniform"``, and with "auto" a
+    Gauss rule of fewer nodes when one meets the same targets; ``"vsotf"`` keeps the fixed
+    grid, and a rule fixed in ``wavelength_rules`` is used as given."""
     from lfjax.model.layouts import paper_layouts
+    from lfjax.model.spectral import gauss_rule
     from lfjax.reproduce.config import planned_sampling, study_eyes
 
-    config = rep.StudyConfig(n_eyes=1, depth_offsets_D=(-1.0, 0.0, 1.0))
+    config = rep.StudyConfig(n_eyes=1, depth_offsets_D=(-1.0, 0.0, 1.0), spectral_rule="uniform")
     eyes, _ = study_eyes(config)
     layout = paper_layouts(3.0)["4x4"]
-    _, planned = planned_sampling(eyes, layout, config.depths_D, config, config.options)
+    _, planned, weights = planned_sampling(eyes, layout, config.depths_D, config, config.options)
     step = planned[1] - planned[0]
     assert 10.0 < step < 50.0 and planned[0] == 400.0 and planned[-1] == 700.0
-    _, fixed = planned_sampling(eyes, layout, config.depths_D,
-                                 config.replace(accuracy="vsotf"), config.options)
+    assert weights is None
+    _, nodes, gauss_weights = planned_sampling(eyes, layout, config.depths_D,
+                                               config.replace(spectral_rule="auto"),
+                                               config.options)
+    if gauss_weights is not None:  # a Gauss rule was taken: fewer nodes, inside the range
+        assert nodes.size < planned.size and 400.0 < nodes[0] and nodes[-1] < 700.0
+        np.testing.assert_allclose(gauss_weights, gauss_rule(nodes.size, 400.0, 700.0)[1])
+    _, fixed, _ = planned_sampling(eyes, layout, config.depths_D,
+                                   config.replace(accuracy="vsotf"), config.options)
     np.testing.assert_allclose(fixed, config.wavelength_grid_nm)
-    sampling, given = planned_sampling(
-        eyes, layout, config.depths_D, config.replace(wavelength_steps_nm=(("4x4", 50.0),)),
-        config.options)
+    sampling, given, _ = planned_sampling(
+        eyes, layout, config.depths_D,
+        config.replace(wavelength_rules=(("4x4", "uniform", 50.0),)), config.options)
     np.testing.assert_allclose(given, [400.0, 450.0, 500.0, 550.0, 600.0, 650.0, 700.0])
     assert sampling.transform == "mft"  # the 4x4's MFT is kept under either plan
+    _, given, given_weights = planned_sampling(
+        eyes, layout, config.depths_D,
+        config.replace(wavelength_rules=(("4x4", "gauss", 5),)), config.options)
+    np.testing.assert_allclose(given, gauss_rule(5, 400.0, 700.0)[0])
+    np.testing.assert_allclose(given_weights, gauss_rule(5, 400.0, 700.0)[1])
 
 
 def test_dof_definition():
