@@ -386,7 +386,7 @@ def prepare(
     check_aliasing: bool = True,
     eye_chunk: int | None = None,
     display: DisplayOptics | None = None,
-    traced_checks: bool = True,
+    traced_checks: bool | None = None,
 ) -> Prepared:
     """Check, sample, configure and build the scene of one computation (module docstring).
 
@@ -407,7 +407,8 @@ def prepare(
     display : :class:`~lfjax.display.lenslets.DisplayOptics` of a real display, or None (ideal)
     traced_checks : False when every input is checked here on the host (the layout too):
         the compiled program then carries no host callbacks, so JAX's persistent compilation
-        cache can keep it across processes. Leave True where inputs may be traced.
+        cache can keep it across processes. True checks traced inputs inside the program
+        (``eqx.error_if``). None (default): False when every input is concrete, else True.
 
     Raises ``ValueError`` for a bad input (naming it), ``TypeError`` for eyes that are not
     :class:`~lfjax.model.eyes.Eyes`, :class:`~lfjax.base.sampling.AliasingError` when the
@@ -440,6 +441,8 @@ def prepare(
         field_check(eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
                     states.computed_D, states.host_depths_D, layout, spectrum, sampling,
                     pairs=states.pairs, display=display)
+    if traced_checks is None:
+        traced_checks = not (concrete and is_concrete(eyes, layout, display))
     if not traced_checks:
         _check_layout(layout)
     config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
