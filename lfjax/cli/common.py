@@ -19,6 +19,7 @@ from pathlib import Path
 import jax
 
 from lfjax.base.errors import ParameterError
+from lfjax.base.programs import enable_program_cache
 from lfjax.planner.cache import enable_plan_cache
 
 PROG = "lfjax"
@@ -228,10 +229,16 @@ PLAN_FOLDER = "lfjax-plans"
 (:mod:`lfjax.planner.cache`)."""
 
 
+PROGRAM_FOLDER = "lfjax-programs"
+"""Sub-folder of the compilation cache where exported programs are kept
+(:mod:`lfjax.base.programs`)."""
+
+
 def enable_compilation_cache(folder: Path | None = None) -> Path | None:
     """Turn on JAX's persistent compilation cache in ``folder`` (returns it, or None when
     the folder cannot be created), and keep the planner's plans in its ``lfjax-plans``
-    sub-folder. A second run then skips most compilation and all planning."""
+    sub-folder and the exported programs in ``lfjax-programs``. A second run then skips
+    most compilation and tracing, and all planning."""
     folder = compilation_cache_dir() if folder is None else Path(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -244,4 +251,6 @@ def enable_compilation_cache(folder: Path | None = None) -> Path | None:
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     # the planner's sampling plans beside the programs: a warm run re-plans nothing
     enable_plan_cache(folder / PLAN_FOLDER)
+    # and the largest programs exported: a warm run does not trace them again
+    enable_program_cache(folder / PROGRAM_FOLDER)
     return folder

@@ -15,7 +15,6 @@ nothing. An unreadable file is planned again and rewritten, never trusted.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import hashlib
 import inspect
 import os
@@ -25,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lfjax.base.programs import source_digest
 from lfjax.planner.plan import Plan, plan_sampling
 
 _SIGNATURE = inspect.signature(plan_sampling)  # the arguments a plan is keyed by
@@ -56,16 +56,10 @@ def plan_cache_folder() -> Path | None:
     return _FOLDER
 
 
-@functools.lru_cache(maxsize=1)
 def _code_version() -> str:
-    """Digest of the package's source files and numpy's version: a plan is valid for
-    exactly the code that made it."""
-    digest = hashlib.sha256(np.__version__.encode())
-    root = Path(__file__).resolve().parents[1]  # the whole package, not just the planner
-    for path in sorted(root.rglob("*.py")):
-        digest.update(str(path.relative_to(root)).encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()
+    """The package's source digest and numpy's version: a plan is valid for exactly the
+    code that made it."""
+    return f"{source_digest()}:{np.__version__}"
 
 
 def _feed(digest, value) -> None:

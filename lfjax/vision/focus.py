@@ -39,6 +39,7 @@ from lfjax.kernel.pipeline import (
     retinal_metrics,
     vsotf_and_strehl,
 )
+from lfjax.base.programs import call_cached
 from lfjax.base.sampling import AliasingError, Sampling
 from lfjax.vision.prepare import Prepared, States, prepare
 from lfjax.model.spectral import Spectrum, make_spectrum, model_spectrum, sce_rho_table
@@ -208,10 +209,13 @@ def through_focus(
                        pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, spectrum=spectrum,
                        options=options, sampling=sampling, check_aliasing=check_aliasing,
                        eye_chunk=eye_chunk, display=display, traced_checks=False)
-    metrics, peaks = _metrics_and_peaks(
-        eyes, prepared.scene, spectrum, prepared.accommodation(options), prepared.config,
-        prepared.states.allowed, tuple(continuous_peaks), peak_method, refine_second_peaks,
-        float(peak_tolerance_D),
+    # exported once and reloaded by later processes when the program cache is on (the
+    # command line's): tracing this program costs seconds per layout in every new process
+    metrics, peaks = call_cached(
+        _metrics_and_peaks_exportable, eyes, prepared.scene, spectrum, prepared.accommodation(options),
+        prepared.states.allowed, config=prepared.config, peak_metrics=tuple(continuous_peaks),
+        peak_method=peak_method, refine_second=refine_second_peaks,
+        tolerance_D=float(peak_tolerance_D),
     )
     return _result(prepared, metrics, peaks)
 
@@ -406,6 +410,14 @@ def _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed, pe
         for name in peak_metrics
     }
     return metrics, peaks
+
+
+def _metrics_and_peaks_exportable(eyes, scene, spectrum, accommodation, allowed, *, config,
+                                  peak_metrics, peak_method, refine_second, tolerance_D):
+    """:func:`_metrics_and_peaks` with its arrays first and its static choices by keyword
+    (:func:`lfjax.base.programs.call_cached`'s form)."""
+    return _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed,
+                              peak_metrics, peak_method, refine_second, tolerance_D)
 
 
 @shape_checked
