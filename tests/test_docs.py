@@ -26,7 +26,8 @@ API = ROOT / "docs" / "api"
 
 
 def _mkdocs_missing() -> str | None:
-    for module in ("mkdocs", "material", "mkdocstrings_handlers.python", "mkdocs_jupyter"):
+    for module in ("mkdocs", "material", "mkdocstrings_handlers.python", "mkdocs_jupyter",
+                   "latex2mathml", "black", "bs4"):
         try:
             if importlib.util.find_spec(module) is None:
                 return module
@@ -35,18 +36,25 @@ def _mkdocs_missing() -> str | None:
     return None
 
 
-def test_site_builds_strict(tmp_path):
+@pytest.fixture(scope="session")
+def site(tmp_path_factory):
+    """The site, built once per test session in strict mode (about 30 s on two cores)."""
     missing = _mkdocs_missing()
     if missing is not None:
         pytest.skip(f"{missing} is not installed: pip install -e '.[docs]' to build the site")
+    out = tmp_path_factory.mktemp("site") / "site"
     env = dict(os.environ, NO_MKDOCS_2_WARNING="1")
     proc = subprocess.run(
-        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(out)],
         cwd=ROOT, env=env, capture_output=True, text=True, timeout=300,
     )
+    return proc, out
+
+
+def test_site_builds_strict(site):
+    proc, site = site
     log = proc.stdout + proc.stderr
     assert proc.returncode == 0, f"mkdocs build --strict failed:\n{log[-6000:]}"
-    site = tmp_path / "site"
     # The pages that come from outside docs/ are there, with their content: the benchmark
     # results' summary links every topic page, each page is built, and the figures the
     # scripts write beside themselves are served.
@@ -65,6 +73,169 @@ def test_site_builds_strict(tmp_path):
     assert "data:image/png;base64" in notebook  # committed outputs rendered
     api = (site / "api" / "vision" / "index.html").read_text(encoding="utf-8")
     assert 'id="lfjax.vision.focus.through_focus"' in api
+    # Every notebook page shows its committed outputs, the paper's notebook its figures.
+    for notebook in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        page = (site / "notebooks" / notebook.stem / "index.html").read_text(encoding="utf-8")
+        assert "data:image/png;base64" in page, f"{notebook.name}: no figure on its page"
+    paper = (site / "notebooks" / "reproduce_paper" / "index.html").read_text(encoding="utf-8")
+    assert paper.count("data:image/png;base64") >= 10  # Figs. 3-11 and the retinal images
+
+
+# ------------------------------------------------------------------ what the built pages show
+
+# Sphinx roles and directives that Markdown does not know: shown raw if they reach the page.
+RAW_REST = re.compile(
+    r"(?<!\w):(?:py:)?(?:mod|class|func|meth|attr|data|obj|exc|math|ref|doc):(?!\w)"
+    r"|^\s*\.\. (?:math|note|warning|code-block|autofunction|seealso|versionadded)::",
+    re.M,
+)
+SUMMARY_SECTIONS = {"Classes:", "Functions:", "Methods:", "Attributes:", "Modules:"}
+# A summary ends where a sentence can end: . ! ? or : (introducing what the docstring shows
+# next), possibly followed by a closing bracket or quote.
+SENTENCE_END = re.compile(r"[.!?:…][\"')\]]*$")
+TEX = re.compile(r"\$\$|\\\[|\\\(|\\begin\{|\\frac\b|\\mathrm\b")
+SECTION_HEADERS = ("Parameters", "Attributes", "Returns", "Yields", "Raises", "Other Parameters")
+
+
+def site_problems(site: Path) -> dict[str, list[str]]:
+    """What a reader would see wrong on the built pages, by kind:
+
+    * ``rest``: a reStructuredText role or directive shown as text;
+    * ``empty``: a table row without its description — a docstring section's entry, or a
+      summary row of a member whose own docstring has text; a numpydoc section header
+      the parser did not recognise (shown as a bare collapsible block);
+    * ``cut``: a summary-table description that stops mid-sentence;
+    * ``offline``: a script or stylesheet fetched from the network, or an equation left as
+      TeX for a script to typeset.
+    """
+    from bs4 import BeautifulSoup
+
+    found: dict[str, list[str]] = {"rest": [], "empty": [], "cut": [], "offline": []}
+    for page in sorted(site.rglob("*.html")):
+        where = page.relative_to(site).as_posix()
+        soup = BeautifulSoup(page.read_text(encoding="utf-8"), "html.parser")
+        for tag, attribute in (("script", "src"), ("link", "href")):
+            for element in soup.find_all(tag, **{attribute: True}):
+                remote = element[attribute].startswith(("http:", "https:", "//"))
+                loads = tag == "script" or "stylesheet" in (element.get("rel") or [])
+                if remote and loads:
+                    found["offline"].append(f"{where}: {tag} from {element[attribute]}")
+        body = soup.find("article")
+        if body is None:
+            continue
+        for element in body.select(".arithmatex"):
+            found["offline"].append(f"{where}: equation left as TeX: {element.get_text()[:60]!r}")
+        for table in body.find_all("table"):
+            _table_problems(body, table, where, found)
+        for details in body.find_all("details"):
+            summary = details.find("summary")
+            title = summary.get_text().strip() if summary else ""
+            if title.startswith(SECTION_HEADERS) and title not in SECTION_HEADERS:
+                found["empty"].append(f"{where}: section header not parsed: {title!r}")
+        for element in body.find_all(["pre", "code"]):
+            element.decompose()  # code may show anything
+        text = body.get_text("\n")
+        for match in RAW_REST.finditer(text):
+            context = text[max(0, match.start() - 40):match.end() + 40].replace("\n", " ")
+            found["rest"].append(f"{where}: {context!r}")
+        for match in TEX.finditer(text):
+            context = text[max(0, match.start() - 20):match.end() + 40].replace("\n", " ")
+            found["offline"].append(f"{where}: TeX shown as text: {context!r}")
+    return found
+
+
+def _table_problems(body, table, where: str, found: dict[str, list[str]]) -> None:
+    heads = [th.get_text().strip() for th in table.find_all("th")]
+    if "Description" not in heads:
+        return
+    title = table.find_previous("span", class_="doc-section-title")
+    section = title.get_text().strip() if title else "?"
+    heading = table.find_previous(class_="doc-heading")
+    owner = heading.get("id", "?") if heading else "?"
+    for row in table.select("tr.doc-section-item"):
+        name = row.find("td").get_text(" ", strip=True)
+        description = row.select_one(".doc-md-description")
+        text = description.get_text(" ", strip=True) if description else ""
+        # A summary row names a member documented on the page, by a link to its heading.
+        link = row.find("td").find("a", href=True)
+        member = link["href"][1:] if link is not None and link["href"].startswith("#") else None
+        # (A docstring's Attributes section links its entries too; it is told apart by
+        # the members it names having no docstring of their own.)
+        is_summary = (section in SUMMARY_SECTIONS and member is not None
+                      and _has_own_docstring(body, member))
+        if not text:
+            if section in SUMMARY_SECTIONS and member is not None and not is_summary:
+                continue  # the member has no docstring: nothing to summarise
+            found["empty"].append(f"{where}: {owner} {section} {name}: no description")
+        elif is_summary:
+            first = description.find("p")
+            line = (first.get_text(" ", strip=True) if first else text)
+            if not SENTENCE_END.search(line):
+                found["cut"].append(f"{where}: {owner} {section} {name}: …{line[-60:]!r}")
+
+
+def _has_own_docstring(body, anchor: str) -> bool:
+    target = body.find(id=anchor)
+    contents = target.find_next_sibling("div", class_="doc-contents") if target else None
+    if contents is None:
+        return False
+
+    def own(element) -> bool:  # not inside a member documented within this one
+        for parent in element.parents:
+            if parent is contents:
+                return True
+            if "doc-children" in (parent.get("class") or []):
+                return False
+        return False
+
+    return any("doc-class-bases" not in (element.get("class") or []) and own(element)
+               for element in contents.find_all(["p", "table", "details"]))
+
+
+def test_pages_render_what_the_docstrings_say(site):
+    proc, site = site
+    assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
+    found = site_problems(site)
+    report = "\n".join(f"{kind}: {line}" for kind, lines in found.items() for line in lines[:15])
+    assert not any(found.values()), "the built site shows what its sources do not say:\n" + report
+    # The equations are there, as MathML (the VSOTF's definition on the kernel's page).
+    kernel = (site / "api" / "kernel" / "index.html").read_text(encoding="utf-8")
+    assert kernel.count("<math") >= 2 and "VSOTF" in kernel
+    panel = (site / "api" / "display" / "index.html").read_text(encoding="utf-8")
+    attributes = panel.split('id="lfjax.display.panel.Panel"', 1)[1].split("Methods:", 1)[0]
+    assert "pixel_pitch_mm" in attributes and "pixel pitch p of the panel" in attributes
+
+
+SAMPLE_PAGE = """<html><head>{head}</head><body><article>
+<h3 id="m.f" class="doc doc-heading">f</h3><div class="doc doc-contents"><p>Has text.</p></div>
+<p><span class="doc-section-title">Functions:</span></p>
+<table><thead><tr><th>Name</th><th>Description</th></tr></thead><tbody>
+<tr class="doc-section-item"><td><code><a href="#m.f">f</a></code></td>
+<td><div class="doc-md-description">{summary}</div></td></tr></tbody></table>
+<p>{text}</p></article></body></html>"""
+
+
+@pytest.mark.parametrize("kind, page", [
+    ("rest", dict(text="the layers: :mod:`lfjax.base` first")),
+    ("rest", dict(text=".. math:: a = b")),
+    ("cut", dict(summary="<p>A sentence cut at the</p>")),
+    ("empty", dict(summary="")),
+    ("offline", dict(head='<script src="https://unpkg.com/mathjax@3/es5/tex-mml-chtml.js">'
+                          "</script>")),
+    ("offline", dict(text='<span class="arithmatex">\\(x^2\\)</span>')),
+    ("offline", dict(text="$$ \\frac{a}{b} $$")),
+])
+def test_site_checks_see_what_they_must(tmp_path, kind, page):
+    """Each check fires on a page with its fault, and only that check."""
+    pytest.importorskip("bs4")
+    values = dict(head="", summary="<p>A whole sentence.</p>", text="Plain text.") | page
+    (tmp_path / "index.html").write_text(SAMPLE_PAGE.format(**values), encoding="utf-8")
+    found = site_problems(tmp_path)
+    assert found[kind], found
+    assert not any(lines for other, lines in found.items() if other != kind), found
+    values = dict(head="", summary="<p>A whole sentence.</p>", text="Plain text.")
+    (tmp_path / "index.html").write_text(SAMPLE_PAGE.format(**values), encoding="utf-8")
+    assert not any(site_problems(tmp_path).values())
 
 
 def _public_modules() -> list[str]:
