@@ -329,3 +329,67 @@ def test_docstring_house_style_becomes_numpydoc():
     assert out[6:9] == ["window_D", "    float, D, optional<br>", "    Half-width."]
     assert out[9:13] == ["name", "    str", "source", "    str"]
     assert out[14:17] == ["Notes", "-----", "The closing paragraph, not a parameter."]
+
+
+# ------------------------------------------------------------------ pages the package points to
+
+# A project file named in a message, a help text or a docstring: docs/…md(#anchor),
+# benchmarks/…md, README.md; or a README section by name ("the README's 'X'").
+PAGE_REFERENCE = re.compile(
+    r"(?P<path>(?:docs|benchmarks)/[\w/.-]+?\.md|README\.md)(?:#(?P<anchor>[\w-]+))?"
+)
+README_SECTION = re.compile(r"README'?s? '(?P<section>[^']+)'")
+
+
+def _anchors(markdown: str) -> set[str]:
+    """The anchors of a Markdown page's headings, as the site (toc's slugify) makes them."""
+    anchors = set()
+    for title in re.findall(r"^#{1,6}\s+(.+?)\s*#*\s*$", markdown, re.M):
+        explicit = re.search(r"\{#([\w-]+)\}\s*$", title)  # attr_list: "## Title {#id}"
+        if explicit:
+            anchors.add(explicit.group(1))
+            continue
+        text = re.sub(r"[`*_\[\]]|\(.*?\)", "", title) if "](" in title else re.sub(r"[`*_]", "", title)
+        slug = re.sub(r"[^\w\s-]", "", text.lower()).strip()
+        anchors.add(re.sub(r"[-\s]+", "-", slug))
+    return anchors
+
+
+def page_reference_problems(text: str, where: str) -> list[str]:
+    problems = []
+    for match in PAGE_REFERENCE.finditer(text):
+        path = ROOT / match.group("path")
+        if not path.is_file():
+            problems.append(f"{where}: {match.group(0)} does not exist")
+        elif match.group("anchor") and match.group("anchor") not in _anchors(path.read_text(
+                encoding="utf-8")):
+            problems.append(f"{where}: {match.group(0)}: no such heading")
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    for match in README_SECTION.finditer(text):
+        if not re.search(rf"^#+\s+{re.escape(match.group('section'))}\s*$", readme, re.M):
+            problems.append(f"{where}: the README has no section {match.group('section')!r}")
+    return problems
+
+
+def test_help_texts_messages_and_docstrings_point_to_pages_that_exist():
+    from lfjax.cli import SUBCOMMANDS, build_parser
+
+    problems = []
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    for name in SUBCOMMANDS:
+        problems += page_reference_problems(sub.choices[name].format_help(), f"lfjax {name} --help")
+    n_refs = 0
+    for path in sorted((ROOT / "lfjax").rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        n_refs += len(PAGE_REFERENCE.findall(text))
+        problems += page_reference_problems(text, str(path.relative_to(ROOT)))
+    assert n_refs > 10, "the package names almost no page: the scan is not reading it"
+    assert not problems, "\n".join(problems)
+
+
+def test_page_reference_check_sees_a_dead_reference():
+    assert page_reference_problems("see docs/guides/no-such-guide.md", "x")
+    assert page_reference_problems("docs/design.md#no-such-heading", "x")
+    assert page_reference_problems("see the README's 'No such section' for keys", "x")
+    assert not page_reference_problems("docs/design.md#layers and benchmarks/RESULTS.md", "x")
