@@ -393,3 +393,80 @@ def test_page_reference_check_sees_a_dead_reference():
     assert page_reference_problems("docs/design.md#no-such-heading", "x")
     assert page_reference_problems("see the README's 'No such section' for keys", "x")
     assert not page_reference_problems("docs/design.md#layers and benchmarks/RESULTS.md", "x")
+
+
+# ------------------------------------------------------------------ docstring examples
+
+# The modules of the package's face whose docstrings carry runnable examples, and the calls
+# that must have one (through-focus, metrics at a point, peaks through through_focus's
+# continuous_peaks, planning, eyes, layouts, the panel).
+EXAMPLE_MODULES = ("lfjax.vision.focus", "lfjax.planner.plan", "lfjax.model.eyes",
+                   "lfjax.model.layouts", "lfjax.display.panel")
+MUST_HAVE_EXAMPLES = ("through_focus", "metrics_at", "plan_sampling", "sample_eyes",
+                      "average_eye", "grid_layout", "Panel")
+
+
+def _docstring_examples():
+    import doctest
+    import importlib
+
+    finder = doctest.DocTestFinder(exclude_empty=True)
+    tests = []
+    for name in EXAMPLE_MODULES:
+        module = importlib.import_module(name)
+        tests += [t for t in finder.find(module) if t.examples and t.name.startswith(name)]
+    return tests
+
+
+def test_the_main_calls_have_examples():
+    named = {t.name.rsplit(".", 1)[-1] for t in _docstring_examples()}
+    missing = [name for name in MUST_HAVE_EXAMPLES if name not in named]
+    assert not missing, f"no Examples section with >>> lines in the docstrings of {missing}"
+    for name in MUST_HAVE_EXAMPLES:
+        assert getattr(lfjax, name).__doc__.count("Examples\n    --------") == 1, name
+
+
+def test_docstring_examples_run():
+    """Every >>> example in the face's modules runs and prints what its docstring says
+    (tiny sizes: one eye, one depth, one wavelength; about 30 s, mostly compilation)."""
+    import doctest
+
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    tests = _docstring_examples()
+    assert len(tests) >= len(MUST_HAVE_EXAMPLES)
+    for test in tests:
+        runner.run(test)
+    results = runner.summarize(verbose=False)
+    assert results.attempted >= 25, results  # every example was found and run
+    assert results.failed == 0, f"{results.failed} docstring examples failed (output above)"
+
+
+def test_guides_link_the_functions_they_name(site):
+    """On the pages outside the API reference, a name like `lfjax.through_focus` that is a
+    public object links to its entry (docs/_hooks/api_links.py)."""
+    from bs4 import BeautifulSoup
+
+    proc, site = site
+    assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
+    spec = importlib.util.spec_from_file_location(
+        "_lfjax_docs_api_links", ROOT / "docs" / "_hooks" / "api_links.py")
+    api_links = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(api_links)
+    unlinked, linked = [], 0
+    pages = [site / "index.html", site / "getting-started" / "index.html",
+             site / "faq" / "index.html", site / "glossary" / "index.html",
+             *sorted((site / "guides").rglob("index.html"))]
+    for page in pages:
+        body = BeautifulSoup(page.read_text(encoding="utf-8"), "html.parser").find("article")
+        for code in body.find_all("code"):
+            name = code.get_text().removesuffix("()")
+            if code.find_parent("pre") is not None or not re.fullmatch(r"lfjax(\.\w+)+", name):
+                continue
+            if api_links.canonical(name) is None:
+                continue
+            if code.find_parent("a") is None:
+                unlinked.append(f"{page.relative_to(site).parent}: {name}")
+            else:
+                linked += 1
+    assert linked > 20, f"only {linked} names linked: the check is not reading the guides"
+    assert not unlinked, "names that do not link to their API entry:\n" + "\n".join(unlinked)

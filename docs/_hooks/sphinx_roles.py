@@ -17,7 +17,7 @@ The summary tables of the API pages show the first *line* of each docstring; the
 paragraph is reflowed so that its first line is its first sentence, whole.
 
 ``.. math::`` directives and ``:math:`` roles become ``$$…$$`` and ``$…$`` for
-pymdownx.arithmatex (docs/_hooks/math.py renders them to MathML at build time).
+pymdownx.arithmatex (docs/_hooks/mathml.py renders them to MathML at build time).
 
 Objects are named with Sphinx roles (``:func:`through_focus```,
 ``:class:`~lfjax.vision.peaks.Peaks```). Markdown has no roles, so each becomes a cross-reference
