@@ -1,7 +1,7 @@
 """MkDocs hook: the guides' mentions of lfjax's functions link to their API pages.
 
-A guide names a function as code — `lfjax.through_focus`, `lfjax.sweep.open_store()` —
-and this hook turns each such span, outside code blocks and existing links, into a
+A guide names a function as code — `lfjax.through_focus`, `lfjax.sweep.open_store()`, or a
+call of the package's face by its bare name, `through_focus` — and this hook turns each such span, outside code blocks and existing links, into a
 cross-reference to the object's entry in the API reference. Names are resolved by importing
 them, so a face name (``lfjax.through_focus``) reaches the page of the module that defines it
 (``lfjax.vision.focus.through_focus``). tests/test_docs.py checks the built guides: every
@@ -14,7 +14,8 @@ import html
 import importlib
 import re
 
-CODE_SPAN = re.compile(r"(?<![\[`])`(?P<name>lfjax(?:\.[A-Za-z_]\w*)+)(?P<call>\(\))?`(?!\]|`)")
+CODE_SPAN = re.compile(
+    r"(?<![\[`])`(?P<name>lfjax(?:\.[A-Za-z_]\w*)+|[A-Za-z]\w*)(?P<call>\(\))?`(?!\]|`)")
 FENCE = re.compile(r"^\s*(```|~~~)")
 
 
@@ -52,7 +53,12 @@ def link_names(markdown: str) -> str:
             in_fence = not in_fence
         elif not in_fence:
             def link(match: re.Match) -> str:
-                target = canonical(match.group("name"))
+                name = match.group("name")
+                if "." not in name:  # a bare name: one of the face's calls, or left alone
+                    if not callable(getattr(importlib.import_module("lfjax"), name, None)):
+                        return match.group(0)
+                    name = "lfjax." + name
+                target = canonical(name)
                 if target is None:
                     return match.group(0)
                 shown = html.escape(match.group("name") + (match.group("call") or ""))
