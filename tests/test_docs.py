@@ -479,3 +479,54 @@ def test_guides_link_the_functions_they_name(site):
                 linked += 1
     assert linked > 40, f"only {linked} names linked: the check is not reading the guides"
     assert not unlinked, "names that do not link to their API entry:\n" + "\n".join(unlinked)
+
+
+# ------------------------------------------------------------------ citation, licence, changelog
+
+
+def test_citation_licence_and_changelog_agree_with_the_package():
+    import tomllib
+
+    yaml = pytest.importorskip("yaml")
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    cff = yaml.safe_load((ROOT / "CITATION.cff").read_text(encoding="utf-8"))
+    assert cff["cff-version"].startswith("1.2") and cff["type"] == "software"
+    assert cff["version"] == project["version"] and cff["license"] == project["license"]
+    paper = cff["preferred-citation"]
+    assert "Optical modelling of accommodative light field display" in paper["title"]
+    assert [a["family-names"] for a in paper["authors"]] == ["Miyanishi", "Sahin", "Gotchev"]
+    assert paper["year"] and paper["journal"] and paper["identifiers"]
+    assert cff["repository-code"] == _mkdocs_setting("repo_url")
+    licence = (ROOT / "LICENSE").read_text(encoding="utf-8")
+    assert licence.startswith("MIT License") and project["license"] == "MIT"
+    changelog = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+    for n in range(1, 5):
+        assert re.search(rf"^## Round {n}\b", changelog, re.M), f"CHANGELOG.md lacks round {n}"
+
+
+def _mkdocs_setting(key: str) -> str:
+    match = re.search(rf"^{key}:\s*(\S+)", (ROOT / "mkdocs.yml").read_text(encoding="utf-8"), re.M)
+    assert match, f"mkdocs.yml sets no {key}"
+    return match.group(1)
+
+
+def test_readme_is_short_names_its_readers_and_says_what_was_measured():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) <= 180, len(readme.splitlines())
+    assert "Who it is for" in readme
+    assert _mkdocs_setting("site_url").startswith("https://")
+    # The optimiser's held-out accommodation error is the guide's measurement, not the
+    # training constraint.
+    guide = (ROOT / "docs" / "guides" / "layout-optimisation.md").read_text(encoding="utf-8")
+    held_out = re.search(r"display's accommodation error, RMSE \| ([\d.]+) D \| ([\d.]+) D", guide)
+    assert held_out, "the guide no longer gives the held-out table"
+    assert f"{held_out.group(1)} →\n{held_out.group(2)} D" in readme or \
+        f"{held_out.group(1)} → {held_out.group(2)} D" in readme, held_out.groups()
+    assert "held within 0.25 D" not in readme
+    # The main job's times: README and home page cite the same results page.
+    index = (ROOT / "docs" / "index.md").read_text(encoding="utf-8")
+    latest = max(int(p.name[:2]) for p in (ROOT / "benchmarks" / "results").glob("[0-9]*-*.md")
+                 if re.search(r"`lfjax reproduce`.*warm", p.read_text(encoding="utf-8")))
+    for name, text in (("README.md", readme.split("## A tour")[0]), ("docs/index.md", index)):
+        cited = {int(n) for n in re.findall(r"results/(\d+)-[\w-]+\.md", text)}
+        assert latest in cited, f"{name} does not give the main job's time from §{latest}"
