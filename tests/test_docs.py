@@ -108,8 +108,9 @@ def site_problems(site: Path) -> dict[str, list[str]]:
 
     * ``rest``: a reStructuredText role or directive shown as text;
     * ``empty``: a table row without its description — a docstring section's entry, or a
-      summary row of a member whose own docstring has text; a numpydoc section header
-      the parser did not recognise (shown as a bare collapsible block);
+      summary row of a member whose own docstring has text; a Returns entry whose prose
+      landed in the Type column; a numpydoc section header the parser did not recognise
+      (shown as a bare collapsible block);
     * ``cut``: a summary-table description that stops mid-sentence;
     * ``offline``: a script or stylesheet fetched from the network, or an equation left as
       TeX for a script to typeset.
@@ -166,6 +167,12 @@ def _table_problems(ids: dict, documented: dict, table, where: str,
     owner = heading.get("id", "?") if heading else "?"
     for row in table.select("tr.doc-section-item"):
         name = row.find("td").get_text(" ", strip=True)
+        if section in ("Returns:", "Yields:") and "Type" in heads:
+            # A type, not prose: numpydoc reads an unnamed line of prose as the type.
+            shown = row.find_all("td", recursive=False)[heads.index("Type")].get_text(" ", strip=True)
+            unquoted = re.sub(r"'[^']*'|\"[^\"]*\"", "", shown)
+            if shown.endswith(".") or re.search(r"\b[a-z]{2,}\s+[a-z]{2,}\b", unquoted):
+                found["empty"].append(f"{where}: {owner} {section} prose as the type: {shown[:60]!r}")
         description = row.select_one(".doc-md-description")
         text = description.get_text(" ", strip=True) if description else ""
         # A summary row names a member documented on the page, by a link to its heading.
