@@ -243,6 +243,12 @@ SAMPLE_PAGE = """<html><head>{head}</head><body><article>
                           "</script>")),
     ("offline", dict(text='<span class="arithmatex">\\(x^2\\)</span>')),
     ("offline", dict(text="$$ \\frac{a}{b} $$")),
+    ("empty", dict(text="</p><details><summary>Attributes (lengths in mm)</summary>x</details><p>")),
+    ("empty", dict(text='</p><p><span class="doc-section-title">Returns:</span></p><table><thead>'
+                        "<tr><th>Type</th><th>Description</th></tr></thead><tbody>"
+                        '<tr class="doc-section-item"><td>the peaks, in D.</td><td>'
+                        '<div class="doc-md-description"><p>x</p></div></td></tr></tbody>'
+                        "</table><p>")),
 ])
 def test_site_checks_see_what_they_must(tmp_path, kind, page):
     """Each check fires on a page with its fault, and only that check."""
