@@ -643,3 +643,20 @@ def test_the_text_check_reads_a_disagreement():
            "by more than 0.25 cpd (`accuracy=\"claims\"`)")
     _, full = paper_notebook_settings(old)
     assert full["states_a_fixed_step"] and StudyConfig().accuracy == "claims"
+
+
+def test_docstring_sections_math_and_summaries_become_what_the_site_renders():
+    """Headers with a note, Returns prose, ``.. math::`` and the summary's first line."""
+    roles = _sphinx_roles()
+    out = roles.normalise_sections(
+        "S.\n\nAttributes (lengths in mm)\n----------\nx : () width, mm\n").split("\n")
+    assert out[2:7] == ["Lengths in mm.", "", "Attributes", "----------", "x"]
+    out = roles.normalise_sections(
+        "S.\n\nReturns\n-------\nArray of the scene's shape: the\nimage, cd/m².\n"
+        "peak : float\nvalue : (n,) the values, D\n").split("\n")
+    assert out[4:10] == [":", "    Array of the scene's shape: the image, cd/m².", "peak : float",
+                         "value :", "    (n,) the values, D", ""]
+    math = roles.math_to_arithmatex("Text.\n\n.. math:: a = \\frac{b}\n      {c}\n\nAfter, :math:`x`.")
+    assert math == "Text.\n\n$$\na = \\frac{b}\n{c}\n$$\n\nAfter, $x$."
+    first = roles.first_sentence_first("One sentence, e.g. this, that runs\non. Another one\nhere.\n\nMore.")
+    assert first == "One sentence, e.g. this, that runs on.\nAnother one here.\n\nMore."
