@@ -6,7 +6,18 @@ lfjax's docstrings are numpydoc-like with two habits that a strict numpydoc pars
   depths, D`` — so that units and shapes sit next to the name. Read literally, that line is
   a *type*; it is turned into the entry's description (the type shown is the annotation);
 * a closing paragraph follows the last section after a blank line, without a header. It is
-  given a ``Notes`` header instead of being read as more parameters.
+  given a ``Notes`` header instead of being read as more parameters;
+* a section header may carry a note in parentheses — ``Attributes (lengths in mm)`` — which
+  numpydoc does not recognise: the header becomes ``Attributes`` and the note a paragraph
+  before it;
+* a ``Returns``/``Yields`` entry is either ``name : description`` or a line of prose; numpydoc
+  reads both as a *type*, so each becomes a description (the type shown is the annotation).
+
+The summary tables of the API pages show the first *line* of each docstring; the first
+paragraph is reflowed so that its first line is its first sentence, whole.
+
+``.. math::`` directives and ``:math:`` roles become ``$$…$$`` and ``$…$`` for
+pymdownx.arithmatex (docs/_hooks/mathml.py renders them to MathML at build time).
 
 Objects are named with Sphinx roles (``:func:`through_focus```,
 ``:class:`~lfjax.vision.peaks.Peaks```). Markdown has no roles, so each becomes a cross-reference
@@ -24,6 +35,18 @@ import griffe
 
 ROLE = re.compile(r":(?:py:)?(?:mod|class|func|meth|attr|data|obj|exc):`(~?)([^`]+)`")
 SECTIONS = {"Parameters", "Attributes", "Returns", "Yields", "Raises", "Other Parameters"}
+NOTED_HEADER = re.compile(r"^(?P<indent>\s*)(?P<name>[A-Z][A-Za-z ]*?)\s+\((?P<note>.+)\)\s*$")
+MATH_ROLE = re.compile(r":math:`([^`]+)`")
+MATH_DIRECTIVE = re.compile(r"^(?P<indent>\s*)\.\. math::\s*(?P<first>.*)$")
+# A Returns line that is a type (``StackResult``, ``jax.Array``, ``tuple[Peaks, Array]``), not
+# prose.
+TYPE_LINE = re.compile(r"^[A-Za-z_][\w.]*(\[[\w., |\[\]]*\])?(\s*\|\s*[A-Za-z_][\w.]*)*$")
+# The end of a sentence: . ! or ? before a space and a capital, an opening parenthesis, a
+# quote or a code span — unless it closes an abbreviation.
+SENTENCE_END = re.compile(
+    r"(?<!\be\.g)(?<!\bi\.e)(?<!\bal)(?<!\bcf)(?<!\bvs)(?<!\bFig)(?<!\bEq)(?<!\bSec)"
+    r"[.!?](?=\s+[A-Z(`\"'*\[])"
+)
 ENTRY = re.compile(
     r"^(?P<names>\*{0,2}[A-Za-z_]\w*(?:\s*,\s*\*{0,2}[A-Za-z_]\w*)*)\s*(?::\s*(?P<rest>.*))?$"
 )
@@ -40,7 +63,7 @@ def normalise_sections(text: str) -> str:
     """House style → numpydoc (see the module docstring)."""
     lines = text.split("\n")
     out: list[str] = []
-    in_section = False
+    section = None  # the current numpydoc section's name, None outside one
 
     def is_header(k: int) -> bool:
         return k + 1 < len(lines) and bool(lines[k].strip()) and bool(UNDERLINE.match(lines[k + 1]))
@@ -49,26 +72,59 @@ def normalise_sections(text: str) -> str:
     while i < len(lines):
         line = lines[i]
         if is_header(i):
-            in_section = line.strip() in SECTIONS
-            out += [line, lines[i + 1]]
+            noted = NOTED_HEADER.match(line)
+            if noted and noted.group("name") in SECTIONS:
+                # "Attributes (lengths in mm)": the note becomes a paragraph before the header.
+                indent, name = noted.group("indent"), noted.group("name")
+                note = noted.group("note").strip()
+                out += [indent + f"{note[0].upper()}{note[1:]}.", "", indent + name,
+                        indent + "-" * len(name)]
+                section = name
+            else:
+                section = line.strip() if line.strip() in SECTIONS else None
+                out += [line, lines[i + 1]]
             i += 2
             continue
-        if in_section and not line.strip():
+        if section and not line.strip():
             out.append(line)
             i += 1
             nxt = lines[i] if i < len(lines) else ""
-            if nxt.strip() and not nxt.startswith(" ") and not is_header(i) and not ENTRY.match(nxt):
+            if (nxt.strip() and not nxt.startswith(" ") and not is_header(i)
+                    and (section in ("Returns", "Yields") or not ENTRY.match(nxt))):
                 out += ["Notes", "-----"]
-                in_section = False
+                section = None
             continue
-        if in_section and not line.startswith(" "):
+        if section and not line.startswith(" "):
+            j = i + 1  # the entry's own description lines follow, indented
+            while j < len(lines) and lines[j].startswith(" ") and lines[j].strip():
+                j += 1
+            body = lines[i + 1:j]
             m = ENTRY.match(line)
+            if section in ("Returns", "Yields"):
+                if m and m.group("rest") and " : " in line and TYPE_LINE.match(m.group("rest").strip()):
+                    head, text = line, ""  # numpydoc's own "name : type"
+                elif m and m.group("rest") is not None and " : " in line:
+                    # "name : description": numpydoc's "name :" takes the annotation as type.
+                    head, text = m.group("names") + " :", m.group("rest")
+                elif TYPE_LINE.match(line.strip()):
+                    head, text = line, ""
+                else:  # prose: no name, the annotation as type
+                    head, text = ":", line.strip()
+                    # Prose wrapped without indentation continues the same entry.
+                    while (j < len(lines) and lines[j].strip() and not lines[j].startswith(" ")
+                           and not is_header(j) and " : " not in lines[j]):
+                        text += " " + lines[j].strip()
+                        j += 1
+                    k = j
+                    while k < len(lines) and lines[k].startswith(" ") and lines[k].strip():
+                        k += 1
+                    body, j = lines[j:k], k
+                if text:
+                    body = ["    " + text + ("<br>" if body else "")] + body
+                out += [head] + body
+                i = j
+                continue
             if m and (m.group("rest") or "," in m.group("names")):
-                # The entry's own description lines follow, indented.
-                j = i + 1
-                while j < len(lines) and lines[j].startswith(" ") and lines[j].strip():
-                    j += 1
-                body = lines[i + 1:j]
                 if m.group("rest"):
                     # The name line's text reads as the first line of the description; a
                     # line break keeps it apart from the indented text that follows.
@@ -81,6 +137,57 @@ def normalise_sections(text: str) -> str:
         out.append(line)
         i += 1
     return "\n".join(out)
+
+
+def math_to_arithmatex(text: str) -> str:
+    """``.. math::`` directives → ``$$`` blocks, ``:math:`x``` roles → ``$x$``."""
+    lines = text.split("\n")
+    out: list[str] = []
+    i = 0
+    while i < len(lines):
+        m = MATH_DIRECTIVE.match(lines[i])
+        if not m:
+            out.append(lines[i])
+            i += 1
+            continue
+        indent = m.group("indent")
+        body = [m.group("first").strip()] if m.group("first").strip() else []
+        i += 1
+        # The equation: the lines indented deeper than the directive (blank lines inside).
+        while i < len(lines) and (not lines[i].strip() or
+                                  len(lines[i]) - len(lines[i].lstrip()) > len(indent)):
+            if lines[i].strip():
+                body.append(lines[i].strip())
+            elif body and i + 1 < len(lines) and not lines[i + 1].startswith(indent + " "):
+                break
+            i += 1
+        if out and out[-1].strip():
+            out.append("")
+        out += [indent + "$$", *(indent + b for b in body), indent + "$$", ""]
+        while i < len(lines) and not lines[i].strip():
+            i += 1
+    return MATH_ROLE.sub(lambda r: f"${r.group(1)}$", "\n".join(out))
+
+
+def first_sentence_first(text: str) -> str:
+    """Reflow the docstring's first paragraph so that its first line is its first sentence.
+
+    mkdocstrings' summary tables show a docstring's first line; a sentence wrapped at the
+    source's line width would be cut there. Markdown joins the lines of a paragraph, so the
+    rendered docstring is unchanged."""
+    lines = text.split("\n")
+    end = 0
+    while end < len(lines) and lines[end].strip() and not (
+            end + 1 < len(lines) and UNDERLINE.match(lines[end + 1])):
+        end += 1
+    first = lines[:end]
+    if len(first) < 2 or any(ln.lstrip().startswith(("|", "- ", "* ", ">>>", "..", "$$"))
+                             for ln in first):
+        return text
+    joined = " ".join(ln.strip() for ln in first)
+    m = SENTENCE_END.search(joined)
+    head, rest = (joined[:m.end()], joined[m.end():].strip()) if m else (joined, "")
+    return "\n".join([head, *([rest] if rest else []), *lines[end:]])
 
 
 class SphinxRoles(griffe.Extension):
@@ -102,5 +209,9 @@ class SphinxRoles(griffe.Extension):
                 return f"[`{shown}`][{target}]"
             return f"`{shown}`"
 
-        value = normalise_sections(obj.docstring.value)
-        obj.docstring.value = ROLE.sub(link, value)
+        value = math_to_arithmatex(normalise_sections(obj.docstring.value))
+        obj.docstring.value = first_sentence_first(ROLE.sub(link, value))
+
+    def on_package(self, *, pkg: griffe.Module, **kwargs) -> None:
+        # griffe calls on_object for every object but the package itself.
+        self.on_object(obj=pkg, **kwargs)

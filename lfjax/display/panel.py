@@ -107,6 +107,21 @@ class Panel(eqx.Module):
     aperture, diffraction : (static) lenslet aperture shape (``"circle"``, ``"square"``)
         and diffraction mode (:data:`lfjax.display.lenslets.DIFFRACTION_MODES`)
     name : (static) label
+
+    Examples
+    --------
+    A 460 ppi phone panel behind 0.45 mm lenslets of 3 mm focal length, seen from 350 mm,
+    its gap set for a CDP at 2 D:
+
+    >>> import lfjax
+    >>> panel = lfjax.Panel.with_cdp(cdp_D=2.0, pixel_pitch_mm=0.0552, lenslet_pitch_mm=0.45,
+    ...                              focal_length_mm=3.0, distance_mm=350.0)
+    >>> panel.n_views_per_side()  # 2×2 views in the 3 mm design pupil
+    2
+    >>> round(float(panel.fresnel_number()), 2)  # at 550 nm: each view diffracts
+    0.88
+    >>> panel.layout().centres_mm.shape  # the views as a Layout for through_focus
+    (4, 2)
     """
 
     pixel_pitch_mm: jnp.ndarray = eqx.field(converter=_as_real)

@@ -153,7 +153,14 @@ def thibos_statistics(measured_pupil_mm: float = 3.0) -> tuple[np.ndarray, np.nd
 def average_eye(
     measured_pupil_mm: float = 3.0, orientation: str = "left", zero_piston_tilt: bool = True
 ) -> Eyes:
-    """The population-mean eye of Thibos et al. (2002) as a batch of one."""
+    """The population-mean eye of Thibos et al. (2002) as a batch of one.
+
+    Examples
+    --------
+    >>> import lfjax
+    >>> lfjax.average_eye(3.0).zernike_um.shape  # one eye, 15 OSA/ANSI modes, µm
+    (1, 15)
+    """
     mean, _, _ = thibos_statistics(measured_pupil_mm)
     eyes = make_eyes(mean, measured_pupil_mm)
     if zero_piston_tilt:
@@ -191,6 +198,15 @@ def sample_eyes(
     The draw is ``mean + L z`` with ``L`` the Cholesky factor of the covariance (computed
     in float64 on the host) and ``z`` standard normal from ``key`` (drawn in float32): same
     key, same eyes, in float32 and float64 alike.
+
+    Examples
+    --------
+    >>> import lfjax
+    >>> eyes = lfjax.sample_eyes(0, 10, measured_pupil_mm=3.0)
+    >>> eyes.zernike_um.shape  # 10 eyes, 15 OSA/ANSI modes, µm on the 3 mm pupil
+    (10, 15)
+    >>> bool((lfjax.sample_eyes(0, 10).zernike_um == eyes.zernike_um).all())  # same seed
+    True
     """
     if isinstance(n_eyes, bool) or int(n_eyes) != n_eyes or n_eyes < 1:
         raise ValueError(f"n_eyes must be an integer >= 1, got {n_eyes}")

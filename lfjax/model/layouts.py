@@ -94,6 +94,15 @@ def grid_layout(n_per_side: int, pupil_diameter_mm: float = 3.0) -> Layout:
     """n×n tangent circles on a square grid filling the pupil (the paper's 2×2, 3×3, 4×4).
 
     Diameter and pitch both equal pupil/n; subapertures are cropped by the pupil.
+
+    Examples
+    --------
+    >>> import lfjax
+    >>> layout = lfjax.grid_layout(2, pupil_diameter_mm=3.0)
+    >>> layout.centres_mm.shape  # (n_views, 2): x, y in mm
+    (4, 2)
+    >>> [float(d) for d in layout.diameters_mm]  # mm
+    [1.5, 1.5, 1.5, 1.5]
     """
     if int(n_per_side) != n_per_side or n_per_side < 1:
         raise ValueError(f"n_per_side must be an integer >= 1, got {n_per_side}")

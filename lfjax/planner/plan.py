@@ -330,6 +330,21 @@ def plan_sampling(scene: PlanScene, targets: Targets = Targets(), *,  # noqa: B0
     eyes need, the field guard, the wavelength step, then (``estimate_accuracy``) the
     frequency step the proxy's error estimates accept, the MFT's pupil samples, and one
     ladder step cheaper in each dimension with the reason it fails.
+
+    Examples
+    --------
+    The sampling for 2×2 views of a point at 1 D, the eye anywhere from 0 to 2 D, for the
+    default target (a VSOTF error of 1e-3), the spectrum's step planned over 400–700 nm:
+
+    >>> import lfjax
+    >>> plan = lfjax.plan_sampling(lfjax.PlanScene(
+    ...     layout=lfjax.grid_layout(2), depths_D=[1.0], accommodation_D=(0.0, 2.0)))
+    >>> plan.sampling.freq_step_cpd <= plan.guard_freq_step_cpd  # inside the aliasing guard
+    True
+    >>> plan.errors["total"] <= 1e-3  # the estimated VSOTF error meets the target
+    True
+    >>> plan.wavelengths_nm[0], plan.wavelengths_nm[-1]
+    (400.0, 700.0)
     """
     if overrides.transform != "fft" and targets.vsotf is None and estimate_accuracy:
         raise ValueError(f"transform={overrides.transform!r} plans the MFT's pupil samples for a "

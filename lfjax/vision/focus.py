@@ -201,6 +201,24 @@ def through_focus(
     Elemental OTFs are computed once per distinct absolute state and reused by every depth.
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
     aberration-free, focused and rendered at the CDP, accommodation SA and LCA kept).
+
+    Examples
+    --------
+    The average eye and a point rendered at 1 D by 2×2 views (one wavelength, to stay
+    small): the grid peak and its continuous refinement, D.
+
+    >>> import lfjax
+    >>> from lfjax.model.spectral import monochromatic_spectrum
+    >>> tf = lfjax.through_focus(
+    ...     lfjax.average_eye(3.0), lfjax.grid_layout(2), depths_D=[1.0],
+    ...     accommodation_D=[0.6, 0.8, 1.0, 1.2, 1.4], spectrum=monochromatic_spectrum(550.0),
+    ...     continuous_peaks=("vsotf",), peak_method="vertex")
+    >>> tf.vsotf.shape  # (n_eyes, n_depth, n_acc)
+    (1, 1, 5)
+    >>> float(tf.predicted_accommodation_D()[0, 0])
+    1.0
+    >>> round(float(tf.continuous_accommodation_D()[0, 0]), 2)
+    0.95
     """
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
     _check_peak_options(continuous_peaks, peak_method, peak_tolerance_D)
@@ -455,6 +473,18 @@ def metrics_at(
     Returns
     -------
     (vsotf, strehl), each (n_eyes, n_depth, n_acc).
+
+    Examples
+    --------
+    >>> import lfjax
+    >>> from lfjax.model.spectral import monochromatic_spectrum
+    >>> vsotf, strehl = lfjax.metrics_at(
+    ...     lfjax.average_eye(3.0), lfjax.grid_layout(2), depths_D=[1.0],
+    ...     accommodation_D=[[1.0]], spectrum=monochromatic_spectrum(550.0))
+    >>> vsotf.shape  # (n_eyes, n_depth, n_acc)
+    (1, 1, 1)
+    >>> round(float(vsotf[0, 0, 0]), 2)
+    0.61
     """
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
     prepared = prepare(eyes, layout, States.per_depth(accommodation_D, depths_D),
