@@ -652,14 +652,14 @@ def _range_problems(v: dict, base_dir: Path) -> list[str]:
     return p + _combination_problems(v, failed, base_dir)
 
 
-def _refused(where: str, check: Callable, *args, **kwargs) -> list[str]:
+def _refused(where: str, check: Callable, *args, keys: dict | None = None, **kwargs) -> list[str]:
     """The problem a shared library check (one raising a
     :class:`~lfjax.base.errors.ParameterError`) finds, its parameter named as the key
-    ``where``; [] when it passes."""
+    ``where`` (and other parameters as ``keys`` says); [] when it passes."""
     try:
         check(*args, **kwargs)
     except ParameterError as err:
-        return [err.naming({err.parameter: where})]
+        return [err.naming({**(keys or {}), err.parameter: where})]
     return []
 
 
@@ -688,7 +688,8 @@ def _combination_problems(v: dict, failed: set[str], base_dir: Path = Path("."))
             for pupil in v["pupil_diameters_mm"]:
                 p += _refused(f"display.layouts ({entry})", check_views_in_pupil,
                               layout.centres_mm, layout.diameters_mm, pupil, layout.name,
-                              pupil_parameter="population.pupil_diameters_mm")
+                              pupil_parameter="pupil_diameters_mm",
+                              keys={"pupil_diameters_mm": "population.pupil_diameters_mm"})
     pupils, measured = v["pupil_diameters_mm"], v["measured_pupil_mm"]
     if "measured_pupil_mm" not in failed and pupils and all(d > 0 for d in pupils):
         limit = measured if measured is not None else max(THIBOS_PUPILS_MM)
