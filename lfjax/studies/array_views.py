@@ -55,6 +55,7 @@ from lfjax.model.options import ModelOptions
 from lfjax.display.panel import Panel
 from lfjax.kernel.scene import sa_parameters
 from lfjax.model.spectral import lca_dioptres, make_spectrum
+from lfjax.sweep.guard import host_memory_bytes
 from lfjax.vision.focus import through_focus
 from lfjax.base.errors import ParameterError
 from lfjax.base.types import finite_scalar
@@ -492,8 +493,6 @@ def check_array_vs_views_memory(panel: Panel, n_views: int, wavelength_nm: float
     """Refuse (naming ``freq_step_cpd``) an :func:`array_vs_views` whose estimated memory
     (:func:`array_vs_views_bytes`) exceeds ``available_bytes`` (default: this machine's
     available memory), saying the finest step that would fit. Returns the estimate."""
-    from lfjax.sweep.guard import host_memory_bytes
-
     have = host_memory_bytes() if available_bytes is None else float(available_bytes)
     need = array_vs_views_bytes(panel, n_views, wavelength_nm, freq_step_cpd, chunk)
     if need <= have:
