@@ -145,7 +145,7 @@ def test_bad_sampling_values():
 
 
 def test_bad_layouts():
-    with pytest.raises(ValueError, match="entirely outside the pupil.*indices \\[1\\]"):
+    with pytest.raises(ValueError, match="1 of its 2 views entirely outside the 3 mm pupil.*view 1 at \\(2, 0\\) mm"):
         lfjax.make_layout([[0.0, 0.0], [2.0, 0.0]], [1.0, 0.9], 3.0)
     with pytest.raises(ValueError, match="entirely outside"):
         lfjax.make_layout([[0.0, 1.5 + 0.5]], [1.0], 3.0)  # touching from outside

@@ -16,6 +16,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from lfjax.base.errors import ParameterError
+
 ARCMIN_PER_RADIAN: float = 180.0 * 60.0 / math.pi
 """Visual angle: arcmin in one radian."""
 
@@ -27,6 +31,50 @@ RETINAL_UM_PER_ARCMIN: float = 4.85
 Taken from a posterior nodal distance of 16.7 mm (0.291 mm per degree). No lfjax result
 depends on it: all computations are in visual angle.
 """
+
+
+MAX_DIOPTRES_D: float = 10.0
+"""The nearest depth the model describes, D: rendered depths, a display's CDP and
+accommodation states lie in [0, MAX_DIOPTRES_D] D (infinity to 10 cm). 10 D is about the
+amplitude of accommodation of a young adult (Duane's norms: some 10 D at 20 years), so an
+eye focused nearer is no eye the model's population (Thibos et al. 2002, adults) contains;
+the accommodation's spherical-aberration slope (Cheng et al. 2004) is a linear fit over
+smaller accommodations, and its extrapolation grows with the state. Beyond it the pipeline
+still returns numbers, but they describe nothing: :func:`check_dioptres` refuses them."""
+
+
+def check_dioptres(parameter: str, values, what: str = "depth", *, lowest: float = 0.0,
+                   note: str = "") -> np.ndarray:
+    """Host check of dioptric values (any shape): finite and in the model's range
+    [``lowest``, :data:`MAX_DIOPTRES_D`] D; returns them as a float64 array.
+
+    The one check of that range: every entry point, configuration and constructor that takes
+    a depth, a CDP or an accommodation state calls it before any work. A refused value is a
+    :class:`~lfjax.base.errors.ParameterError` naming ``parameter``, the range and the values
+    outside it; ``what`` says what the values are ("rendered depth", "accommodation state"),
+    ``note`` where they came from (appended to the message)."""
+    try:
+        v = np.asarray(values, float)
+    except (TypeError, ValueError):
+        raise ParameterError(parameter, "{%s} must be numbers in D, got {got!r}" % parameter,
+                             got=values) from None
+    extra = f" ({note})" if note else ""
+    bad = ~np.isfinite(v)
+    if np.any(bad):
+        raise ParameterError(parameter, "{%s} must be finite, got {got}{extra}" % parameter,
+                             got=v[bad].ravel().tolist()[:5], extra=extra)
+    low, high = v < lowest, v > MAX_DIOPTRES_D
+    if np.any(low) or np.any(high):
+        outside = v[low | high].ravel()
+        why = (f"0 D is optical infinity: a {what} cannot lie beyond it" if np.any(low)
+               else f"nearer than {100.0 / MAX_DIOPTRES_D:g} cm is beyond the amplitude of "
+                    "accommodation the model describes, lfjax.base.units.MAX_DIOPTRES_D")
+        raise ParameterError(
+            parameter, "{%s}: every %s must lie in the model's range [{lo:g}, {hi:g}] D (%s); "
+                       "got {got}{extra}" % (parameter, what, why),
+            lo=lowest, hi=MAX_DIOPTRES_D, got=[round(float(x), 9) for x in outside[:5]],
+            extra=extra)
+    return v
 
 
 def dioptres_to_c20_um(defocus_D, pupil_diameter_mm):
@@ -98,6 +146,8 @@ __all__ = [
     "ARCMIN_PER_RADIAN",
     "DEGREES_PER_RADIAN",
     "RETINAL_UM_PER_ARCMIN",
+    "MAX_DIOPTRES_D",
+    "check_dioptres",
     "dioptres_to_c20_um",
     "c20_um_to_dioptres",
     "cpd_to_cycles_per_radian",

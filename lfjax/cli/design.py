@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 from lfjax.base.files import check_output_folder
@@ -53,6 +54,9 @@ def add_parser(sub) -> None:
             "lenslet pitch, aperture, focal length, gap, distance, with units; derived CDP,\n"
             "Fresnel number, pixel and lenslet angles, eye box; held-out scores; the chosen\n"
             "count) and design.png (the chosen lenslet array and its views in the pupil).\n"
+            "Each count's status is ok, refused (not buildable, or no light field) or fails\n"
+            "(its display's accommodation RMSE above the objective's tolerance, 0.25 D); only\n"
+            "an ok count is chosen, and the command exits with status 1 when none is.\n"
             "Units: mm, dioptres (D), arcmin, cycles per degree (cpd), nm."
         ),
     )
@@ -133,6 +137,10 @@ def run(args) -> int:
     print(result.summary())
     print(f"{prog}: wrote {len(files)} files to {out} in "
           f"{time.perf_counter() - args.t_start:.1f} s")
+    if result.best is None:  # the report is written, but nothing may be built from it
+        reasons = "; ".join(f"{f.n_per_side}x{f.n_per_side} {f.status}" for f in result.fits)
+        print(f"{prog}: error: no views-per-side count qualifies: {reasons}", file=sys.stderr)
+        return 1
     return 0
 
 

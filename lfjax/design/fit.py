@@ -35,7 +35,10 @@ the problem's accommodation window lies. It must lie within the depth range; oth
 design is refused before anything is traced. A fitted design whose views no longer form a
 light field — their centres span less than half a view (one view: 1×1) or the predicted
 accommodation follows the rendered depth with gain below 0.5
-(:func:`lfjax.layout_opt.parallax_warning`) — is reported as refused, with the reason.
+(:func:`lfjax.layout_opt.parallax_warning`) — is reported as refused, with the reason. A
+fitted design that breaks a requirement on the report's eyes — the display's accommodation
+RMSE above the objective's ``accommodation_tolerance_D``, or a score that is not finite — is
+reported as failing it (:func:`design_failure`), by how much; neither is ever "ok" or chosen.
 """
 
 from __future__ import annotations
@@ -114,8 +117,11 @@ class DesignConstraints:
         finite_scalar("min_gap_fraction", self.min_gap_fraction, 0.0, 1.0, lo_open=True)
         finite_scalar("min_eye_box_mm", self.min_eye_box_mm, 0.0, lo_open=True)
         finite_scalar("min_fill", self.min_fill, 0.0, 1.0, lo_open=True)
-        lo = finite_scalar("min_f_number", self.min_f_number, 0.0, lo_open=True)
-        finite_scalar("max_f_number", self.max_f_number, lo)
+        # the two ends of one range (one flag, --f-number LO HI): each says which end it is
+        lo = finite_scalar("low end", self.min_f_number, 0.0, lo_open=True,
+                           parameter="min_f_number")
+        finite_scalar("high end (at least the low end)", self.max_f_number, lo,
+                      parameter="max_f_number")
         if self.distance_range_mm is not None:
             a, b = (float(v) for v in self.distance_range_mm)
             finite_scalar("low end", a, 0.0, lo_open=True, parameter="distance_range_mm")
@@ -381,6 +387,9 @@ class DesignFit:
     panel, start : the fitted and the starting :class:`~lfjax.display.panel.Panel` (None when
         infeasible)
     refused : why the design is not buildable or not a light field (None when it is)
+    failed : the requirement the fitted design breaks on the report's eyes (None when it
+        meets them all): its accommodation error above the objective's tolerance, or a score
+        that is not finite (:func:`design_failure`)
     history : loss per solver step (training eyes)
     train, test : held-out/training scores of ``panel`` (``image_at_peak`` VSOTF,
         ``relative_accommodation_rmse_D`` D, ``perceivable_cpd_median`` cpd, …)
@@ -394,6 +403,7 @@ class DesignFit:
     panel: Panel | None = None
     start: Panel | None = None
     refused: str | None = None
+    failed: str | None = None
     history: list = field(default_factory=list)
     train: dict | None = None
     test: dict | None = None
@@ -405,11 +415,45 @@ class DesignFit:
     def score(self) -> dict | None:
         return self.test if self.test is not None else self.train
 
+    @property
+    def ok(self) -> bool:
+        """Buildable, a light field, scored, and within every requirement: a count that
+        may be chosen."""
+        return self.refused is None and self.failed is None and self.score is not None
+
+    @property
+    def status(self) -> str:
+        """``"ok"``, ``"refused: <why>"`` or ``"fails: <which requirement, by how much>"``."""
+        if self.refused is not None:
+            return f"refused: {self.refused}"
+        if self.failed is not None:
+            return f"fails: {self.failed}"
+        return "ok" if self.score is not None else "not scored"
+
+
+def design_failure(score: dict, objective: Objective, eyes: str = "held-out") -> str | None:
+    """The requirement a fitted design breaks on its report's ``score`` (None when none):
+    a score that is not finite, or the display's accommodation RMSE
+    (``relative_accommodation_rmse_D``) above ``objective.accommodation_tolerance_D`` (the
+    constraint the fit was asked to keep; none without one). ``eyes`` names the report's
+    eyes in the message."""
+    names = ("image_at_peak", "relative_accommodation_rmse_D", "perceivable_cpd_median", "loss")
+    bad = [k for k in names if not math.isfinite(float(score[k]))]
+    if bad:
+        return f"its {', '.join(bad)} on the {eyes} eyes are not finite"
+    tol = objective.accommodation_tolerance_D
+    rmse = float(score["relative_accommodation_rmse_D"])
+    if tol is not None and rmse > tol:
+        return (f"the display's accommodation RMSE {rmse:.3f} D on the {eyes} eyes exceeds the "
+                f"tolerance accommodation_tolerance_D = {tol:g} D")
+    return None
+
 
 @dataclass
 class DesignResult:
     """Every count's :class:`DesignFit` and the chosen one (the lowest held-out loss among
-    those not refused; None when all are)."""
+    those :attr:`DesignFit.ok`, neither refused nor failing a requirement; None when none
+    is)."""
 
     fits: list
     cdp_D: float
@@ -420,7 +464,7 @@ class DesignResult:
 
     @property
     def best(self) -> DesignFit | None:
-        ok = [f for f in self.fits if f.refused is None and f.score is not None]
+        ok = [f for f in self.fits if f.ok]
         return min(ok, key=lambda f: f.score["loss"]) if ok else None
 
     def summary(self) -> str:
@@ -435,7 +479,7 @@ class DesignResult:
                 lines.append(f"  {f.n_per_side}x{f.n_per_side}    refused: {f.refused}")
                 continue
             st = f.start_test or {}
-            status = "ok" if f.refused is None else f"refused: {f.refused}"
+            status = f.status
             start_img = f" ({st['image_at_peak']:.4f})" if st else ""
             start_acc = f" ({st['relative_accommodation_rmse_D']:.3f})" if st else ""
             lines.append(f"  {f.n_per_side}x{f.n_per_side}    {s['image_at_peak']:.4f}{start_img}   "
@@ -445,7 +489,8 @@ class DesignResult:
         for f in self.fits:
             lines += [f"  note ({f.n_per_side}x{f.n_per_side}): {note}" for note in f.notes]
         best = self.best
-        lines.append(f"  chosen: {best.n_per_side}x{best.n_per_side}" if best else "  chosen: none")
+        lines.append(f"  chosen: {best.n_per_side}x{best.n_per_side}" if best else
+                     "  chosen: none (no count is ok)")
         return "\n".join(lines)
 
 
@@ -704,6 +749,9 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
         if fit.refused is None and float(fit.panel.eye_box_mm()) < constraints.min_eye_box_mm * (1 - 1e-3):
             fit.refused = (f"the eye box {float(fit.panel.eye_box_mm()):.3g} mm is below min_eye_box_mm = "
                            f"{constraints.min_eye_box_mm:g} mm even at the fastest lenslets")
+        if fit.refused is None:
+            fit.failed = design_failure(fit.score, objective,
+                                        "held-out" if test_eyes is not None else "training")
         fit.notes = design_notes(fit.panel, (lo, hi))
         fit.time_s = time.perf_counter() - t0
         if tell is not None:
@@ -786,7 +834,7 @@ def save_design(result: DesignResult, out_dir, command: str | None = None) -> li
     for f in result.fits:
         designs.append({
             "views_per_side": f.n_per_side,
-            "refused": f.refused,
+            "status": f.status, "refused": f.refused, "failed": f.failed,
             "specification": None if f.panel is None else panel_specification(f.panel),
             "start_specification": None if f.start is None else panel_specification(f.start),
             "held_out" if f.test is not None else "training": _score_units(f.score),

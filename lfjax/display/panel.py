@@ -52,7 +52,7 @@ import numpy as np
 from lfjax.display.lenslets import DisplayOptics, LensletArray, check_choices
 from lfjax.model.layouts import Layout
 from lfjax.base.errors import ParameterError
-from lfjax.base.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
+from lfjax.base.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN, check_dioptres
 
 MM_PER_INCH = 25.4
 
@@ -182,7 +182,9 @@ class Panel(eqx.Module):
     @classmethod
     def with_cdp(cls, *, cdp_D: float, pixel_pitch_mm, lenslet_pitch_mm, focal_length_mm,
                  distance_mm, fill=1.0, **kwargs) -> Panel:
-        """A panel whose gap puts the CDP at ``cdp_D`` (D, in [0, 1000/distance_mm)):
+        """A panel whose gap puts the CDP at ``cdp_D`` (D, in [0, 1000/distance_mm) and in the
+        model's range, :func:`~lfjax.base.units.check_dioptres`) for lenslets of focal length
+        ``focal_length_mm`` (mm, in (0, inf]; checked before the gap is computed):
         V = (1/L)/(1 − z_m/L) with L = 1000/cdp_D mm, gap = 1/(V + 1/f). Other keywords as
         :class:`Panel`."""
         cdp, zm = float(cdp_D), float(distance_mm)
@@ -193,6 +195,9 @@ class Panel(eqx.Module):
                 "cdp_D", "{cdp_D} must be in [0, {top:.4g}) D for a display at {distance_mm} = {zm:g} mm "
                 "(the CDP is a virtual image behind the display), got {cdp:g}",
                 top=1000.0 / zm, zm=zm, cdp=cdp)
+        check_dioptres("cdp_D", cdp, "CDP")
+        if _concrete(focal_length_mm):  # the gap divides by it (traced: Panel checks nothing)
+            _scalar("focal_length_mm", focal_length_mm, 0.0, allow_inf=True)
         gap = gap_for_cdp_mm(cdp, focal_length_mm, zm)
         return cls(pixel_pitch_mm, lenslet_pitch_mm, fill, focal_length_mm, gap, zm, **kwargs)
 

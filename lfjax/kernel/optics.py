@@ -36,7 +36,7 @@ from lfjax.kernel.scene import Accommodation, Scene
 from lfjax.kernel.scene import sa_c40_um as sa_c40_um
 from lfjax.kernel.scene import sa_parameters as sa_parameters
 from lfjax.model.spectral import Spectrum
-from lfjax.base.units import DEGREES_PER_RADIAN, dioptres_to_c20_um
+from lfjax.base.units import DEGREES_PER_RADIAN, check_dioptres, dioptres_to_c20_um
 from lfjax.base.zernike import monomial_coefficients, nm_from_ansi, powers_of, wavefront_on_grid, wavefront_um
 
 # ----------------------------------------------------------------------------- core
@@ -384,15 +384,18 @@ def validate_pupil(pupil_diameter_mm, measured_pupil_mm: float) -> None:
 
 
 def validate_states(accommodation_D=None, depths_D=None, cdp_D=None) -> None:
-    """Accommodation, rendered depths and CDP must be finite and ≥ 0 D (0 D = infinity).
+    """Accommodation, rendered depths and CDP must be finite and in the model's range
+    [0, :data:`~lfjax.base.units.MAX_DIOPTRES_D`] D (0 D = infinity;
+    :func:`~lfjax.base.units.check_dioptres`).
 
     Checked on the host for concrete values; traced values pass through (differentiable
     paths such as :func:`lfjax.vision.focus.metrics_at`).
     """
-    for name, value, what in (
-        ("accommodation_D", accommodation_D, "an eye cannot focus beyond infinity"),
-        ("depths_D", depths_D, "a rendered point cannot lie beyond infinity"),
-        ("cdp_D", cdp_D, "the display's image plane cannot lie beyond infinity"),
+    for name, value, what, noun in (
+        ("accommodation_D", accommodation_D, "an eye cannot focus beyond infinity",
+         "accommodation state"),
+        ("depths_D", depths_D, "a rendered point cannot lie beyond infinity", "rendered depth"),
+        ("cdp_D", cdp_D, "the display's image plane cannot lie beyond infinity", "CDP"),
     ):
         if value is None or not _is_concrete(value):
             continue
@@ -401,6 +404,7 @@ def validate_states(accommodation_D=None, depths_D=None, cdp_D=None) -> None:
             raise ValueError(f"{name} must be finite, got {v.ravel().tolist()}")
         if np.any(v < 0):
             raise ValueError(f"{name} must be >= 0 D ({what}); got {v[v < 0].tolist()}")
+        check_dioptres(name, v, noun)
 
 
 def validate_coefficients(zernike_um) -> None:

@@ -16,6 +16,7 @@ from jaxtyping import Array, Float
 
 from lfjax.base.errors import ParameterError
 from lfjax.base.types import finite_scalar
+from lfjax.base.units import check_dioptres
 from lfjax.display.lenslets import DisplayOptics
 from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout, make_layout
@@ -271,7 +272,8 @@ def depth_grid(low_D: float, high_D: float, n_depths: int) -> np.ndarray:
 
 
 def check_depth_range(depth_range_D, allow_empty: bool = False) -> tuple[float, float]:
-    """(low, high) of a rendered depth range in D, finite with 0 ≤ low < high (low == high
+    """(low, high) of a rendered depth range in D, finite with 0 ≤ low < high ≤ the model's
+    :data:`~lfjax.base.units.MAX_DIOPTRES_D` (low == high
     too with ``allow_empty``); a :class:`~lfjax.base.errors.ParameterError` naming
     ``depth_range_D`` otherwise."""
     try:
@@ -284,6 +286,7 @@ def check_depth_range(depth_range_D, allow_empty: bool = False) -> tuple[float, 
             raise ParameterError("depth_range_D", "{depth_range_D}: the {end} end must be finite and "
                                  ">= 0 D (0 D is optical infinity; allowed [0, inf]), got {got!r}",
                                  end=end, got=value)
+    check_dioptres("depth_range_D", (lo, hi), "rendered depth")
     if hi < lo or (hi == lo and not allow_empty):
         raise ParameterError("depth_range_D", "{depth_range_D} must satisfy 0 <= low < high (D); got "
                              "low = {lo:g}, high = {hi:g} ({how})", lo=lo, hi=hi,

@@ -25,6 +25,7 @@ from lfjax.base.errors import ParameterError
 from lfjax.base.files import check_output_folder
 from lfjax.base.sampling import Sampling
 from lfjax.base.types import finite_scalar
+from lfjax.base.units import check_dioptres
 from lfjax.display.lenslets import DisplayOptics, display_optics_at
 from lfjax.display.spectra import display_primaries, display_spectrum
 from lfjax.model import layout_plots
@@ -162,7 +163,7 @@ class OptimisationSettings:
         check_measured_pupil(constraints.pupil_diameter_mm, MEASURED_PUPIL_MM)
         set_(self, "depth_range_D", tuple(float(v) for v in self.depth_range_D))
         depths = depth_grid(*self.depth_range_D, self.n_depths)
-        finite_scalar("cdp_D", self.cdp_D, 0.0)
+        check_dioptres("cdp_D", finite_scalar("cdp_D", self.cdp_D, 0.0), "CDP")
         sampling = None if self.freq_step_cpd is None else Sampling(self.freq_step_cpd)
         wavelengths = np.atleast_1d(np.asarray(self.wavelengths_nm, float))
         if wavelengths.ndim == 1:  # else make_spectrum refuses the shape

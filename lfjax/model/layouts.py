@@ -14,6 +14,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.types import as_real_array
 
 
@@ -54,6 +55,39 @@ class Layout(eqx.Module):
         return int(self.diameters_mm.shape[0])
 
 
+def check_views_in_pupil(centres_mm, diameters_mm, pupil_diameter_mm: float, name: str = "custom",
+                         *, parameter: str = "layout", pupil_parameter: str = "pupil_diameter_mm"
+                         ) -> None:
+    """Host check that every view (circle of ``centres_mm`` (n, 2) and ``diameters_mm`` (n,),
+    mm) reaches into the pupil of ``pupil_diameter_mm`` (mm): a view entirely outside it
+    brings no light, so a layout made for a larger pupil would give VSOTF 0/0 (NaN, or 1
+    where the reference is the same layout) on the smaller one. Views partly outside are
+    the model's (the pupil crops them). The one check of that concept: :func:`make_layout`
+    and every computation on a layout (:func:`lfjax.vision.prepare.prepare`) call it.
+
+    A refused layout is a :class:`~lfjax.base.errors.ParameterError` naming ``parameter``,
+    the layout, the pupil, the views outside and how far outside they lie."""
+    c = np.asarray(centres_mm, float).reshape(-1, 2)
+    d = np.asarray(diameters_mm, float).reshape(-1)
+    pupil = float(pupil_diameter_mm)
+    radius = 0.5 * pupil
+    gap = np.hypot(c[:, 0], c[:, 1]) - 0.5 * d - radius  # nearest edge beyond the pupil, mm
+    outside = np.nonzero(gap >= 0)[0]
+    if outside.size == 0:
+        return
+    shown = ", ".join(f"view {i} at ({c[i, 0]:.4g}, {c[i, 1]:.4g}) mm, diameter {d[i]:.4g} mm, "
+                      f"{gap[i]:.4g} mm outside" for i in outside[:4])
+    more = f" and {outside.size - 4} more" if outside.size > 4 else ""
+    subject = "{%s} {layout_name!r}" if parameter == "layout" else "{%s}: layout {layout_name!r}"
+    raise ParameterError(
+        parameter, (subject + " has {n} of its {total} views entirely outside the {pupil:g} mm "
+                    "pupil ({%s}; a view must reach |centre| - diameter/2 < {radius:g} mm): "
+                    "{shown}{more}. Was it made for a larger pupil? Make it for this pupil, or "
+                    "give a pupil that holds it") % (parameter, pupil_parameter),
+        layout_name=name, n=int(outside.size), total=int(d.size), pupil=pupil, radius=radius,
+        shown=shown, more=more)
+
+
 def make_layout(
     centres_mm, diameters_mm, pupil_diameter_mm: float, name: str = "custom",
     window_diameter_mm: float | None = None,
@@ -72,14 +106,7 @@ def make_layout(
         raise ValueError("centres_mm and diameters_mm must be finite")
     if np.any(d <= 0):
         raise ValueError(f"diameters_mm must be > 0 mm, got {d[d <= 0].tolist()}")
-    pupil_radius = 0.5 * float(pupil_diameter_mm)
-    dist = np.hypot(c[:, 0], c[:, 1])
-    outside = dist - 0.5 * d >= pupil_radius
-    if np.any(outside):
-        raise ValueError(
-            "subapertures entirely outside the pupil (need |centre| − d/2 < "
-            f"{pupil_radius:g} mm): indices {np.nonzero(outside)[0].tolist()}"
-        )
+    check_views_in_pupil(c, d, pupil_diameter_mm, name, parameter="centres_mm")
     if window_diameter_mm is None:
         window_diameter_mm = min(float(d.max()), float(pupil_diameter_mm))
     return Layout(jnp.asarray(c), jnp.asarray(d), float(window_diameter_mm), name)
@@ -190,6 +217,7 @@ def paper_layouts(pupil_diameter_mm: float = 3.0) -> dict[str, Layout]:
 __all__ = [
     "Layout",
     "make_layout",
+    "check_views_in_pupil",
     "open_pupil",
     "grid_layout",
     "hex_layout",

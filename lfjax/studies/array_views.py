@@ -55,8 +55,17 @@ from lfjax.model.options import ModelOptions
 from lfjax.display.panel import Panel
 from lfjax.kernel.scene import sa_parameters
 from lfjax.model.spectral import lca_dioptres, make_spectrum
+from lfjax.sweep.guard import host_memory_bytes
 from lfjax.vision.focus import through_focus
-from lfjax.base.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN, dioptres_to_c20_um
+from lfjax.base.errors import ParameterError
+from lfjax.base.types import finite_scalar
+from lfjax.base.units import (
+    ARCMIN_PER_RADIAN,
+    DEGREES_PER_RADIAN,
+    check_dioptres,
+    dioptres_to_c20_um,
+    format_bytes,
+)
 from lfjax.base.zernike import wavefront_um
 
 
@@ -136,6 +145,7 @@ def array_views(panel: Panel, depth_D: float, *, wavelength_nm: float = 550.0,
     if not (math.isfinite(depth) and 0.0 <= depth < 1000.0 / zm):
         raise ValueError(f"depth_D must be in [0, {1000.0 / zm:.4g}) D (behind the lenslet plane at "
                          f"{zm:g} mm), got {depth_D}")
+    check_dioptres("depth_D", depth, "rendered depth")
     if not (math.isfinite(diffraction_widths) and diffraction_widths >= 0):
         raise ValueError(f"diffraction_widths must be finite and >= 0, got {diffraction_widths}")
     if lattice_offset is None:
@@ -436,10 +446,132 @@ def _array_views_shifts(panel: Panel, views: ArrayViews):
     return -x_cdp / length
 
 
+MIN_PUPIL_SAMPLES = 16
+"""Fewest samples of λ·Δf (the pupil-plane step a frequency step Δf sets) across the design
+pupil :func:`array_vs_views` accepts: coarser, the field of view (1/Δf degrees) no longer
+holds an aberrated eye's PSF and the pupil's edge is a handful of samples."""
+
+
+def max_freq_step_cpd(panel: Panel, wavelength_nm: float) -> float:
+    """The coarsest frequency step :func:`array_vs_views` accepts, cpd: the design pupil
+    spans :data:`MIN_PUPIL_SAMPLES` samples of λ·Δf."""
+    return float(panel.pupil_diameter_mm) / (MIN_PUPIL_SAMPLES * wavelength_nm * 1e-6
+                                             * DEGREES_PER_RADIAN)
+
+
+def _grid_sizes(panel: Panel, wavelength_nm: float, freq_step_cpd: float) -> tuple[int, int]:
+    """(pupil samples a side, FFT length) of :func:`_view_vsotf_numerators`."""
+    dx = wavelength_nm * 1e-6 * freq_step_cpd * DEGREES_PER_RADIAN
+    n_p = int(math.ceil(float(panel.pupil_diameter_mm) / dx)) + 2
+    n_p += n_p % 2
+    return n_p, _fast_len(2 * n_p)
+
+
+def array_vs_views_bytes(panel: Panel, n_views: int, wavelength_nm: float, freq_step_cpd: float,
+                         chunk: int) -> float:
+    """Peak host memory of one curve of :func:`array_vs_views` on ``n_views`` beams, bytes,
+    estimated from its arrays: the largest of its three phases — building the beams' pupil
+    fields (complex128, then stacked as complex64), building their phase ramps on the
+    half-plane FFT grid (complex128, kept as complex64), and the FFTs of ``chunk`` views at a
+    time beside both — plus a dozen pupil-sized grids and the Fresnel table's blocks.
+    Against tracemalloc's peak on the phone panel's 76 beams (one state, chunk 32): 1.10x
+    it at 0.5 cpd (238 MB measured), 1.26x at 0.3 cpd (493 MB)."""
+    n_p, n_fft = _grid_sizes(panel, wavelength_nm, freq_step_cpd)
+    half = n_fft * (n_fft // 2 + 1)
+    views = max(int(n_views), 1)
+    pupils = views * n_p * n_p
+    phases = (pupils * 24,                       # beams as built, and stacked
+              pupils * 8 + views * half * 24,    # the ramps as built, and kept
+              pupils * 8 + views * half * 8      # one chunk's FFTs beside both
+              + min(int(chunk), views) * (n_fft * n_fft * 20 + half * 16))
+    return float(max(phases) + 16 * n_p * n_p * 8 + half * 24 + 48e6)
+
+
+def check_array_vs_views_memory(panel: Panel, n_views: int, wavelength_nm: float,
+                                freq_step_cpd: float, chunk: int,
+                                available_bytes: float | None = None) -> float:
+    """Refuse (naming ``freq_step_cpd``) an :func:`array_vs_views` whose estimated memory
+    (:func:`array_vs_views_bytes`) exceeds ``available_bytes`` (default: this machine's
+    available memory), saying the finest step that would fit. Returns the estimate."""
+    have = host_memory_bytes() if available_bytes is None else float(available_bytes)
+    need = array_vs_views_bytes(panel, n_views, wavelength_nm, freq_step_cpd, chunk)
+    if need <= have:
+        return need
+    top = max_freq_step_cpd(panel, wavelength_nm)
+    step = float(freq_step_cpd)
+    while step < top and array_vs_views_bytes(panel, n_views, wavelength_nm, step, 1) > have:
+        step *= 2 ** 0.125
+    fits = (f"freq_step_cpd >= {step:.3g} cpd with chunk = 1 would fit "
+            f"(~{format_bytes(array_vs_views_bytes(panel, n_views, wavelength_nm, step, 1))})"
+            if step <= top else f"no step up to {top:.3g} cpd fits: fewer beams (a smaller "
+                                "diffraction_widths) or more memory")
+    n_p, n_fft = _grid_sizes(panel, wavelength_nm, freq_step_cpd)
+    raise ParameterError(
+        "freq_step_cpd", "{freq_step_cpd} = {step:g} cpd would need ~{need} of memory ({views} "
+        "beams, pupil grids {n_p}x{n_p}, FFTs {n_fft}x{n_fft}, {chunk} at a time), {have} "
+        "available: {fits}", step=float(freq_step_cpd), need=format_bytes(need), views=int(n_views),
+        n_p=n_p, n_fft=n_fft, chunk=int(chunk), have=format_bytes(have), fits=fits)
+
+
+def _check_array_vs_views(zernike_um, measured_pupil_mm, panel, depth_D, accommodation_D,
+                          wavelength_nm, freq_step_cpd, options, diffraction_widths,
+                          min_view_energy, pixel_offset_mm, chunk) -> np.ndarray:
+    """:func:`array_vs_views`' checks of its arguments, before any work; returns the states
+    (n_states,) D."""
+    if not isinstance(panel, Panel):
+        raise ParameterError("panel", "{panel} must be lfjax.display.panel.Panel, got {got}",
+                             got=type(panel).__name__)
+    if panel.aperture != "circle":
+        raise ParameterError("panel", "array_vs_views models circular lenslets only, got "
+                             "{panel}.aperture = {got!r}", got=panel.aperture)
+    z = np.asarray(zernike_um, float)
+    if z.ndim != 1 or z.size < 1:
+        raise ParameterError("zernike_um", "{zernike_um} must be one eye's coefficients, shape "
+                             "(n_modes,), got shape {shape}", shape=z.shape)
+    if not np.all(np.isfinite(z)):
+        raise ParameterError("zernike_um", "{zernike_um} must be finite, got NaN or inf at "
+                             "modes {modes}", modes=np.nonzero(~np.isfinite(z))[0].tolist())
+    measured = finite_scalar("measured_pupil_mm", measured_pupil_mm, 0.0, lo_open=True)
+    pupil = float(panel.pupil_diameter_mm)
+    if pupil > measured + 1e-9:
+        raise ParameterError("measured_pupil_mm", "{measured_pupil_mm} = {measured:g} mm is "
+                             "smaller than the panel's design pupil {pupil:g} mm: the "
+                             "coefficients are defined inside the measured pupil only",
+                             measured=measured, pupil=pupil)
+    wl = finite_scalar("wavelength_nm", wavelength_nm, 0.0, lo_open=True)
+    make_spectrum([wl], options)  # the model's wavelengths (its data's range)
+    top = max_freq_step_cpd(panel, wl)
+    step = finite_scalar("freq_step_cpd", freq_step_cpd, 0.0, lo_open=True)
+    if step > top:
+        raise ParameterError("freq_step_cpd", "{freq_step_cpd} must be in (0, {top:.3g}] cpd "
+                             "(the {pupil:g} mm pupil spans at least {n} samples of "
+                             "wavelength x step), got {step:g}", top=top, pupil=pupil,
+                             n=MIN_PUPIL_SAMPLES, step=step)
+    check_dioptres("depth_D", depth_D, "rendered depth")
+    acc = np.asarray(accommodation_D, float).reshape(-1)
+    if acc.size == 0:
+        raise ParameterError("accommodation_D", "{accommodation_D} must hold at least one state")
+    check_dioptres("accommodation_D", acc, "accommodation state")
+    finite_scalar("diffraction_widths", diffraction_widths, 0.0)
+    finite_scalar("min_view_energy", min_view_energy, 0.0)
+    if not min_view_energy < 1.0:
+        raise ParameterError("min_view_energy", "{min_view_energy} must be in [0, 1), got {got}",
+                             got=min_view_energy)
+    offset = np.asarray(pixel_offset_mm, float)
+    if offset.shape != (2,) or not np.all(np.isfinite(offset)):
+        raise ParameterError("pixel_offset_mm", "{pixel_offset_mm} must be two finite numbers "
+                             "(x, y) in mm, got {got!r}", got=pixel_offset_mm)
+    if isinstance(chunk, bool) or int(chunk) != chunk or chunk < 1:
+        raise ParameterError("chunk", "{chunk} must be an integer >= 1 (views transformed "
+                             "together), got {got!r}", got=chunk)
+    return acc
+
+
 def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: float,
                    accommodation_D, *, wavelength_nm: float = 550.0, freq_step_cpd: float = 0.5,
                    options=None, diffraction_widths: float = 3.0, min_view_energy: float = 1e-3,
-                   pixel_offset_mm=(0.0, 0.0), chunk: int = 32) -> dict[str, ViewCurves]:
+                   pixel_offset_mm=(0.0, 0.0), chunk: int = 32,
+                   available_bytes: float | None = None) -> dict[str, ViewCurves]:
     """Through-focus VSOTF of one eye for a point on the axis at ``depth_D`` (D), rendered
     (a) by the panel's n×n idealised views (``"idealised"``: the layout of
     :meth:`~lfjax.display.panel.Panel.layout`, each displaced as a ray through the point — what the
@@ -455,15 +587,25 @@ def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: 
     are left out, and the share they carried is reported. Circular lenslets only.
 
     ``zernike_um`` (n_modes,) µm on ``measured_pupil_mm``; ``accommodation_D`` (n_states,) D.
+    ``chunk``: views Fourier transformed together (an integer >= 1).
+
+    Every argument is checked before any work (a :class:`~lfjax.base.errors.ParameterError`
+    naming it): finite coefficients, a measured pupil holding the panel's design pupil,
+    depth and states in the model's range (:func:`~lfjax.base.units.check_dioptres`),
+    ``freq_step_cpd`` in (0, :func:`max_freq_step_cpd`], and the memory the computation
+    needs (:func:`array_vs_views_bytes`) within ``available_bytes`` (default: what this
+    machine has available): a step too fine to fit is refused with the step and chunk that
+    would.
     """
     options = ModelOptions() if options is None else options
-    if panel.aperture != "circle":
-        raise ValueError(f"array_vs_views models circular lenslets only, got aperture={panel.aperture!r}")
-    if not (math.isfinite(min_view_energy) and 0.0 <= min_view_energy < 1.0):
-        raise ValueError(f"min_view_energy must be in [0, 1), got {min_view_energy}")
-    acc = np.asarray(accommodation_D, float).reshape(-1)
-    if acc.size == 0 or not np.all(np.isfinite(acc)) or np.any(acc < 0):
-        raise ValueError("accommodation_D must be finite, >= 0 D and not empty")
+    acc = _check_array_vs_views(zernike_um, measured_pupil_mm, panel, depth_D, accommodation_D,
+                                wavelength_nm, freq_step_cpd, options, diffraction_widths,
+                                min_view_energy, pixel_offset_mm, chunk)
+    # the whole array's beams (geometry only, cheap): their count sizes the memory
+    views = array_views(panel, float(depth_D), wavelength_nm=wavelength_nm,
+                        diffraction_widths=diffraction_widths, pixel_offset_mm=pixel_offset_mm)
+    check_array_vs_views_memory(panel, views.n_views, wavelength_nm, freq_step_cpd, chunk,
+                                available_bytes)
     common = dict(wavelength_nm=wavelength_nm, freq_step_cpd=freq_step_cpd, options=options,
                   chunk=chunk)
     ref_centres, ref_shifts = _idealised_views(panel, float(panel.cdp_D))
@@ -476,8 +618,6 @@ def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: 
     values, energy, keep, dropped = _view_vsotf_numerators(
         zernike_um, measured_pupil_mm, panel, acc, centres, shifts, min_view_energy=0.0, **common)
     out["idealised"] = ViewCurves(acc, values / reference[0], int(keep.sum()), energy[keep], dropped, 0.0)
-    views = array_views(panel, float(depth_D), wavelength_nm=wavelength_nm,
-                        diffraction_widths=diffraction_widths, pixel_offset_mm=pixel_offset_mm)
     values, energy, keep, dropped = _view_vsotf_numerators(
         zernike_um, measured_pupil_mm, panel, acc, views.centres_mm, _array_views_shifts(panel, views),
         min_view_energy=min_view_energy, **common)
@@ -488,4 +628,5 @@ def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: 
 
 
 __all__ = ["ArrayViews", "array_views", "idealisation_gap", "array_through_focus", "ViewCurves",
-           "disc_fresnel_field", "array_vs_views"]
+           "disc_fresnel_field", "array_vs_views", "array_vs_views_bytes",
+           "check_array_vs_views_memory", "max_freq_step_cpd", "MIN_PUPIL_SAMPLES"]

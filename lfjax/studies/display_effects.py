@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lfjax.base.units import check_dioptres
 from lfjax.base.grids import DepthGrid
 from lfjax.display.lenslets import lenslets_for_layout
 from lfjax.display.spectra import display_spectrum
@@ -107,6 +108,9 @@ class DisplayStudyConfig(DepthGrid):
             raise ValueError(f"sweep_distances_mm must lie in (0, {limit:g}) mm, got {self.sweep_distances_mm}")
         if any(self.cdp_D + d < 0 for d in self.depth_offsets_D):
             raise ValueError("every rendered depth cdp_D + offset must be >= 0 D")
+        check_dioptres("cdp_D", self.cdp_D, "CDP")
+        check_dioptres("depth_offsets_D", [self.cdp_D + d for d in self.depth_offsets_D],
+                       "rendered depth", note="cdp_D + each offset")
         if not (self.accommodation_step_D > 0 and self.window_D > 0 and self.wavelength_step_nm > 0):
             raise ValueError("accommodation_step_D, window_D and wavelength_step_nm must be > 0")
         if not (self.f_number > 0 and self.pixel_pitch_mm >= 0 and 0 < self.fill_factor <= 1):

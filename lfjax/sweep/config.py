@@ -35,12 +35,14 @@ from pathlib import Path
 
 import numpy as np
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.grids import DepthGrid, inclusive_grid
+from lfjax.base.units import check_dioptres
 from lfjax.display.lenslets import DisplayOptics, display_optics_at
 from lfjax.display.spectra import DISPLAY_NAMES
 from lfjax.model.eyes import THIBOS_PUPILS_MM
 from lfjax.model.layout_files import load_layout_json
-from lfjax.model.layouts import PAPER_LAYOUTS
+from lfjax.model.layouts import PAPER_LAYOUTS, check_views_in_pupil
 from lfjax.model.options import ModelOptions
 from lfjax.vision.peaks import METRICS, PEAK_METHODS
 
@@ -647,12 +649,47 @@ def _range_problems(v: dict, base_dir: Path) -> list[str]:
         if found:
             failed.add(key.field)
             p += found
-    return p + _combination_problems(v, failed)
+    return p + _combination_problems(v, failed, base_dir)
 
 
-def _combination_problems(v: dict, failed: set[str]) -> list[str]:
+def _refused(where: str, check: Callable, *args, keys: dict | None = None, **kwargs) -> list[str]:
+    """The problem a shared library check (one raising a
+    :class:`~lfjax.base.errors.ParameterError`) finds, its parameter named as the key
+    ``where`` (and other parameters as ``keys`` says); [] when it passes."""
+    try:
+        check(*args, **kwargs)
+    except ParameterError as err:
+        return [err.naming({**(keys or {}), err.parameter: where})]
+    return []
+
+
+def _combination_problems(v: dict, failed: set[str], base_dir: Path = Path(".")) -> list[str]:
     """The checks that relate several keys (``failed``: fields whose own checks failed)."""
     p: list[str] = []
+    # the model's dioptric range (lfjax.base.units.check_dioptres, as every entry point)
+    if "cdp_D" not in failed and v["cdp_D"] >= 0:
+        p += _refused("display.cdp_D", check_dioptres, "cdp_D", v["cdp_D"], "CDP")
+        if v["depth_offsets_D"] and "depth_offsets_D" not in failed:
+            depths = [v["cdp_D"] + d for d in v["depth_offsets_D"]]
+            if min(depths) >= -1e-9:  # below 0 D: said below
+                p += _refused("display.depth_offsets_D", check_dioptres, "depth_offsets_D",
+                              depths, "rendered depth", note="cdp_D + each offset")
+    if "accommodation_max_D" not in failed:
+        p += _refused("accommodation.max_D", check_dioptres, "max_D", v["accommodation_max_D"],
+                      "accommodation state")
+    # every view of a layout file must reach into every calculation pupil (the paper
+    # layouts are made for each pupil); refused here, before anything is planned
+    if "layouts" not in failed and "pupil_diameters_mm" not in failed:
+        for entry in v["layouts"]:
+            if entry in PAPER_LAYOUTS:
+                continue
+            path = Path(entry) if Path(entry).is_absolute() else Path(base_dir) / entry
+            layout, _ = load_layout_json(path)
+            for pupil in v["pupil_diameters_mm"]:
+                p += _refused(f"display.layouts ({entry})", check_views_in_pupil,
+                              layout.centres_mm, layout.diameters_mm, pupil, layout.name,
+                              pupil_parameter="pupil_diameters_mm",
+                              keys={"pupil_diameters_mm": "population.pupil_diameters_mm"})
     pupils, measured = v["pupil_diameters_mm"], v["measured_pupil_mm"]
     if "measured_pupil_mm" not in failed and pupils and all(d > 0 for d in pupils):
         limit = measured if measured is not None else max(THIBOS_PUPILS_MM)

@@ -168,8 +168,10 @@ def through_focus(
     Parameters
     ----------
     eyes : Eyes (n_eyes batch)
-    layout : Layout, default open pupil (natural view)
-    depths_D : (n_depth,) rendered depths, D ≥ 0; default [cdp_D]
+    layout : Layout, default open pupil (natural view); every view must reach into the
+        calculation pupil (:func:`lfjax.model.layouts.check_views_in_pupil`)
+    depths_D : (n_depth,) rendered depths, D, in the model's range [0, 10] D
+        (:func:`lfjax.base.units.check_dioptres`, as the CDP and every state); default [cdp_D]
     accommodation_D : (n_acc,) absolute accommodation states shared by all depths, D ≥ 0
         (hyperopic limit). Mutually exclusive with ``accommodation_offsets_D``.
     accommodation_offsets_D : (n_acc,) states relative to each rendered depth, D (the

@@ -7,8 +7,9 @@ on a layout (the sweep, the paper's study, the display studies) prepares it in t
 steps, here and only here:
 
 1. **checks** of the concrete inputs, each naming the parameter (eyes, calculation pupil,
-   CDP, Zernike coefficients; a :class:`States` checks its own depths and states when it is
-   built);
+   CDP, Zernike coefficients, every view of the layout reaching into the pupil; a
+   :class:`States` checks its own depths and states, in the model's dioptric range, when it
+   is built);
 2. **states**: which (rendered depth, accommodation) pairs are computed — a :class:`States`,
    built by one of its constructors, the way diffrax's ``SaveAt`` says which times to save;
 3. **sampling**: a given :class:`~lfjax.base.sampling.Sampling` is checked against the
@@ -35,12 +36,13 @@ import numpy as np
 
 from lfjax.base.sampling import AliasingError, Sampling, finer_step
 from lfjax.base.types import is_concrete
+from lfjax.base.units import check_dioptres
 from lfjax.display.lenslets import DisplayOptics
 from lfjax.kernel.optics import field_check, validate_coefficients, validate_pupil, validate_states
 from lfjax.kernel.pipeline import PipelineConfig
 from lfjax.kernel.scene import Accommodation, Scene
 from lfjax.model.eyes import Eyes, check_eyes
-from lfjax.model.layouts import Layout, open_pupil
+from lfjax.model.layouts import Layout, check_views_in_pupil, open_pupil
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import Spectrum, make_spectrum
 from lfjax.planner.plan import plan_sampling
@@ -80,6 +82,8 @@ def _check_states(accommodation_D, depths_D) -> None:
         raise ValueError(
             f"depths_D must be >= 0 D (0 D is optical infinity); got {depth[depth < 0].tolist()}"
         )
+    check_dioptres("accommodation_D", acc, "accommodation state")
+    check_dioptres("depths_D", depth, "rendered depth")
 
 
 def relative_accommodation_grid(depths_D, offsets_D, hyperopic_limit: bool = True):
@@ -183,6 +187,8 @@ class States:
                    else np.atleast_1d(np.asarray(offsets_D, float)))
         _check_states(np.abs(offsets), depths)  # finiteness and depth range
         grid, index = relative_accommodation_grid(depths, offsets, hyperopic_limit=True)
+        check_dioptres("accommodation_offsets_D", grid, "accommodation state",
+                       note="each rendered depth plus each offset")
         allowed = index >= 0
         index = np.where(allowed, index, 0)
         # true state of every entry, also those beyond the hyperopic limit (not computed)
@@ -426,6 +432,10 @@ def prepare(
         layout = (open_pupil(pupil_static) if is_concrete(pupil_diameter_mm) else Layout(
             jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
             pupil_static, "natural"))
+    if is_concrete(layout.centres_mm, layout.diameters_mm, pupil_diameter_mm):
+        # a view outside the pupil brings no light: VSOTF would be 0/0 (NaN, or 1)
+        check_views_in_pupil(layout.centres_mm, layout.diameters_mm, pupil_diameter_mm,
+                             layout.name)
     concrete = states.concrete and is_concrete(pupil_diameter_mm, cdp_D)
     if sampling is None:
         if not concrete:

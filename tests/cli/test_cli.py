@@ -374,6 +374,8 @@ def test_the_flag_table_covers_every_parameter_a_check_can_name():
     ("optimise", lambda lo: lo.OptimisationSettings(wavelengths_nm=(380.0, 550.0))),
     ("optimise", lambda lo: lo.OptimisationSettings(freq_step_cpd=0.0)),
     ("optimise", lambda lo: lo.OptimisationSettings(max_diameter_mm=3.5)),
+    ("optimise", lambda lo: lo.OptimisationSettings(depth_range_D=(0.0, 20.0))),  # model's range
+    ("optimise", lambda lo: lo.OptimisationSettings(cdp_D=15.0)),
 ])
 def test_a_refused_optimisation_names_a_parameter_of_the_table(command, make):
     from lfjax import layout_opt
@@ -391,6 +393,7 @@ def test_a_refused_optimisation_names_a_parameter_of_the_table(command, make):
     lambda d: d.design_cdp_D((1.0, 2.0), 3.0),
     lambda d: d.DesignConstraints(distance_range_mm=(100.0, 50.0)),
     lambda d: d.DesignConstraints(min_f_number=3.0, max_f_number=2.0),
+    lambda d: d.design_cdp_D((0.0, 20.0)),  # beyond the model's range
     lambda d: d.check_design(d.design_panel("near-eye", 1.5), (1.0, 2.0), views_per_side=(9,)),
     lambda d: d.check_design(d.design_panel("near-eye", 1.5), (1.0, 2.0), wavelengths_nm=(800.0,)),
 ])

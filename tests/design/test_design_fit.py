@@ -230,7 +230,7 @@ def test_cli_design_tiny_case(capsys, tmp_path, monkeypatch):
     assert record["format"] == "lfjax-design/1" and record["chosen_views_per_side"] == 2
     one, two = record["designs"]
     assert "collapsed" in one["refused"] and one["specification"] is None
-    assert two["refused"] is None
+    assert two["refused"] is None and two["failed"] is None and two["status"] == "ok"
     assert any("depth step" in note for note in two["notes"])  # 8 µm pixels over 1 D
     build = two["specification"]["build"]
     assert build["lenslet_pitch_mm"]["unit"] == "mm" and build["focal_length_mm"]["value"] > 0
@@ -283,6 +283,73 @@ def test_cli_design_bad_input_one_line_exit_2(capsys, tmp_path, args, message):
     code = cli.main(["design", *args, "--out", str(tmp_path / "x")])
     err = capsys.readouterr().err
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_cli_design_f_number_range_names_the_flag_and_the_end():
+    """``--f-number 8 1``: the error names the flag and which end is wrong (it named the
+    library's max_f_number; issue #37)."""
+    with pytest.raises(ParameterError) as err:
+        DesignConstraints(min_f_number=8.0, max_f_number=1.0)
+    assert str(err.value) == ("max_f_number: high end (at least the low end) must be finite and "
+                              "in [8, inf], got 1.0")
+    assert err.value.naming(cli.common.FLAGS["design"]) == (
+        "--f-number: high end (at least the low end) must be finite and in [8, inf], got 1.0")
+    with pytest.raises(ParameterError, match=r"^min_f_number: low end must be finite and in \(0, inf\]"):
+        DesignConstraints(min_f_number=0.0)
+
+
+def _scored(loss: float, rmse: float, image: float = 0.5) -> dict:
+    return {"image_at_peak": image, "relative_accommodation_rmse_D": rmse, "accommodation_rmse_D": rmse,
+            "accommodation_gain": 0.9, "peak_success_fraction": 1.0, "loss": loss, "penalty": 0.0,
+            "n_eyes": 2, "perceivable_cpd_median": 10.0, "perceivable_cpd_p05": 9.0,
+            "perceivable_cpd_p95": 11.0, "perceivable_cpd_by_depth": [10.0]}
+
+
+def test_a_design_that_breaks_its_tolerance_is_never_ok_nor_chosen():
+    """``lfjax design`` marked a design "ok" and chose it with a display accommodation RMSE
+    of 1.137 D against the objective's 0.25 D tolerance (issue #37): now it fails, by how
+    much, and the best count is chosen among the ok ones only."""
+    from lfjax.design.fit import DesignFit, DesignResult, design_failure
+
+    objective = Objective()
+    assert objective.accommodation_tolerance_D == 0.25
+    assert design_failure(_scored(1.0, 0.2), objective) is None
+    assert design_failure(_scored(1.0, 1.137), objective) == (
+        "the display's accommodation RMSE 1.137 D on the held-out eyes exceeds the tolerance "
+        "accommodation_tolerance_D = 0.25 D")
+    assert design_failure(_scored(1.0, 1.137), Objective.parse(objective, None)) is None  # no tolerance
+    assert design_failure(_scored(math.nan, 0.1, image=math.nan), objective, "training") == (
+        "its image_at_peak, loss on the training eyes are not finite")
+    failing = DesignFit(2, test=_scored(-1.0, 1.137), failed=design_failure(_scored(-1.0, 1.137), objective))
+    passing = DesignFit(3, test=_scored(-0.5, 0.2))
+    refused = DesignFit(1, refused="the views have collapsed into one aperture")
+    result = DesignResult([refused, failing, passing], 1.5, [1.0, 2.0], DesignConstraints(), objective, {})
+    assert [f.ok for f in result.fits] == [False, False, True]
+    assert failing.status.startswith("fails: the display's accommodation RMSE 1.137 D")
+    assert refused.status.startswith("refused: ") and passing.status == "ok"
+    assert result.best is passing  # the lower loss of 2x2 does not make it the choice
+    text = result.summary()
+    assert "fails: the display's accommodation RMSE 1.137 D" in text and "chosen: 3x3" in text
+    none = DesignResult([refused, failing], 1.5, [1.0, 2.0], DesignConstraints(), objective, {})
+    assert none.best is None and none.summary().endswith("chosen: none (no count is ok)")
+
+
+def test_cli_design_exits_non_zero_when_no_count_qualifies(capsys, tmp_path, monkeypatch):
+    """``--views 1`` exited 0 with "chosen: none": one view is refused before any fit, the
+    report is written, and the command says why nothing qualifies and exits 1."""
+    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    out = tmp_path / "design"
+    code = cli.main(["design", "--depths", "1", "2", "--views", "1", "--train-eyes", "1",
+                     "--test-eyes", "0", "--no-progress", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 1, captured.err
+    assert "chosen: none (no count is ok)" in captured.out
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        "lfjax design: error: no views-per-side count qualifies: 1x1 refused: the views have collapsed")
+    record = json.loads((out / "design.json").read_text())
+    assert record["chosen_views_per_side"] is None
+    assert record["designs"][0]["status"].startswith("refused: ")
 
 
 # ------------------------------------------------------------------ notebook

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from lfjax.base.errors import ParameterError
 from lfjax.kernel.metrics import cutoff_frequency, diffraction_limited_mtf
 from lfjax.display.panel import (
     Panel,
@@ -91,6 +92,28 @@ def test_with_cdp_round_trip_and_collimated():
     assert float(q.gap_mm) == pytest.approx(3.0) and float(q.cdp_D) == 0.0
     assert float(q.magnification) == pytest.approx(1.0)
     assert float(gap_for_cdp_mm(2.0, 4.0, 100.0)) == pytest.approx(400.0 / 101.0, rel=1e-6)
+
+
+@pytest.mark.parametrize("focal_length_mm, shown", [(0.0, "0"), (-3.0, "-3"), (math.nan, "nan")])
+def test_with_cdp_refuses_a_focal_length_before_dividing_by_it(focal_length_mm, shown):
+    """focal_length_mm=0 raised a bare ZeroDivisionError from the gap's formula (issue #37)."""
+    with pytest.raises(ParameterError) as err:
+        Panel.with_cdp(cdp_D=1.5, pixel_pitch_mm=0.01, lenslet_pitch_mm=0.5,
+                       focal_length_mm=focal_length_mm, distance_mm=50.0)
+    assert str(err.value) == ("Panel.focal_length_mm must be in (0, inf] mm (inf: a pinhole or "
+                              f"barrier array), got {shown}")
+    # a pinhole array (f = inf) is allowed: the gap is then 1/V
+    Panel.with_cdp(cdp_D=1.5, pixel_pitch_mm=0.01, lenslet_pitch_mm=0.5, focal_length_mm=math.inf,
+                   distance_mm=50.0)
+
+
+def test_with_cdp_refuses_a_cdp_beyond_the_models_range():
+    """20 D (5 cm) lies behind a display at 30 mm, so with_cdp took it; the model stops at
+    10 D (lfjax.base.units.MAX_DIOPTRES_D)."""
+    with pytest.raises(ParameterError, match=r"^cdp_D: every CDP must lie in the model's range "
+                                             r"\[0, 10\] D .*got \[20\.0\]$"):
+        Panel.with_cdp(cdp_D=20.0, pixel_pitch_mm=0.01, lenslet_pitch_mm=0.3, focal_length_mm=3.0,
+                       distance_mm=30.0)
 
 
 @pytest.mark.parametrize("changes, words", [

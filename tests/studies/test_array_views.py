@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from lfjax.base.errors import ParameterError
 from lfjax.studies.array_views import array_through_focus, array_views, idealisation_gap
 from lfjax.model.eyes import average_eye
 from lfjax.model.layouts import subaperture_pitch_mm
@@ -251,3 +252,92 @@ def test_the_independent_views_computation_reproduces_the_pipelines_idealised_cu
     assert np.max(np.abs(ours - pipeline)) < 0.01 * np.max(pipeline)
     assert curves["idealised"].n_views == 4 and curves["array"].n_views > 4
     assert curves["array"].dropped_energy_fraction < 1e-3
+
+
+# ----------------------------------------------------------------------------- checked inputs
+
+
+def _avv_args(**changes):
+    """array_vs_views' arguments at a tiny size (the study's 2x2 array at 300 mm, the
+    average eye, a 4 cpd step: 26x26 pupil samples), with ``changes``."""
+    eye = average_eye()
+    args = dict(zernike_um=np.asarray(eye.zernike_um[0]), measured_pupil_mm=3.0,
+                panel=_sweep_panel(300.0), depth_D=1.0, accommodation_D=[1.0, 2.0],
+                freq_step_cpd=4.0, diffraction_widths=0.0)
+    args.update(changes)
+    return args
+
+
+def _avv(**changes):
+    from lfjax.studies.array_views import array_vs_views
+
+    a = _avv_args(**changes)
+    return array_vs_views(a.pop("zernike_um"), a.pop("measured_pupil_mm"), a.pop("panel"),
+                          a.pop("depth_D"), a.pop("accommodation_D"), **a)
+
+
+@pytest.mark.parametrize("changes, message", [
+    # each of these returned NaN curves, or raised a bare ZeroDivisionError / scipy's
+    # "Target length must be positive", before the checks (issue #37)
+    (dict(zernike_um=np.full(15, np.nan)), "zernike_um must be finite, got NaN or inf at modes [0, 1"),
+    (dict(chunk=-1), "chunk must be an integer >= 1 (views transformed together), got -1"),
+    (dict(chunk=0), "chunk must be an integer >= 1"),
+    (dict(measured_pupil_mm=0.0), "measured_pupil_mm must be finite and in (0, inf], got 0.0"),
+    (dict(measured_pupil_mm=2.0), "measured_pupil_mm = 2 mm is smaller than the panel's design pupil 3 mm"),
+    (dict(freq_step_cpd=0.0), "freq_step_cpd must be finite and in (0, inf], got 0.0"),
+    (dict(freq_step_cpd=-0.5), "freq_step_cpd must be finite and in (0, inf], got -0.5"),
+    (dict(freq_step_cpd=8.0), "freq_step_cpd must be in (0, 5.95] cpd (the 3 mm pupil spans at least 16"),
+    (dict(depth_D=20.0), "depth_D: every rendered depth must lie in the model's range [0, 10] D"),
+    (dict(accommodation_D=[1.0, 50.0]), "accommodation_D: every accommodation state must lie in the "
+                                        "model's range [0, 10] D"),
+    (dict(accommodation_D=[np.nan]), "accommodation_D must be finite"),
+    (dict(accommodation_D=[]), "accommodation_D must hold at least one state"),
+    (dict(pixel_offset_mm=(0.0, np.inf)), "pixel_offset_mm must be two finite numbers"),
+])
+def test_array_vs_views_refuses_every_bad_argument_by_name(changes, message):
+    with pytest.raises(ParameterError) as err:
+        _avv(**changes)
+    assert str(err.value).startswith(message), str(err.value)
+
+
+def test_array_vs_views_estimates_its_memory_and_refuses_what_cannot_fit():
+    """A fine step allocated 18 GB before the check: now its memory is estimated first and a
+    step that cannot fit is refused, saying which step would; the estimate bounds the peak
+    tracemalloc measures (one tiny run)."""
+    import tracemalloc
+
+    from lfjax.studies.array_views import array_views, array_vs_views_bytes
+
+    panel = _sweep_panel(300.0)
+    n = array_views(panel, 1.0, diffraction_widths=0.0).n_views
+    with pytest.raises(ParameterError) as err:
+        _avv(freq_step_cpd=0.01, available_bytes=2e9)
+    text = str(err.value)
+    assert text.startswith(f"freq_step_cpd = 0.01 cpd would need ~") and "1.86 GiB available" in text
+    suggested = float(text.split("freq_step_cpd >= ")[1].split(" cpd")[0])
+    assert array_vs_views_bytes(panel, n, 550.0, suggested, 1) <= 2e9
+    assert array_vs_views_bytes(panel, n, 550.0, suggested / 1.1, 1) > 2e9  # and not much coarser
+    tracemalloc.start()
+    try:
+        _avv()
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak <= array_vs_views_bytes(panel, n, 550.0, 4.0, 32)
+
+
+def test_array_vs_views_gives_finite_curves_for_random_valid_inputs():
+    """Seeded property test: 6 random valid inputs (eyes, depth, states, pixel grid
+    offset, chunk) at the tiny size give finite VSOTF curves and energies."""
+    from lfjax.model.eyes import sample_eyes
+
+    rng = np.random.default_rng(37)
+    for _ in range(6):
+        z = np.asarray(sample_eyes(int(rng.integers(0, 2**31)), 1).zernike_um[0])
+        out = _avv(zernike_um=z, depth_D=float(rng.uniform(0.0, 3.0)),
+                   accommodation_D=np.sort(rng.uniform(0.0, 4.0, 2)),
+                   pixel_offset_mm=tuple(rng.uniform(-0.01, 0.01, 2)),
+                   chunk=int(rng.integers(1, 8)))
+        for curves in out.values():
+            assert np.all(np.isfinite(curves.vsotf)) and np.all(np.isfinite(curves.energy))
+            assert curves.n_views >= 1

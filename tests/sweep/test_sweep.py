@@ -132,6 +132,12 @@ def test_bad_config_lists_every_problem_before_any_compute(tmp_path):
     ({"display": {"lenslet_distance_mm": 600.0}}, "display.lenslet_distance_mm must be in (0, 500) mm"),
     ({"display": {"pixel_width_arcmin": -1.0}}, "display.pixel_width_arcmin must be >= 0"),
     ({"spectrum": {"display": "plasma"}}, "spectrum.display must be one of crt, lcd, oled, laser"),
+    # the model's dioptric range (lfjax.base.units.check_dioptres, shared with every entry point)
+    ({"display": {"cdp_D": 20.0}}, "display.cdp_D: every CDP must lie in the model's range [0, 10] D"),
+    ({"display": {"depth_offsets_D": [0.0, 9.0]}},
+     "display.depth_offsets_D: every rendered depth must lie in the model's range [0, 10] D"),
+    ({"accommodation": {"max_D": 50.0}},
+     "accommodation.max_D: every accommodation state must lie in the model's range [0, 10] D"),
 ])
 def test_impossible_values_are_named(changes, message):
     with pytest.raises(SweepConfigError, match=None) as err:
@@ -656,3 +662,31 @@ def test_a_store_is_created_from_one_chunk_and_equals_the_whole_template(referen
     assert a.vsotf.attrs == b.vsotf.attrs and np.isnan(b.vsotf.values).all()
     assert not b.continuous_peak_success.values.any()
     assert (tmp_path / "part.zarr" / ".zmetadata").is_file()
+
+
+def test_a_layout_file_made_for_a_larger_pupil_is_refused_before_anything_is_planned(tmp_path):
+    """A layout file whose view lies outside a calculation pupil: the sweep stored VSOTF
+    exactly 1.0 at every state and sweep-report showed it without a word (issue #37).
+    Now the configuration names the layout, the pupil and how far outside it lies."""
+    import json
+
+    from lfjax.model.layout_files import LAYOUT_FORMAT
+
+    path = tmp_path / "wide.json"
+    path.write_text(json.dumps({"format": LAYOUT_FORMAT, "name": "wide", "pupil_diameter_mm": 6.0,
+                                "centres_mm": [[0.0, 0.0], [2.5, 0.0]],
+                                "diameters_mm": [1.0, 1.0]}))
+    data = {k: dict(v) for k, v in TINY.items()}
+    data["display"]["layouts"] = ["2x2", str(path)]
+    data["population"]["pupil_diameters_mm"] = [3.0, 6.0]
+    data["population"]["measured_pupil_mm"] = 6.0
+    with pytest.raises(SweepConfigError) as err:
+        config_from_dict(data)
+    (problem,) = err.value.problems
+    assert problem == (
+        f"display.layouts ({path}) 'wide' has 1 of its 2 views entirely outside the 3 mm pupil "
+        "(population.pupil_diameters_mm; a view must reach |centre| - diameter/2 < 1.5 mm): "
+        "view 1 at (2.5, 0) mm, diameter 1 mm, 0.5 mm outside. Was it made for a larger pupil? "
+        "Make it for this pupil, or give a pupil that holds it")
+    data["population"]["pupil_diameters_mm"] = [6.0]  # the pupil it was made for
+    assert config_from_dict(data).layouts == ("2x2", str(path))
