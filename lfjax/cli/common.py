@@ -126,6 +126,9 @@ def exit_promptly_on_interrupt(prog: str, grace_s: float = INTERRUPT_GRACE_S) ->
     ``argv``, as tests do); returns whether it was installed."""
     if threading.current_thread() is not threading.main_thread():
         return False
+    if callable(signal.getsignal(signal.SIGINT)):
+        # Python's own handler again (lfjax's start-up one exits at once, cleaning nothing)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     read_end, write_end = os.pipe()
     os.set_blocking(write_end, False)
     try:
@@ -151,6 +154,16 @@ def exit_promptly_on_interrupt(prog: str, grace_s: float = INTERRUPT_GRACE_S) ->
                 os._exit(130)
 
     threading.Thread(target=watch, name="lfjax-interrupt-watch", daemon=True).start()
+    previous_hook = sys.unraisablehook
+
+    def unraisable(info) -> None:
+        # a KeyboardInterrupt raised inside a garbage-collection callback (XLA's) is lost to
+        # the main thread: the watcher ends the run, without a traceback on the way
+        if info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt):
+            return
+        previous_hook(info)
+
+    sys.unraisablehook = unraisable
     return True
 
 

@@ -9,7 +9,6 @@ from lfjax import layout_opt as lo
 from lfjax.base.errors import ParameterError
 from lfjax.base.files import check_output_folder
 from lfjax.cli import common
-from lfjax.layout_opt._run import estimated_output_bytes
 
 COMMAND = "optimise"
 
@@ -148,7 +147,7 @@ def run(args) -> int:
     try:
         chosen = settings(args)
         # writable, with room for the outputs: refused now, not after the work
-        check_output_folder(args.out, args.force, need_bytes=estimated_output_bytes(chosen))
+        check_output_folder(args.out, args.force, need_bytes=lo.estimated_output_bytes(chosen))
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
     common.enable_compilation_cache()

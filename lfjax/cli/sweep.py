@@ -120,12 +120,9 @@ def start_distributed(prog: str, kwargs: dict, timeout_s: float) -> None:
     def give_up() -> None:
         if connected.wait(timeout_s):
             return
-        from jax._src import distributed as state_module
-
-        state = state_module.global_state
-        address = state.coordinator_address or kwargs.get("coordinator_address")
-        n = state.num_processes or kwargs.get("num_processes")
-        i = state.process_id if state.process_id is not None else kwargs.get("process_id")
+        # as given (none: from the cluster environment, which JAX does not expose)
+        address, n, i = (kwargs.get(k) for k in ("coordinator_address", "num_processes",
+                                                 "process_id"))
         role = " (this process runs it)" if i == 0 else ""
         print(f"{prog}: error: distributed start-up: not every process connected to the "
               f"coordinator {address or '(from the cluster environment)'}{role} within "

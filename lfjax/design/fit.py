@@ -665,7 +665,7 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
                                 test_zernike_um=None if test_eyes is None else test_eyes.zernike_um)
             found = load_count(counts_dir, n, keys[n])
             if found is not None:
-                kept[n] = found
+                kept[n] = DesignFit(**found)
     for n in counts:
         if n in kept:  # finished by an earlier call with the same inputs
             prepared[n] = kept[n]

@@ -96,15 +96,14 @@ def fit_record(fit) -> dict:
     })
 
 
-def fit_from_record(record: dict):
-    """Inverse of :func:`fit_record`."""
-    from lfjax.design.fit import DesignFit
-
-    return DesignFit(int(record["n_per_side"]), panel=_panel_from(record["panel"]),
-                     start=_panel_from(record["start"]), refused=record["refused"],
-                     history=list(record["history"]), train=record["train"],
-                     test=record["test"], start_test=record["start_test"],
-                     time_s=float(record["time_s"]), notes=list(record["notes"]))
+def fit_fields(record: dict) -> dict:
+    """Inverse of :func:`fit_record`: the keywords of a
+    :class:`~lfjax.design.fit.DesignFit` (``DesignFit(**fit_fields(record))``)."""
+    return dict(n_per_side=int(record["n_per_side"]), panel=_panel_from(record["panel"]),
+                start=_panel_from(record["start"]), refused=record["refused"],
+                history=list(record["history"]), train=record["train"], test=record["test"],
+                start_test=record["start_test"], time_s=float(record["time_s"]),
+                notes=list(record["notes"]))
 
 
 def save_count(folder, key: str, fit) -> Path:
@@ -118,16 +117,17 @@ def save_count(folder, key: str, fit) -> Path:
 
 def load_count(folder, n_per_side: int, key: str):
     """The count kept in ``folder`` for ``n_per_side`` if its key is ``key`` (same inputs),
-    else None (none kept, another run's, or unreadable: it is then fitted again)."""
+    as :func:`fit_fields`, else None (none kept, another run's, or unreadable: it is then
+    fitted again)."""
     path = Path(folder) / f"count-{int(n_per_side)}.json"
     try:
         record = json.loads(path.read_text())
         if record.get("format") != COUNTS_FORMAT or record.get("key") != key:
             return None
-        return fit_from_record(record["fit"])
+        return fit_fields(record["fit"])
     except (OSError, ValueError, KeyError, TypeError):
         return None
 
 
-__all__ = ["COUNTS_FORMAT", "count_key", "counts_folder", "fit_from_record", "fit_record",
+__all__ = ["COUNTS_FORMAT", "count_key", "counts_folder", "fit_fields", "fit_record",
            "load_count", "save_count"]

@@ -380,4 +380,5 @@ __all__ = [
     "OptimisationSettings",
     "OptimisationResult",
     "optimise_and_save",
+    "estimated_output_bytes",
 ]

@@ -28,6 +28,7 @@ import os
 import shutil
 import socket
 import subprocess
+import warnings
 from pathlib import Path
 
 import jax
@@ -856,8 +857,6 @@ def open_store(path, complete_only: bool = False):
     completed chunks (a partial sweep read while it runs, or after an interruption). A
     chunk whose marks are damaged (:func:`read_bookkeeping`) counts as not complete, with a
     warning naming it; damaged consolidated metadata are read around, with a warning."""
-    import warnings
-
     import xarray as xr
 
     path = Path(path)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import socket
@@ -772,3 +773,36 @@ def test_a_store_is_created_from_one_chunk_and_equals_the_whole_template(referen
     assert a.vsotf.attrs == b.vsotf.attrs and np.isnan(b.vsotf.values).all()
     assert not b.continuous_peak_success.values.any()
     assert (tmp_path / "part.zarr" / ".zmetadata").is_file()
+
+
+def test_a_missing_distributed_peer_is_named_within_the_timeout(reference, tmp_path):
+    """Two of two processes expected, one started (as the coordinator, and as a peer
+    whose coordinator never started): each stops after --distributed-timeout with one line
+    naming the coordinator, the processes seen and the time waited — not XLA's 300 s wait
+    and SIGABRT."""
+    config, _, _ = reference
+    toml = write_toml(tmp_path / "alone.toml", config)
+    procs = {}
+    for pid in (0, 1):
+        port = _free_port()
+        procs[pid] = (port, subprocess.Popen(
+            [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out",
+             str(tmp_path / f"alone{pid}.zarr"), "--distributed", "--coordinator",
+             f"127.0.0.1:{port}", "--num-processes", "2", "--process-id", str(pid),
+             "--distributed-timeout", "3", "--no-progress"],
+            env=subprocess_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    for pid, (port, proc) in procs.items():
+        try:
+            _, err = proc.communicate(timeout=120)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert proc.returncode == 1, err[-3000:]
+        line = err.strip().splitlines()[-1]
+        assert line.startswith(f"lfjax sweep: error: distributed start-up: not every process "
+                               f"connected to the coordinator 127.0.0.1:{port}"), err[-3000:]
+        assert f"saw 1 of 2 processes (this one, process {pid})" in line
+        assert re.search(r"within [34] s", line), line
+        assert ("this process runs it" in line) == (pid == 0)
+        assert "Check failure" not in err and "Aborted" not in err
+    assert not any(tmp_path.glob("alone*.zarr"))
