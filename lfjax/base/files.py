@@ -79,9 +79,11 @@ def check_output_folder(out_dir, force: bool = False, *, need_bytes: int = 0,
 
     * a new folder, an empty one, or (``force``) one with files in it (files of the same
       names are then replaced); not a file;
-    * writable: a probe file is created and removed in it (or, for a new folder, in its
-      nearest existing ancestor), so a read-only folder or file system is found now, not
-      after the work (permission bits alone say nothing for root or a read-only mount);
+    * writable: a probe file is created and removed in the folder holding it (where
+      :func:`staged_output` builds the result; for a new folder, its nearest existing
+      ancestor) and in it when it exists, so a read-only folder or file system is found
+      now, not after the work (permission bits alone say nothing for root or a read-only
+      mount);
     * ``need_bytes`` (the estimated size of what will be written, bytes) free on its file
       system.
 
@@ -94,18 +96,25 @@ def check_output_folder(out_dir, force: bool = False, *, need_bytes: int = 0,
     if out.is_dir() and any(out.iterdir()) and not force:
         raise ParameterError(parameter, name + " {path} is not empty (use {force} to write "
                              "into it)", path=out)
-    check_writable(out, need_bytes, parameter)
+    # the result is built beside out (staged_output) and renamed, or moved into it: both
+    # the folder holding out and out itself must take files
+    check_writable(out.absolute().parent if out.exists() else out, need_bytes, parameter,
+                   shown=out)
+    if out.is_dir():
+        check_writable(out, 0, parameter)
     return out
 
 
-def check_writable(path, need_bytes: int = 0, parameter: str = "out_dir") -> Path:
+def check_writable(path, need_bytes: int = 0, parameter: str = "out_dir",
+                   shown=None) -> Path:
     """The folder where ``path`` (a folder or file to be made) would be written: ``path``
     when it is an existing folder, else its nearest existing ancestor, if a file can be
     created there and ``need_bytes`` are free on its file system; otherwise a
     :class:`~lfjax.base.errors.ParameterError` naming ``parameter``, one line, before any
-    work."""
+    work. ``shown``: the path the message names (default ``path``)."""
     path = Path(path)
     anchor = path if path.is_dir() else nearest_existing(path.parent)
+    path = path if shown is None else Path(shown)
     name = "{" + parameter + "}"
     if not anchor.is_dir():
         raise ParameterError(parameter, "cannot create " + name + " {path}: {anchor} is not a "

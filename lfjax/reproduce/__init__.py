@@ -171,9 +171,9 @@ def check_output_dir(out, force: bool = False, need_bytes: int = 0) -> Path:
                               anchor=anchor)
     try:
         # the results are built beside out and renamed into place: its parent must take them
-        check_writable(out.parent if out.exists() else out, need_bytes, "out")
+        check_writable(out.parent if out.exists() else out, need_bytes, "out", shown=out)
     except ParameterError as err:
-        raise OutputError("out", err.template, **dict(err.values, path=out)) from None
+        raise OutputError("out", err.template, **err.values) from None
     return out
 
 
