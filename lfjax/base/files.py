@@ -180,9 +180,35 @@ STAGING_PREFIX = ".lfjax-staging"
 _LIVE_STAGING: set[Path] = set()  # what an emergency exit (a second Ctrl-C) removes
 
 
+_EMERGENCY_CLEANUPS: dict[int, object] = {}  # id -> callable, e.g. a store lock's release
+
+
 def live_staging_folders() -> list[Path]:
     """The staging folders of :func:`staged_output` now being written by this process."""
     return sorted(_LIVE_STAGING)
+
+
+def register_emergency_cleanup(key: int, cleanup) -> None:
+    """Have :func:`emergency_cleanup` call ``cleanup()`` (e.g. release a lock) until
+    :func:`unregister_emergency_cleanup` (``key``: e.g. ``id`` of its owner)."""
+    _EMERGENCY_CLEANUPS[key] = cleanup
+
+
+def unregister_emergency_cleanup(key: int) -> None:
+    _EMERGENCY_CLEANUPS.pop(key, None)
+
+
+def emergency_cleanup() -> None:
+    """What an immediate exit (a Ctrl-C that the main thread cannot answer in time) must
+    still do: remove this process's staging folders and run the registered clean-ups
+    (errors ignored: the process is ending)."""
+    for folder in live_staging_folders():
+        shutil.rmtree(folder, ignore_errors=True)
+    for cleanup in list(_EMERGENCY_CLEANUPS.values()):
+        try:
+            cleanup()
+        except Exception:  # noqa: BLE001 - best effort on the way out
+            pass
 
 
 @contextlib.contextmanager

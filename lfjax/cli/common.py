@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import shutil
 import signal
 import sys
 import threading
@@ -22,7 +21,7 @@ from pathlib import Path
 import jax
 
 from lfjax.base.errors import ParameterError
-from lfjax.base.files import live_staging_folders
+from lfjax.base.files import emergency_cleanup
 from lfjax.planner.cache import enable_plan_cache
 
 PROG = "lfjax"
@@ -121,7 +120,8 @@ def exit_promptly_on_interrupt(prog: str, grace_s: float = INTERRUPT_GRACE_S) ->
     signal handler writes the signal to a wake-up pipe at once, though: a watcher thread
     reads it and, unless the main thread has finished its own clean-up within ``grace_s``
     (:func:`exit_now`), removes this process's unfinished outputs (the staging folders of
-    :func:`lfjax.base.files.staged_output`), says so, and exits with status 130. Only in
+    :func:`lfjax.base.files.staged_output`) and releases its store locks
+    (:func:`lfjax.base.files.emergency_cleanup`), says so, and exits with status 130. Only in
     the main thread of the real command (not when :func:`lfjax.cli.main` is called with
     ``argv``, as tests do); returns whether it was installed."""
     if threading.current_thread() is not threading.main_thread():
@@ -146,8 +146,7 @@ def exit_promptly_on_interrupt(prog: str, grace_s: float = INTERRUPT_GRACE_S) ->
             if not received:
                 return
             if stop_signals.intersection(received) and not _STOPPED.wait(grace_s):
-                for folder in live_staging_folders():
-                    shutil.rmtree(folder, ignore_errors=True)
+                emergency_cleanup()  # staging folders removed, store locks released
                 print(f"{prog}: interrupted (stopped after {grace_s:g} s without waiting for "
                       f"the computation; unfinished outputs removed)", file=sys.stderr,
                       flush=True)

@@ -34,7 +34,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from lfjax.base.files import owned_temp_dir, pid_alive, remove_orphans
+from lfjax.base.files import (owned_temp_dir, pid_alive, register_emergency_cleanup,
+                              remove_orphans, unregister_emergency_cleanup)
 from lfjax._version import __version__
 from lfjax.vision.peaks import METRICS
 from lfjax.base.sampling import Sampling
@@ -464,6 +465,7 @@ class StoreLock:
                 raise StoreLockedError(self.path, holder) from None
             with os.fdopen(fd, "w") as f:
                 json.dump(self.record, f)
+            register_emergency_cleanup(id(self), self.release)  # also on an immediate exit
             return self
         raise StoreLockedError(self.path, self._holder())
 
@@ -474,6 +476,7 @@ class StoreLock:
             return {"host": "?", "pid": "?", "started_utc": "? (unreadable lock file)"}
 
     def release(self) -> None:
+        unregister_emergency_cleanup(id(self))
         if self._holder().get("pid") == self.record["pid"]:
             self.file.unlink(missing_ok=True)
 

@@ -173,3 +173,19 @@ def test_a_killed_runs_staging_folder_is_removed_by_the_next(tmp_path, capsys):
     assert "removed 1 folder(s) left by an interrupted run" in capsys.readouterr().err
     shutil.rmtree(tmp_path / "out")
     assert Path(tmp_path).is_dir()
+
+
+def test_an_emergency_exit_removes_staging_folders_and_runs_registered_cleanups(tmp_path):
+    released = []
+    files.register_emergency_cleanup(1, lambda: released.append("lock"))
+    files.register_emergency_cleanup(2, lambda: 1 / 0)  # a failing one stops nothing
+    with pytest.raises(KeyboardInterrupt):
+        with files.staged_output(tmp_path / "out") as stage:
+            (stage / "partial.png").write_bytes(b"\x89PNG")
+            files.emergency_cleanup()
+            assert not stage.exists() and released == ["lock"]
+            raise KeyboardInterrupt
+    files.unregister_emergency_cleanup(1)
+    files.unregister_emergency_cleanup(2)
+    files.emergency_cleanup()
+    assert released == ["lock"] and list(tmp_path.iterdir()) == []
