@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
         common.exit_promptly_on_interrupt(f"{common.PROG} {args.command}")
     try:
         status = SUBCOMMANDS[args.command].run(args)
-    except KeyboardInterrupt:  # outside a subcommand's own handling (e.g. while importing)
+    except KeyboardInterrupt:  # a subcommand without its own handling of Ctrl-C
         status = common.interrupted(f"{common.PROG} {args.command}")
     if real and status == 130:
         common.exit_now(status)  # not through interpreter shutdown under running XLA threads
