@@ -110,10 +110,12 @@ def test_sweep_template_refuses_a_read_only_folder_in_one_line(tmp_path, capsys,
 SIGINT_RUNS = 3
 """SIGINTs at random points of a tiny ``lfjax optimise --front 2`` run. The issue asks for 20;
 each costs a fresh interpreter and JAX import (~5-10 s of CPU on the 2 shared cores), so 20
-would add minutes to the suite: 3 here, spread over start-up, planning and compilation
-(seeded draws between 2 and 14 s). Measured by hand on 2 busy cores: before the fix, 1 of 3
-ended with a segmentation fault (-11) 33 s after the signal, one with a traceback (-2); after
-it, 4 of 4 exited with 130 within 0.4 s."""
+would add minutes to the suite: 3 here (about 20 s in all), spread over start-up,
+planning and compilation (a seeded draw in each third of 2 ... 10 s after the start).
+Measured by hand on 2 busy cores (``--front 3``, SIGINT at 15, 30, 45 s): before the fix,
+one ended with a traceback (-2), one with 130 after 7.1 s, one with a segmentation fault
+(-11) 33 s after the signal; after it (and at 60 s too), 4 of 4 exited with 130 within
+0.6 s."""
 
 
 WITH_SIGINT = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
@@ -124,7 +126,9 @@ WITH_SIGINT = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_
 
 
 def test_ctrl_c_exits_130_within_2_s_leaving_nothing(tmp_path):
-    delays = np.random.default_rng(37).uniform(2.0, 14.0, SIGINT_RUNS)
+    # one random point in each of SIGINT_RUNS equal parts of 2 ... 10 s
+    width = 8.0 / SIGINT_RUNS
+    delays = 2.0 + width * (np.arange(SIGINT_RUNS) + np.random.default_rng(37).uniform(size=SIGINT_RUNS))
     env = {**os.environ, "PYTHONWARNINGS": "ignore", "LFJAX_CACHE_DIR": str(tmp_path / "cache")}
     for k, delay in enumerate(delays):
         out = tmp_path / f"out{k}"

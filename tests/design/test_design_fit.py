@@ -366,7 +366,7 @@ def test_a_kept_count_is_used_only_for_the_same_inputs(tmp_path):
     kept = DesignFit(2, panel=panel, start=panel, history=[1.0, 0.5],
                      test={"loss": 0.5, "image_at_peak": 0.3}, notes=["a note"], time_s=3.0)
     save_count(tmp_path, key, kept)
-    loaded = load_count(tmp_path, 2, key)
+    loaded = DesignFit(**load_count(tmp_path, 2, key))
     assert loaded.history == [1.0, 0.5] and loaded.test == kept.test and loaded.notes == ["a note"]
     assert panel_leaves(loaded.panel) == panel_leaves(panel)
     assert load_count(tmp_path, 2, count_key(panel, 2, **dict(common, steps=2))) is None
