@@ -15,6 +15,24 @@ peaks, PSFs, images, resolution) → the applications, reached by name
 This face offers the calls a user starts with.
 """
 
+# The command line (``lfjax``, ``python -m lfjax.cli``) only, before the imports below (JAX,
+# seconds): Ctrl-C while it starts ends it with status 130 and one line, not a traceback
+# (lfjax.cli.main then hands Ctrl-C back to Python; a library import changes nothing).
+import os as _os
+import signal as _signal
+import sys as _sys
+
+
+def _interrupted_while_starting(signum, frame):
+    _os.write(2, b"lfjax: interrupted while starting; nothing written\n")
+    _os._exit(130)
+
+
+if ((getattr(_sys, "orig_argv", [])[1:3] == ["-m", "lfjax.cli"]
+        or _os.path.basename(_sys.argv[0] if _sys.argv else "") == "lfjax")
+        and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler):
+    _signal.signal(_signal.SIGINT, _interrupted_while_starting)
+
 from lfjax._version import __version__ as __version__
 from lfjax.base.sampling import AliasingError as AliasingError
 from lfjax.base.sampling import Sampling as Sampling

@@ -5,11 +5,17 @@ named ``PREFIX-HOST-PID-RANDOM``. A SIGKILL leaves it behind; :func:`remove_orph
 removes those whose process ran on this host and is gone, and leaves a live process's, or
 another host's (whose processes cannot be checked from here), alone.
 
-:func:`check_output_folder` checks, before any work, a folder a result will be written into.
+:func:`check_output_folder` checks, before any work, a folder a result will be written into
+(new or empty, writable, with room for the estimated outputs). :func:`staged_output` builds
+a result folder beside it and renames it into place when complete, so an output folder is
+whole or absent; :func:`atomic_write_bytes` (``_text``, :func:`atomic_savefig`) writes one
+file whole or not at all (temporary name, then rename).
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import shutil
 import socket
@@ -18,6 +24,7 @@ import tempfile
 from pathlib import Path
 
 from lfjax.base.errors import ParameterError
+from lfjax.base.units import format_bytes
 
 
 def pid_alive(pid: int) -> bool:
@@ -53,15 +60,195 @@ def remove_orphans(parent, prefix: str, what: str) -> list[Path]:
     return removed
 
 
-def check_output_folder(out_dir, force: bool = False) -> Path:
-    """``out_dir`` as a Path if a result may be written into it: a new folder, an empty one,
-    or (``force``) one with files in it (files of the same names are then replaced).
-    Otherwise a :class:`~lfjax.base.errors.ParameterError` naming ``out_dir``. Reads the
-    folder only: call it before any work."""
+# ----------------------------------------------------------------------------- output folders
+
+PROBE_PREFIX = ".lfjax-write-probe"
+
+
+def nearest_existing(path) -> Path:
+    """``path`` itself or its nearest existing ancestor (where a new folder would be made)."""
+    p = Path(path).absolute()
+    while not p.exists() and p.parent != p:
+        p = p.parent
+    return p
+
+
+def check_output_folder(out_dir, force: bool = False, *, need_bytes: int = 0,
+                        parameter: str = "out_dir") -> Path:
+    """``out_dir`` as a Path if a result may be written into it, checked before any work:
+
+    * a new folder, an empty one, or (``force``) one with files in it (files of the same
+      names are then replaced); not a file;
+    * writable: a probe file is created and removed in the folder holding it (where
+      :func:`staged_output` builds the result; for a new folder, its nearest existing
+      ancestor) and in it when it exists, so a read-only folder or file system is found
+      now, not after the work (permission bits alone say nothing for root or a read-only
+      mount);
+    * ``need_bytes`` (the estimated size of what will be written, bytes) free on its file
+      system.
+
+    Otherwise a :class:`~lfjax.base.errors.ParameterError` naming ``parameter`` (the
+    caller's name for the folder: ``out_dir``, ``out``, ``store``)."""
     out = Path(out_dir)
+    name = "{" + parameter + "}"
     if out.exists() and not out.is_dir():
-        raise ParameterError("out_dir", "{out_dir} {path} exists and is not a folder", path=out)
+        raise ParameterError(parameter, name + " {path} exists and is not a folder", path=out)
     if out.is_dir() and any(out.iterdir()) and not force:
-        raise ParameterError("out_dir", "{out_dir} {path} is not empty (use {force} to write into it)",
-                             path=out)
+        raise ParameterError(parameter, name + " {path} is not empty (use {force} to write "
+                             "into it)", path=out)
+    # the result is built beside out (staged_output) and renamed, or moved into it: both
+    # the folder holding out and out itself must take files
+    check_writable(out.absolute().parent if out.exists() else out, need_bytes, parameter,
+                   shown=out)
+    if out.is_dir():
+        check_writable(out, 0, parameter)
     return out
+
+
+def check_writable(path, need_bytes: int = 0, parameter: str = "out_dir",
+                   shown=None) -> Path:
+    """The folder where ``path`` (a folder or file to be made) would be written: ``path``
+    when it is an existing folder, else its nearest existing ancestor, if a file can be
+    created there and ``need_bytes`` are free on its file system; otherwise a
+    :class:`~lfjax.base.errors.ParameterError` naming ``parameter``, one line, before any
+    work. ``shown``: the path the message names (default ``path``)."""
+    path = Path(path)
+    anchor = path if path.is_dir() else nearest_existing(path.parent)
+    path = path if shown is None else Path(shown)
+    name = "{" + parameter + "}"
+    if not anchor.is_dir():
+        raise ParameterError(parameter, "cannot create " + name + " {path}: {anchor} is not a "
+                             "folder", path=path, anchor=anchor)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=PROBE_PREFIX, dir=anchor)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as err:
+        why = os.strerror(err.errno) if err.errno else str(err)
+        raise ParameterError(parameter, name + " {path} is not writable: cannot create a file "
+                             "in {anchor} ({why})", path=path, anchor=anchor, why=why) from None
+    if need_bytes > 0:
+        free = shutil.disk_usage(anchor).free
+        if free < need_bytes:
+            raise ParameterError(parameter, name + " {path}: not enough free space on its disk "
+                                 "({free} free, about {need} needed for the outputs)", path=path,
+                                 free=format_bytes(free), need=format_bytes(need_bytes))
+    return anchor
+
+
+def atomic_write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` whole or not at all: into a temporary file beside it
+    (``.NAME.tmp-PID-…``), flushed to disk, then renamed over ``path``. A failure (a full
+    disk, an interrupt) leaves ``path`` as it was and removes the temporary file."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.tmp-{os.getpid()}-", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes it private; the result is ordinary
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def atomic_write_text(path, text: str) -> Path:
+    """:func:`atomic_write_bytes` of ``text`` in UTF-8."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_savefig(fig, path, **kwargs) -> Path:
+    """``fig.savefig(path, **kwargs)`` whole or not at all (rendered in memory, then
+    :func:`atomic_write_bytes`); the format follows ``path``'s suffix."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format=Path(path).suffix.lstrip(".") or "png", **kwargs)
+    return atomic_write_bytes(path, buffer.getvalue())
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+STAGING_PREFIX = ".lfjax-staging"
+"""Prefix of the folders :func:`staged_output` builds results in (``.lfjax-staging-NAME``…)."""
+
+_LIVE_STAGING: set[Path] = set()  # what an emergency exit (a second Ctrl-C) removes
+
+
+_EMERGENCY_CLEANUPS: dict[int, object] = {}  # id -> callable, e.g. a store lock's release
+
+
+def live_staging_folders() -> list[Path]:
+    """The staging folders of :func:`staged_output` now being written by this process."""
+    return sorted(_LIVE_STAGING)
+
+
+def register_emergency_cleanup(key: int, cleanup) -> None:
+    """Have :func:`emergency_cleanup` call ``cleanup()`` (e.g. release a lock) until
+    :func:`unregister_emergency_cleanup` (``key``: e.g. ``id`` of its owner)."""
+    _EMERGENCY_CLEANUPS[key] = cleanup
+
+
+def unregister_emergency_cleanup(key: int) -> None:
+    _EMERGENCY_CLEANUPS.pop(key, None)
+
+
+def emergency_cleanup() -> None:
+    """What an immediate exit (a Ctrl-C that the main thread cannot answer in time) must
+    still do: remove this process's staging folders and run the registered clean-ups
+    (errors ignored: the process is ending)."""
+    for folder in live_staging_folders():
+        shutil.rmtree(folder, ignore_errors=True)
+    for cleanup in list(_EMERGENCY_CLEANUPS.values()):
+        try:
+            cleanup()
+        except Exception:  # noqa: BLE001 - best effort on the way out
+            pass
+
+
+@contextlib.contextmanager
+def staged_output(out_dir, force: bool = False):
+    """Build a result folder whole or not at all.
+
+    Yields an empty staging folder beside ``out_dir`` (``.lfjax-staging-NAME-HOST-PID-…``,
+    on the same file system); write every file there. When the block ends normally the
+    staging folder is renamed to ``out_dir`` (a new or empty ``out_dir``: one rename, so the
+    folder appears complete), or, when ``out_dir`` has files and ``force`` is set, each file
+    is renamed into it (each whole; files of the same names replaced). When the block raises
+    (an error, a full disk, Ctrl-C) the staging folder is removed and ``out_dir`` is as it
+    was. Staging folders of killed processes are removed on the next call
+    (:func:`remove_orphans`)."""
+    out = Path(out_dir).absolute()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    prefix = f"{STAGING_PREFIX}-{out.name}"
+    remove_orphans(out.parent, prefix, "an interrupted run")
+    tmp = owned_temp_dir(out.parent, prefix)
+    os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes it private; the result is ordinary
+    _LIVE_STAGING.add(tmp)
+    try:
+        yield tmp
+        _move_into_place(tmp, out, force)
+    finally:
+        _LIVE_STAGING.discard(tmp)
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _move_into_place(tmp: Path, out: Path, force: bool) -> None:
+    if out.is_dir() and any(out.iterdir()):
+        if not force:
+            raise FileExistsError(f"{out} is no longer empty: the result is not moved into it")
+        for item in sorted(tmp.iterdir()):
+            target = out / item.name
+            if target.is_dir() and not item.is_dir():
+                raise IsADirectoryError(f"{target} is a folder; the file {item.name} would replace it")
+            if item.is_dir() and target.exists():
+                shutil.rmtree(target) if target.is_dir() else target.unlink()
+            os.replace(item, target)
+        return
+    os.replace(tmp, out)  # a new name, or over an empty folder: one rename

@@ -12,7 +12,8 @@ parameterâ†”flag table, the error and exit conventions, the compilation cache â€
 :mod:`~lfjax.cli.common`.
 
 Usage errors print one line and exit with status 2; failures during the run print one line
-and exit with status 1, leaving no partial output.
+and exit with status 1, leaving no partial output. Ctrl-C exits with status 130 within about
+2 s (:func:`~lfjax.cli.common.exit_promptly_on_interrupt`), leaving no partial output either.
 """
 
 from __future__ import annotations
@@ -56,7 +57,16 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     args.argv = list(sys.argv[1:] if argv is None else argv)
     args.t_start = t_start
-    return SUBCOMMANDS[args.command].run(args)
+    real = argv is None  # the command itself, not a call from Python (a test)
+    if real:
+        common.exit_promptly_on_interrupt(f"{common.PROG} {args.command}")
+    try:
+        status = SUBCOMMANDS[args.command].run(args)
+    except KeyboardInterrupt:  # a subcommand without its own handling of Ctrl-C
+        status = common.interrupted(f"{common.PROG} {args.command}")
+    if real and status == 130:
+        common.exit_now(status)  # not through interpreter shutdown under running XLA threads
+    return status
 
 
 __all__ = ["main", "build_parser", "enable_compilation_cache", "SUBCOMMANDS"]

@@ -13,12 +13,15 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
 
 import jax
 
 from lfjax.base.errors import ParameterError
+from lfjax.base.files import emergency_cleanup
 from lfjax.base.programs import enable_program_cache
 from lfjax.planner.cache import enable_plan_cache
 
@@ -49,6 +52,7 @@ FLAGS: dict[str, dict[str, str]] = {
     },
     "sweep": {
         "store": "--out", "resume": "--resume", "max_chunks": "--max-chunks",
+        "config": "CONFIG.toml",
     },
     "sweep-report": {
         "store_path": "STORE", "out_dir": "--out", "draws": "--draws", "seed": "--seed",
@@ -98,6 +102,83 @@ def interrupted(prog: str, note: str = "") -> int:
     """Ctrl-C: one line on stderr; exit status 130."""
     print(f"{prog}: interrupted{note}", file=sys.stderr)
     return 130
+
+
+INTERRUPT_GRACE_S = 1.5
+"""Seconds a Ctrl-C'd run has to stop through its own clean-up (each ``except
+KeyboardInterrupt`` and ``finally``: staging folders removed, locks released) before
+:func:`exit_promptly_on_interrupt` ends it: a main thread inside a long XLA computation sees
+the KeyboardInterrupt only when that computation returns."""
+
+_STOPPED = threading.Event()  # the run has done its clean-up and is exiting
+
+
+def exit_promptly_on_interrupt(prog: str, grace_s: float = INTERRUPT_GRACE_S) -> bool:
+    """Make Ctrl-C (SIGINT) and SIGTERM end this process within ``grace_s`` seconds.
+
+    Python runs its SIGINT handler (raising KeyboardInterrupt) only between bytecodes of the
+    main thread, so a Ctrl-C during a compiled computation waited for it to finish. The C
+    signal handler writes the signal to a wake-up pipe at once, though: a watcher thread
+    reads it and, unless the main thread has finished its own clean-up within ``grace_s``
+    (:func:`exit_now`), removes this process's unfinished outputs (the staging folders of
+    :func:`lfjax.base.files.staged_output`) and releases its store locks
+    (:func:`lfjax.base.files.emergency_cleanup`), says so, and exits with status 130. Only in
+    the main thread of the real command (not when :func:`lfjax.cli.main` is called with
+    ``argv``, as tests do); returns whether it was installed."""
+    if threading.current_thread() is not threading.main_thread():
+        return False
+    if callable(signal.getsignal(signal.SIGINT)):
+        # Python's own handler again (lfjax's start-up one exits at once, cleaning nothing)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    read_end, write_end = os.pipe()
+    os.set_blocking(write_end, False)
+    try:
+        signal.set_wakeup_fd(write_end, warn_on_full_buffer=False)
+    except ValueError:
+        return False
+    stop_signals = {int(signal.SIGINT), int(signal.SIGTERM)}
+
+    def watch() -> None:
+        while True:
+            try:
+                received = os.read(read_end, 64)
+            except OSError:
+                return
+            if not received:
+                return
+            if stop_signals.intersection(received) and not _STOPPED.wait(grace_s):
+                emergency_cleanup()  # staging folders removed, store locks released
+                print(f"{prog}: interrupted (stopped after {grace_s:g} s without waiting for "
+                      f"the computation; unfinished outputs removed)", file=sys.stderr,
+                      flush=True)
+                os._exit(130)
+
+    threading.Thread(target=watch, name="lfjax-interrupt-watch", daemon=True).start()
+    previous_hook = sys.unraisablehook
+
+    def unraisable(info) -> None:
+        # a KeyboardInterrupt raised inside a garbage-collection callback (XLA's) is lost to
+        # the main thread: the watcher ends the run, without a traceback on the way
+        if info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt):
+            return
+        previous_hook(info)
+
+    sys.unraisablehook = unraisable
+    return True
+
+
+def exit_now(status: int) -> None:
+    """End the real command with ``status`` once its clean-up is done, without the
+    interpreter's shutdown: after a Ctrl-C, XLA's worker threads may still be running a
+    computation, and tearing the runtime down under them crashed the process (a
+    segmentation fault, exit -11, instead of 130). Output streams are flushed first."""
+    _STOPPED.set()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(status)
 
 
 def unexpected_error(prog: str, err: Exception, suffix: str = "") -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import shutil
 import time
 
 from lfjax.base.files import check_output_folder
@@ -19,6 +20,7 @@ from lfjax.design import (
     fit_design,
     save_design,
 )
+from lfjax.design.resume import counts_folder
 from lfjax.display.lenslets import DIFFRACTION_MODES
 from lfjax.display.panel import PRESETS
 from lfjax.model.eyes import sample_eyes
@@ -53,10 +55,12 @@ def add_parser(sub) -> None:
             "Outputs in DIR: design.json (every count's build specification: pixel pitch,\n"
             "lenslet pitch, aperture, focal length, gap, distance, with units; derived CDP,\n"
             "Fresnel number, pixel and lenslet angles, eye box; held-out scores; the chosen\n"
-            "count) and design.png (the chosen lenslet array and its views in the pupil).\n"
-            "Each count's status is ok, refused (not buildable, or no light field) or fails\n"
-            "(its display's accommodation RMSE above the objective's tolerance, 0.25 D); only\n"
-            "an ok count is chosen, and the command exits with status 1 when none is.\n"
+            "count) and design.png (the chosen lenslet array and its views in the pupil),\n"
+            "both or neither. Each count's status is ok, refused (not buildable, or no light\n"
+            "field) or fails (its display's accommodation RMSE above the objective's tolerance,\n"
+            "0.25 D); only an ok count is chosen, and the command exits with status 1 when none\n"
+            "is. Each finished count is kept in .DIR.design-counts beside DIR until the outputs\n"
+            "are written: the same command after a failure or Ctrl-C resumes from them.\n"
             "Units: mm, dioptres (D), arcmin, cycles per degree (cpd), nm."
         ),
     )
@@ -103,7 +107,9 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
     try:
-        out = check_output_folder(args.out, args.force)
+        # writable, with room for design.json, design.png and the kept counts: now, not
+        # after the work
+        out = check_output_folder(args.out, args.force, need_bytes=DESIGN_OUTPUT_BYTES)
         cdp = design_cdp_D(args.depths, args.cdp)
         panel = design_panel(args.panel, cdp, distance_mm=args.distance,
                              pixel_pitch_mm=args.pixel_pitch, pixel_count=args.pixel_count,
@@ -120,20 +126,24 @@ def run(args) -> int:
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
     common.enable_compilation_cache()
+    kept = counts_folder(out)
     try:
         result = fit_design(
             panel, train_eyes=sample_eyes(args.seed, args.train_eyes),
             test_eyes=sample_eyes(args.seed + 1, args.test_eyes) if args.test_eyes > 0 else None,
-            constraints=constraints, sampling=sampling, progress=_printer(args.no_progress), **fit)
+            constraints=constraints, sampling=sampling, progress=_printer(args.no_progress),
+            counts_dir=kept, **fit)
         result.provenance["seed_train"] = args.seed
         result.provenance["panel_preset"] = args.panel
-        files = save_design(result, out, command=common.command_line(args.argv))
+        files = save_design(result, out, command=common.command_line(args.argv),
+                            force=args.force)
+        shutil.rmtree(kept, ignore_errors=True)  # written: the kept counts are not needed
     except KeyboardInterrupt:
-        return common.interrupted(prog)
+        return common.interrupted(prog, _kept_note(kept))
     except ValueError as err:
         return common.refuse(prog, err, COMMAND, fold=True)
     except Exception as err:  # one line, no traceback
-        return common.unexpected_error(prog, err)
+        return common.unexpected_error(prog, err, _kept_note(kept))
     print(result.summary())
     print(f"{prog}: wrote {len(files)} files to {out} in "
           f"{time.perf_counter() - args.t_start:.1f} s")
@@ -142,6 +152,19 @@ def run(args) -> int:
         print(f"{prog}: error: no views-per-side count qualifies: {reasons}", file=sys.stderr)
         return 1
     return 0
+
+
+DESIGN_OUTPUT_BYTES = 16 * 2**20
+"""Room ``lfjax design`` asks of its output folder's disk before any work, bytes: design.png
+(about 0.1 MB), design.json and the kept counts (tens of kB each), with a wide margin."""
+
+
+def _kept_note(kept) -> str:
+    """What an interrupted or failed run says of the counts it finished."""
+    if not kept.is_dir() or not any(kept.glob("count-*.json")):
+        return "; nothing written"
+    return (f"; nothing written to --out, the finished counts are kept in {kept}: the same "
+            f"command resumes from them")
 
 
 def _printer(plan_only: bool):

@@ -58,7 +58,9 @@ def add_parser(sub) -> None:
             "Outputs in DIR: layout.json (centres_mm, diameters_mm, pupil_diameter_mm, name,\n"
             "objective with before/after values, provenance), layouts.png (before/after),\n"
             "through_focus.png (population-mean VSOTF before/after), history.png (loss per\n"
-            "step); with --front N also front.png and front.json (the trade-off).\n"
+            "step); with --front N also front.png and front.json (the trade-off). DIR is\n"
+            "checked first (writable, room for the files); they are built beside it and\n"
+            "moved in when all are written: a failure or Ctrl-C leaves none of them.\n"
             "Units: mm in the pupil, dioptres (D), cycles per degree (cpd), nm."
         ),
     )
@@ -145,8 +147,9 @@ def settings(args) -> lo.OptimisationSettings:
 def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
     try:
-        check_output_folder(args.out, args.force)
         chosen = settings(args)
+        # writable, with room for the outputs: refused now, not after the work
+        check_output_folder(args.out, args.force, need_bytes=lo.estimated_output_bytes(chosen))
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
     common.enable_compilation_cache()

@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
+import socket
 import sys
+import threading
 import time
 from pathlib import Path
 
 import jax
 
+from lfjax.base.errors import ParameterError
+from lfjax.base.files import atomic_write_text, check_writable
 from lfjax.cli import common
 from lfjax.sweep import (
     StoreMismatchError,
@@ -21,7 +26,8 @@ from lfjax.sweep import (
 )
 from lfjax.sweep.config import config_template
 from lfjax.sweep.run import check_store_target
-from lfjax.sweep.store import StoreLockedError, is_disk_full, verify_store
+from lfjax.sweep.store import (StoreDamagedError, StoreLockedError, StoreRaceError,
+                               is_disk_full, verify_store)
 
 COMMAND = "sweep"
 
@@ -80,6 +86,70 @@ def add_parser(sub) -> None:
                     help="with --distributed: total number of processes")
     sw.add_argument("--process-id", metavar="I", type=common.count, default=None,
                     help="with --distributed: this process's index, 0 ... N-1")
+    sw.add_argument("--distributed-timeout", metavar="S", type=common.positive_int,
+                    default=DISTRIBUTED_TIMEOUT_S,
+                    help=f"with --distributed: seconds to wait for every process to connect "
+                         f"to the coordinator before stopping with an error that names it "
+                         f"(default {DISTRIBUTED_TIMEOUT_S})")
+
+
+DISTRIBUTED_TIMEOUT_S = 60
+"""Default of ``--distributed-timeout``: seconds a process waits for its peers at start-up."""
+
+
+def _reachable(address: str | None) -> str:
+    """Whether something accepts connections at ``address`` (HOST:PORT), in words."""
+    host, _, port = (address or "").rpartition(":")
+    if not host or not port.isdigit():
+        return "its address is unknown"
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=1.0):
+            return "it accepts connections"
+    except OSError as err:
+        return f"it does not answer ({err.strerror or err})"
+
+
+def start_distributed(prog: str, kwargs: dict, timeout_s: float) -> None:
+    """``jax.distributed.initialize(**kwargs)``, given ``timeout_s`` seconds for every
+    process to connect. XLA's own time-out (300 s by default) ends the process with SIGABRT
+    and a C++ stack trace; instead, a watcher thread stops this process after
+    ``timeout_s`` with one line naming the coordinator, the processes seen and the time
+    waited, and exit status 1 (XLA's time-out is set later than the watcher's)."""
+    started = time.monotonic()
+    connected = threading.Event()
+
+    def give_up() -> None:
+        if connected.wait(timeout_s):
+            return
+        # as given (none: from the cluster environment, which JAX does not expose)
+        address, n, i = (kwargs.get(k) for k in ("coordinator_address", "num_processes",
+                                                 "process_id"))
+        role = " (this process runs it)" if i == 0 else ""
+        print(f"{prog}: error: distributed start-up: not every process connected to the "
+              f"coordinator {address or '(from the cluster environment)'}{role} within "
+              f"{time.monotonic() - started:.0f} s: saw 1 of {n if n is not None else '?'} "
+              f"processes (this one, process {i if i is not None else '?'}); "
+              f"{_reachable(address)}. Start all {n if n is not None else ''} processes with "
+              f"the same --coordinator and --num-processes, each with its own --process-id, "
+              f"or wait longer (--distributed-timeout)", file=sys.stderr, flush=True)
+        os._exit(1)
+
+    threading.Thread(target=give_up, name="lfjax-distributed-start", daemon=True).start()
+    try:
+        jax.distributed.initialize(**kwargs, initialization_timeout=int(timeout_s) + 60)
+    finally:
+        connected.set()
+
+
+def check_store_writable(out: Path) -> None:
+    """``out`` can be written: a new store's folder (the nearest existing one above it: the
+    store is created beside it and renamed), or an existing store and the folder holding its
+    lock file; else a :class:`~lfjax.base.errors.ParameterError` naming ``store``."""
+    if out.exists() and not out.is_dir():
+        raise ParameterError("store", "{store} {path} exists and is not a folder", path=out)
+    check_writable(out.absolute().parent if out.exists() else out, parameter="store")
+    if out.is_dir():
+        check_writable(out, parameter="store")
 
 
 def _terminated(signum, frame):
@@ -91,31 +161,43 @@ def _terminated(signum, frame):
 def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
     explicit = [args.coordinator, args.num_processes, args.process_id]
+    if args.distributed_timeout != DISTRIBUTED_TIMEOUT_S:
+        explicit.append(args.distributed_timeout)
     if any(x is not None for x in explicit) and not args.distributed:
-        return common.refuse(prog, "--coordinator, --num-processes and --process-id need "
-                                   "--distributed")
+        return common.refuse(prog, "--coordinator, --num-processes, --process-id and "
+                                   "--distributed-timeout need --distributed")
     if args.distributed:
         # before anything touches a JAX device (loading a layout file does)
         kwargs = {k: v for k, v in (("coordinator_address", args.coordinator),
                                     ("num_processes", args.num_processes),
                                     ("process_id", args.process_id)) if v is not None}
         try:
-            jax.distributed.initialize(**kwargs)
+            start_distributed(prog, kwargs, args.distributed_timeout)
         except Exception as err:  # noqa: BLE001 - report any start-up failure in one line
             return common.refuse(prog, f"jax.distributed.initialize failed: {err}")
 
     if args.verify:
         try:
             check = verify_store(args.config)
-        except ValueError as err:
+        except ValueError as err:  # not a sweep store (or one whose metadata are unreadable)
             return common.refuse(prog, err, COMMAND)
+        except Exception as err:  # noqa: BLE001 - a report, never a traceback
+            print(f"{prog}: {args.config}: could not be verified: {type(err).__name__}: "
+                  f"{' '.join(str(err).split())}", file=sys.stderr)
+            return 1
         print(f"{prog}: {args.config}: {check.summary()}")
         return 0 if check.healthy else 1
     if args.template:
         target = Path(args.config)
         if target.exists():
             return common.refuse(prog, f"{target} already exists; --template writes a new file")
-        target.write_text(config_template())
+        try:
+            check_writable(target, parameter="config")
+            atomic_write_text(target, config_template())  # whole or not at all
+        except ValueError as err:
+            return common.refuse(prog, err, COMMAND)
+        except OSError as err:
+            return common.refuse(prog, f"cannot write {target}: {err.strerror or err}")
         print(f"{prog}: wrote {target} (every key with its default; edit, then "
               f"'lfjax sweep {target} --dry-run')")
         return 0
@@ -124,6 +206,11 @@ def run(args) -> int:
     except SweepConfigError as err:
         return common.refuse(prog, err, COMMAND)
     out = Path(args.out) if args.out else Path(Path(args.config).stem + ".zarr")
+    try:
+        # before planning, and in a dry run too: a store that cannot be written is refused now
+        check_store_writable(out)
+    except ValueError as err:
+        return common.refuse(prog, err, COMMAND)
     if args.dry_run:
         try:
             *_, est = plan_sweep(config, None if out.exists() else out)
@@ -156,6 +243,9 @@ def run(args) -> int:
         return common.interrupted(prog, note)
     except (StoreMismatchError, SweepTooLargeError, StoreLockedError) as err:
         return common.refuse(prog, err, COMMAND)
+    except (StoreRaceError, StoreDamagedError) as err:  # found as the run starts: one line
+        print(f"{prog}: error: {' '.join(str(err).split())}", file=sys.stderr)
+        return 1
     except Exception as err:  # one line, no traceback
         if is_disk_full(err):
             kept = (f"finished chunks are kept in {out}; free space and continue with --resume"

@@ -75,7 +75,9 @@ from lfjax.layout_opt import (
 )
 from lfjax.model.options import ModelOptions
 from lfjax.model.layout_files import jsonable
+from lfjax.base.files import atomic_write_text, staged_output
 from lfjax.design.plan import CountPlan, DesignPlan, count_plan
+from lfjax.design.resume import count_key, load_count, save_count
 from lfjax.sweep.guard import REFINEMENT_STATES
 from lfjax.model.layout_plots import draw_layout
 from lfjax.display.panel import PRESETS, Panel
@@ -641,7 +643,7 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
                constraints: DesignConstraints = DesignConstraints(), objective=None,  # noqa: B008
                wavelengths_nm=(550.0,), steps: int = 10, tol: float = 1e-4,
                report_accuracy: str = "fast", sampling=None, progress=False,
-               eye_chunk: int | None = 1) -> DesignResult:
+               eye_chunk: int | None = 1, counts_dir=None) -> DesignResult:
     """Fit ``panel``'s lenslet array to ``train_eyes`` for each views-per-pupil count.
 
     Parameters
@@ -669,6 +671,9 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
     eye_chunk : training eyes per chunk of the gradient (:func:`design_loss_chunked`;
         default 1: the reverse pass holds one eye's intermediates; None: all at once,
         :func:`design_loss` without checkpoints, one forward evaluation less per step)
+    counts_dir : a folder where each finished count is kept as it finishes
+        (:mod:`lfjax.design.resume`); a count already kept there by a call with the same
+        inputs is loaded instead of fitted again (None: nothing kept)
 
     Refuses (:func:`check_design`: a :class:`~lfjax.base.errors.ParameterError` naming the
     parameter, before anything is traced) a CDP outside the depth range, counts outside
@@ -695,7 +700,22 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
     prepared, plan = {}, DesignPlan(train_eyes=train_eyes.n_eyes, report_eyes=report_eyes.n_eyes,
                                     eye_chunk=chunk, steps=steps, report_accuracy=report_accuracy)
     t_plan = time.perf_counter()
+    keys, kept = {}, {}
+    if counts_dir is not None:
+        for n in counts:
+            keys[n] = count_key(panel, n, depths_D=depths, cdp_D=cdp, constraints=constraints,
+                                objective=objective, wavelengths_nm=wavelengths_nm, steps=steps,
+                                tol=tol, report_accuracy=report_accuracy, sampling=sampling,
+                                eye_chunk=eye_chunk, train_zernike_um=train_eyes.zernike_um,
+                                test_zernike_um=None if test_eyes is None else test_eyes.zernike_um)
+            found = load_count(counts_dir, n, keys[n])
+            if found is not None:
+                kept[n] = DesignFit(**found)
     for n in counts:
+        if n in kept:  # finished by an earlier call with the same inputs
+            prepared[n] = kept[n]
+            plan.counts.append(CountPlan(n, resumed=f"fitted earlier, kept in {counts_dir}"))
+            continue
         why = feasibility(panel, n, cdp, constraints)
         if why is not None:
             why = f"infeasible: {why}"
@@ -720,6 +740,9 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
     fits = []
     for n in counts:
         t0 = time.perf_counter()
+        if n in kept:
+            fits.append(kept[n])
+            continue
         if isinstance(prepared[n], str):
             fits.append(DesignFit(n, refused=prepared[n]))
             continue
@@ -756,6 +779,8 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
         fit.time_s = time.perf_counter() - t0
         if tell is not None:
             tell(f"done in {fit.time_s:.1f} s")
+        if counts_dir is not None:  # kept at once: a later failure or Ctrl-C loses no count
+            save_count(counts_dir, keys[n], fit)
         fits.append(fit)
     provenance = {"train_eyes": train_eyes.n_eyes,
                   "test_eyes": None if test_eyes is None else test_eyes.n_eyes,
@@ -822,13 +847,15 @@ def _score_units(score: dict | None) -> dict | None:
     return {k: {"value": v, "unit": units[k]} for k, v in score.items()}
 
 
-def save_design(result: DesignResult, out_dir, command: str | None = None) -> list[Path]:
+def save_design(result: DesignResult, out_dir, command: str | None = None,
+                force: bool = False) -> list[Path]:
     """Write ``design.json`` (every count's specification and scores, every number with its
     unit; the chosen count marked) and ``design.png`` (the chosen array's lenslets over a few
-    pixels, and its views in the pupil) into ``out_dir``. Returns the paths."""
+    pixels, and its views in the pupil) into ``out_dir``, both or neither (built in a staging
+    folder beside it, then renamed into place: :func:`~lfjax.base.files.staged_output`;
+    ``force``: into a folder with files in it). Returns the paths."""
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     best = result.best
     designs = []
     for f in result.fits:
@@ -853,18 +880,20 @@ def save_design(result: DesignResult, out_dir, command: str | None = None) -> li
         "provenance": dict(result.provenance, lfjax_version=__version__, command=command,
                            utc=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")),
     }
-    path = out / "design.json"
-    path.write_text(json.dumps(jsonable(record), indent=2) + "\n")
-    files = [path]
+    names = ["design.json"]
     chosen = best or next((f for f in result.fits if f.panel is not None), None)
-    if chosen is not None:
-        fig = fig_design(chosen.panel, chosen.n_per_side)
-        fig.savefig(out / "design.png", dpi=110)
-        import matplotlib.pyplot as plt
+    with staged_output(out, force) as stage:  # both files, or neither
+        atomic_write_text(stage / "design.json", json.dumps(jsonable(record), indent=2) + "\n")
+        if chosen is not None:
+            fig = fig_design(chosen.panel, chosen.n_per_side)
+            try:
+                fig.savefig(stage / "design.png", dpi=110)
+            finally:
+                import matplotlib.pyplot as plt
 
-        plt.close(fig)
-        files.append(out / "design.png")
-    return files
+                plt.close(fig)
+            names.append("design.png")
+    return [out / name for name in names]
 
 
 def fig_design(panel: Panel, n_per_side: int):

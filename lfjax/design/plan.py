@@ -81,6 +81,7 @@ class CountPlan:
 
     n_per_side: int
     refused: str | None = None
+    resumed: str | None = None  # where the count fitted by an earlier run is kept
     fit_fft: int = 0
     fit_df_cpd: float = float("nan")
     fit_states: int = 0
@@ -128,6 +129,9 @@ class DesignPlan:
                  f"{self.steps} L-BFGS-B steps per count; report ({self.report_accuracy}) on "
                  f"{self.report_eyes} eyes, fitted and starting panels"]
         for c in self.counts:
+            if c.resumed is not None:
+                lines.append(f"  {c.n_per_side}x{c.n_per_side}  resumed: {c.resumed}")
+                continue
             if c.refused is not None:
                 lines.append(f"  {c.n_per_side}x{c.n_per_side}  refused before fitting: {c.refused}")
                 continue

@@ -190,6 +190,7 @@ from lfjax.layout_opt._run import PARAMETRISATIONS as PARAMETRISATIONS
 from lfjax.layout_opt._run import OptimisationResult as OptimisationResult
 from lfjax.layout_opt._run import OptimisationSettings as OptimisationSettings
 from lfjax.layout_opt._run import optimise_and_save as optimise_and_save
+from lfjax.layout_opt._run import estimated_output_bytes as estimated_output_bytes
 
 __all__ = [
     "OBJECTIVES",
@@ -259,4 +260,5 @@ __all__ = [
     "OptimisationSettings",
     "OptimisationResult",
     "optimise_and_save",
+    "estimated_output_bytes",
 ]

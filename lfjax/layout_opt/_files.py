@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lfjax.base.files import atomic_write_text
 from lfjax.base.types import finite_scalar
 from lfjax._version import __version__
 from lfjax.model.layout_files import LAYOUT_FORMAT, jsonable
@@ -73,5 +74,5 @@ def save_layout_json(path, layout: Layout, pupil_diameter_mm: float, *, objectiv
     if parameters is not None:
         record["parameters"] = parameters
     path = Path(path)
-    path.write_text(json.dumps(jsonable(record), indent=2) + "\n")
+    atomic_write_text(path, json.dumps(jsonable(record), indent=2) + "\n")
     return path

@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from lfjax.base.errors import ParameterError
-from lfjax.base.files import check_output_folder
+from lfjax.base.files import (atomic_savefig, atomic_write_text, check_output_folder,
+                              staged_output)
 from lfjax.base.sampling import Sampling
 from lfjax.base.types import finite_scalar
 from lfjax.base.units import check_dioptres
@@ -277,14 +278,16 @@ def optimise_and_save(settings: OptimisationSettings, out_dir, *, force: bool = 
     Draws the training eyes (seed ``settings.seed``) and the held-out eyes (seed + 1),
     fits on the cheap ``"fit"`` setting (:func:`make_problem`, :func:`optimise_layout`)
     and scores the start and the fit on the held-out eyes at ``settings.report_accuracy``.
-    Writes into ``out_dir`` (new or empty unless ``force``; checked first,
-    :func:`~lfjax.base.files.check_output_folder`): ``layout.json`` (the layout, the
+    Writes into ``out_dir`` (new or empty unless ``force``, writable, with room for the
+    outputs: checked before any work, :func:`~lfjax.base.files.check_output_folder`),
+    whole or not at all (built in a staging folder beside it, then renamed into place:
+    :func:`~lfjax.base.files.staged_output`): ``layout.json`` (the layout, the
     objective with its before/after values, the parameters and the provenance —
     ``command`` among it), ``layouts.png``, ``through_focus.png`` and ``history.png``; with
     ``settings.front``, then ``front.png`` and ``front.json``. ``progress``: progress bars
     on stderr.
     """
-    out = check_output_folder(out_dir, force)
+    out = check_output_folder(out_dir, force, need_bytes=estimated_output_bytes(settings))
     start = settings.start()
     train, test = _eyes(settings)
     planning = train if test is None else Eyes(
@@ -304,7 +307,25 @@ def optimise_and_save(settings: OptimisationSettings, out_dir, *, force: bool = 
     shown = shown[: min(shown.n_eyes, 20)]
     curves = {"before": through_focus_curves(fit.initial_params, problem, eyes=shown),
               "after": through_focus_curves(fit.params, problem, eyes=shown)}
-    out.mkdir(parents=True, exist_ok=True)
+    with staged_output(out, force) as stage:  # the folder appears whole, or not at all
+        result = _write_outputs(settings, fit, problem, curves, constraints, command, test,
+                                stage)
+        if settings.front is not None:
+            _front(settings, result, start, test, stage, progress)
+    result.files = [out / path.name for path in result.files]
+    return result
+
+
+def estimated_output_bytes(settings: OptimisationSettings) -> int:
+    """Room :func:`optimise_and_save` asks of its output folder's disk before any work,
+    bytes: its figures (about 0.1-0.3 MB each at 110 dpi; 2 MB allowed per figure) and
+    JSON files (layout.json carries the loss history: 1 MB allowed each)."""
+    figures, tables = (4, 1) if settings.front is None else (5, 2)
+    return figures * 2 * 2**20 + tables * 2**20
+
+
+def _write_outputs(settings, fit, problem, curves, constraints, command, test, out: Path):
+    """Write the figures and layout.json into ``out`` (the staging folder)."""
     files = layout_plots.save_fit_figures(fit, curves, out)
     record_objective = dict(fit.objective.as_dict(), name=fit.objective.name,
                             train=_brief(fit.train), test=_brief(fit.test), warning=fit.warning)
@@ -328,10 +349,7 @@ def optimise_and_save(settings: OptimisationSettings, out_dir, *, force: bool = 
     files.append(save_layout_json(out / "layout.json", fit.layout, constraints.pupil_diameter_mm,
                                   objective=record_objective, provenance=provenance,
                                   parameters=fit.params))
-    result = OptimisationResult(fit, problem, files, fit.summary())
-    if settings.front is not None:
-        _front(settings, result, start, test, out, progress)
-    return result
+    return OptimisationResult(fit, problem, files, fit.summary())
 
 
 def _front(settings: OptimisationSettings, result: OptimisationResult, start, test, out: Path,
@@ -343,9 +361,9 @@ def _front(settings: OptimisationSettings, result: OptimisationResult, start, te
                             method=settings.method, max_steps=settings.steps, progress=progress,
                             report_problem=settings.report_accuracy)
     fig = layout_plots.fig_front(front, settings.constraints.pupil_diameter_mm)
-    fig.savefig(out / "front.png", dpi=110)
+    atomic_savefig(fig, out / "front.png", dpi=110)
     rows = front.table()
-    (out / "front.json").write_text(json.dumps(jsonable(
+    atomic_write_text(out / "front.json", json.dumps(jsonable(
         {"tolerances_D": tolerances, "rows": rows, "time_s": time.perf_counter() - t_front}),
         indent=2) + "\n")
     result.files += [out / "front.png", out / "front.json"]
@@ -363,4 +381,5 @@ __all__ = [
     "OptimisationSettings",
     "OptimisationResult",
     "optimise_and_save",
+    "estimated_output_bytes",
 ]

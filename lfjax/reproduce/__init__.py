@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from lfjax.base.errors import ParameterError
-from lfjax.base.files import owned_temp_dir, remove_orphans
+from lfjax.base.files import check_writable, owned_temp_dir, remove_orphans
 from lfjax.base.tables import printable
 from lfjax.vision.claims import Claim, dof_D, evaluate_claims
 from lfjax.studies.display_effects import (
@@ -139,8 +139,19 @@ def _nearest_existing(path: Path) -> Path:
     return p
 
 
-def check_output_dir(out, force: bool = False) -> Path:
-    """Validate ``out`` before any work: returns its absolute path or raises OutputError."""
+def estimated_output_bytes(config: StudyConfig) -> int:
+    """Room :func:`reproduce` asks of its output folder's disk before any work, bytes: the
+    figures and examples.nc (about 2.1 MB in all for ``--quick``; 8 MB allowed) and
+    results.nc with the tables (0.3 MB for ``--quick``'s 3 eyes and 3 depths; 4 MB allowed
+    per eye, the average eye included, which covers the default's 9 depths and 0.2 D
+    states several times over)."""
+    return 8 * 2**20 + (int(config.n_eyes) + 1) * 4 * 2**20
+
+
+def check_output_dir(out, force: bool = False, need_bytes: int = 0) -> Path:
+    """Validate ``out`` before any work: returns its absolute path or raises OutputError
+    (not a folder, not empty without ``force``, not writable — a probe file is created —
+    or fewer than ``need_bytes`` free on its disk)."""
     out = Path(out).expanduser().absolute()
     if out.exists():
         if not out.is_dir():
@@ -158,9 +169,11 @@ def check_output_dir(out, force: bool = False) -> Path:
         if not anchor.is_dir():
             raise OutputError("out", "cannot create {out} {path}: {anchor} is not a folder", path=out,
                               anchor=anchor)
-    if not os.access(anchor, os.W_OK | os.X_OK):
-        raise OutputError("out", "{out} {path} is not writable (no write permission in {anchor})",
-                          path=out, anchor=anchor)
+    try:
+        # the results are built beside out and renamed into place: its parent must take them
+        check_writable(out.parent if out.exists() else out, need_bytes, "out", shown=out)
+    except ParameterError as err:
+        raise OutputError("out", err.template, **err.values) from None
     return out
 
 
@@ -199,7 +212,7 @@ def check_reproduce(out, config: StudyConfig = StudyConfig(), force: bool = Fals
     store (:func:`check_population`) and the display-effects eyes (0 … the study's eyes).
     Returns the output folder's absolute path; a refused value is a
     :class:`~lfjax.base.errors.ParameterError` naming the parameter."""
-    out = check_output_dir(out, force)
+    out = check_output_dir(out, force, estimated_output_bytes(config))
     if population_store is not None:
         check_population(population_store, config)
     if display_effects_eyes is not None and not (

@@ -36,7 +36,8 @@ from lfjax.model.layout_plots import draw_layout
 from lfjax.model.layouts import LF_LAYOUTS
 from lfjax.sweep.compute import resolve_layout
 from lfjax.sweep.config import config_from_dict
-from lfjax.sweep.store import is_store, open_store
+from lfjax.base.files import check_writable, staged_output
+from lfjax.sweep.store import is_store, open_store, store_damage
 from lfjax.sweep.ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
 
 PERCENTILES = (5, 25, 50, 75, 95)
@@ -465,6 +466,11 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
     """
     store = Path(store_path)
     if not is_store(store):
+        damage = store_damage(store)
+        if damage is not None:
+            raise ParameterError("store_path", "{store_path} {store} looks like an lfjax sweep "
+                                 "store but {damage}; it cannot be read", store=store,
+                                 damage=damage)
         raise ParameterError("store_path", "{store_path} {store} is not an lfjax sweep store (a folder "
                              "written by `lfjax sweep`)", store=store)
     draws = _positive_int("draws", draws)
@@ -475,11 +481,20 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
     if out.exists() and not out.is_dir():
         raise ParameterError("out_dir", "{out_dir} {out} exists and is not a folder", out=out)
 
+    check_writable(out, REPORT_BYTES, "out_dir")  # read-only or full: said before any work
     ds = open_store(store, complete_only=True)
     if ds.sizes["eye"] == 0 or not np.any(~ds.is_average.values):
         raise ParameterError("store_path", "{store_path} {store} has no complete chunk of virtual eyes yet",
                              store=store)
-    out.mkdir(parents=True, exist_ok=True)
+    # every file built in a staging folder beside out, then moved in (each whole; files of
+    # the same names replaced): an interrupted or failed report leaves out as it was
+    with staged_output(out, force=True) as stage:
+        files = _write_report(store, ds, stage, draws, sample_size, seed, dpi, progress)
+    return {key: out / path.name for key, path in files.items()}
+
+
+def _write_report(store: Path, ds, out: Path, draws, sample_size, seed, dpi, progress) -> dict:
+    """Every file of :func:`sweep_report` into the folder ``out``; {key: path}."""
     files = {key: out / name for key, name in FILES.items()}
 
     with tempfile.TemporaryDirectory(prefix="lfjax-sweep-report-") as tmp:
@@ -527,6 +542,11 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
     samplings = json.loads(ds.attrs.get("sampling_json", "{}"))
     _summary(files["summary"], store, ds, config, table, samplings, files, counts, ten)
     return files
+
+
+REPORT_BYTES = 16 * 2**20
+"""Room :func:`sweep_report` asks of its output folder's disk before reading the store, bytes
+(three figures, a few tables and the summary: about 0.5 MB; a wide margin)."""
 
 
 def default_out_dir(store_path) -> Path:

@@ -31,7 +31,9 @@ from lfjax.sweep.store import (
     chunk_dataset,
     completed_chunks,
     create_store,
+    read_bookkeeping,
     record_run,
+    stored_attribute,
     stored_samplings,
     stored_spectra,
     template,
@@ -239,18 +241,23 @@ def _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progr
     if not exists and pid != 0:
         check_store_matches(store, config)
     evaluator = ChunkEvaluator(config, eyes.measured_pupil_mm, spectrum, devices)
-    done = completed_chunks(store)
+    marks = read_bookkeeping(store)
+    done = marks.done
     mine = [i for i in range(config.n_chunks) if i % nproc == pid]
     recomputed = {}
     if exists:
         # a resumed store's finished chunks are read back and checked against their
-        # checksums: a deleted or damaged chunk file is computed again, not trusted
-        recomputed = verify_store(store, [i for i in mine if done[i]]).corrupt
+        # checksums: a deleted or damaged chunk file is computed again, not trusted, and so
+        # is a chunk whose own marks (chunk_complete/<i>, chunk_checksum/<i>) are damaged
+        recomputed = verify_store(store, [i for i in mine
+                                          if done[i] or i in marks.damaged]).corrupt
         if recomputed:
             unmark_chunks(store, recomputed)
             done = completed_chunks(store)
             print(f"lfjax sweep: {store}: recomputing {len(recomputed)} chunk(s) whose data "
                   f"failed verification: {sorted(recomputed)}", file=sys.stderr)
+            for i, why in sorted(recomputed.items()):
+                print(f"lfjax sweep:   chunk {i}: {why}", file=sys.stderr)
     todo = [i for i in mine if not done[i]]
     if max_chunks is not None:
         todo = todo[: int(max_chunks)]
@@ -259,6 +266,8 @@ def _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progr
                    recomputed_chunks=recomputed)
     zernike = np.asarray(eyes.zernike_um)
     size = int(config.chunk_size)
+    # a store of checksum scheme 2 covers (and each chunk rewrites) its eyes' coefficients
+    with_zernike = int(stored_attribute(store, "checksum_scheme", 1)) >= 2
     bar = None
     if progress and todo:
         _say(f"compiling {len(tasks)} chunk function(s) with the first chunk (or loading them "
@@ -276,7 +285,8 @@ def _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progr
             tc = time.perf_counter()
             start, stop = i * size, min((i + 1) * size, config.n_total_eyes)
             results = {task.key: evaluator.evaluate(task, zernike[start:stop]) for task in tasks}
-            write_chunk(store, i, chunk_dataset(config, tasks, results, start, stop), start, stop)
+            write_chunk(store, i, chunk_dataset(config, tasks, results, start, stop), start, stop,
+                        zernike[start:stop] if with_zernike else None)
             run.chunk_seconds.append(time.perf_counter() - tc)
             run.computed_chunks.append(i)
             run.eyes_computed += stop - start

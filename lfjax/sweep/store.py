@@ -28,12 +28,14 @@ import os
 import shutil
 import socket
 import subprocess
+import warnings
 from pathlib import Path
 
 import jax
 import numpy as np
 
-from lfjax.base.files import owned_temp_dir, pid_alive, remove_orphans
+from lfjax.base.files import (owned_temp_dir, pid_alive, register_emergency_cleanup,
+                              remove_orphans, unregister_emergency_cleanup)
 from lfjax._version import __version__
 from lfjax.vision.peaks import METRICS
 from lfjax.base.sampling import Sampling
@@ -43,6 +45,13 @@ from lfjax.sweep.compute import (FREQUENCIES_CPD, Task, layout_name, spectral_pl
 from lfjax.sweep.config import SweepConfig, config_differences, config_to_toml
 
 STORE_FORMAT = "lfjax-sweep-store/1"
+CHECKSUM_SCHEME = 2
+"""What the checksums of a store cover (its attribute ``checksum_scheme``): 2 — each chunk's
+eye variables and its eyes' ``zernike_um``, and (attribute ``metadata_checksum``) the
+configuration attributes and every array without an ``eye`` axis, with the ``eye`` and
+``is_average`` coordinates; a store without the attribute (1) — the eye variables only."""
+BOOKKEEPING = ("chunk_complete", "chunk_checksum")
+_UNCHECKED_ATTRS = ("runs_json", "completed_utc", "metadata_checksum")  # change as runs end
 ZARR_FORMAT = 2  # strings (layout names) have no stable Zarr v3 encoding yet (zarr 3.1 warns)
 
 _EYE_VARIABLES = (
@@ -159,6 +168,7 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
                                "spectrum": config.display_spectrum or "V(lambda) white"}),
         "n_chunks": int(config.n_chunks),
         "chunk_size": int(config.chunk_size),
+        "checksum_scheme": CHECKSUM_SCHEME,
         "provenance_json": json.dumps(provenance(), sort_keys=True),
     }
     metric_note = "metric axis: vsotf, strehl"
@@ -207,8 +217,10 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
             chunk_complete=(("chunk",), np.zeros(config.n_chunks, bool), {
                 "long_name": "the chunk's eyes are written (eyes chunk*chunk_size …)"}),
             chunk_checksum=(("chunk",), np.zeros(config.n_chunks, np.uint64), {
-                "long_name": "BLAKE2b-64 of the chunk's eye variables as written "
-                             "(lfjax.sweep.store.chunk_checksum; 0: not written)"}),
+                "long_name": "BLAKE2b-64 of the chunk's eye variables and its eyes' "
+                             "zernike_um as written (lfjax.sweep.store.chunk_checksum; 0: not "
+                             "written); the configuration and the other arrays: attribute "
+                             "metadata_checksum"}),
         ),
         coords=dict(
             eye=("eye", np.arange(n_eye)),
@@ -275,15 +287,20 @@ def record_run(path, started_utc: str, computed: list[int]) -> None:
     re-consolidate the metadata. Process 0 only (attributes are one file)."""
     import zarr
 
-    group = zarr.open_group(str(path), mode="r+", zarr_format=ZARR_FORMAT)
+    group = _open_group(path, "r+")
     runs = json.loads(group.attrs.get("runs_json", "[]"))
     runs.append({"host": socket.gethostname(), "pid": os.getpid(), "started_utc": started_utc,
                  "ended_utc": utc_now(), "chunks_computed": len(computed)})
     update = {"runs_json": json.dumps(runs)}
-    if np.asarray(group["chunk_complete"][:], bool).all():
+    if read_bookkeeping(path).done.all():
         update["completed_utc"] = runs[-1]["ended_utc"]
     group.attrs.update(update)
     zarr.consolidate_metadata(str(path), zarr_format=ZARR_FORMAT)
+
+
+def stored_attribute(path, name: str, default=None):
+    """The store's attribute ``name`` (``default`` when it has none)."""
+    return _open_group(path).attrs.get(name, default)
 
 
 def stored_samplings(path) -> dict:
@@ -360,13 +377,34 @@ def create_store(path, ds, chunk_size: int, eyes=None) -> Path:
             group["eye"][:] = np.arange(n_eye)
             group["is_average"][:] = np.asarray(eyes[1], bool)
             group["zernike_um"][:] = np.asarray(eyes[0], float)
-        if n_eye is not None:
-            zarr.consolidate_metadata(str(tmp), zarr_format=ZARR_FORMAT)
-        os.replace(tmp, path)
+        group = zarr.open_group(str(tmp), mode="r+", zarr_format=ZARR_FORMAT,
+                                use_consolidated=False)
+        group.attrs["metadata_checksum"] = str(metadata_checksum(group))
+        zarr.consolidate_metadata(str(tmp), zarr_format=ZARR_FORMAT)
+        try:
+            os.replace(tmp, path)
+        except OSError as err:
+            if err.errno not in (errno.ENOTEMPTY, errno.EEXIST) and not path.exists():
+                raise
+            # another process created it between the check above and this rename
+            raise StoreRaceError(path) from None
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
     return path
+
+
+class StoreRaceError(FileExistsError):
+    """Another process created the store while this one was creating it (two new sweeps
+    started on one ``--out`` at once): this one's creation is discarded."""
+
+    def __init__(self, path):
+        super().__init__(errno.EEXIST, f"{path} was created by another process while this one "
+                         f"was creating it; this run stops and writes nothing. Let that run "
+                         f"finish, or continue its store with --resume")
+
+    def __str__(self) -> str:
+        return self.strerror
 
 
 def clean_interrupted_creations(path) -> list[Path]:
@@ -427,6 +465,7 @@ class StoreLock:
                 raise StoreLockedError(self.path, holder) from None
             with os.fdopen(fd, "w") as f:
                 json.dump(self.record, f)
+            register_emergency_cleanup(id(self), self.release)  # also on an immediate exit
             return self
         raise StoreLockedError(self.path, self._holder())
 
@@ -437,6 +476,7 @@ class StoreLock:
             return {"host": "?", "pid": "?", "started_utc": "? (unreadable lock file)"}
 
     def release(self) -> None:
+        unregister_emergency_cleanup(id(self))
         if self._holder().get("pid") == self.record["pid"]:
             self.file.unlink(missing_ok=True)
 
@@ -447,13 +487,20 @@ class StoreLock:
         self.release()
 
 
-def _open_group(path):
+def _open_group(path, mode: str = "r"):
     import zarr
 
-    return zarr.open_group(str(path), mode="r", zarr_format=ZARR_FORMAT)
+    # the arrays' own metadata, not .zmetadata: a damaged consolidated copy must not hide
+    # an intact store (it is rewritten when a run ends, record_run)
+    return zarr.open_group(str(path), mode=mode, zarr_format=ZARR_FORMAT, use_consolidated=False)
+
+
+def _one_line(err: BaseException, limit: int = 120) -> str:
+    return f"{type(err).__name__}: {' '.join(str(err).split())[:limit]}"
 
 
 def is_store(path) -> bool:
+    """Whether ``path`` is a folder whose attributes say it is an lfjax sweep store."""
     path = Path(path)
     if not path.is_dir():
         return False
@@ -463,12 +510,97 @@ def is_store(path) -> bool:
         return False
 
 
+def store_damage(path) -> str | None:
+    """Why ``path``, a folder with Zarr metadata files, cannot be read as a sweep store
+    (a damaged ``.zattrs``/``.zgroup``), or None (a store, or no Zarr folder at all)."""
+    path = Path(path)
+    if not path.is_dir() or is_store(path):
+        return None
+    for name in (".zattrs", ".zgroup", ".zmetadata"):
+        file = path / name
+        if file.is_file():
+            try:
+                json.loads(file.read_text())
+            except (OSError, ValueError) as err:
+                return f"its metadata file {name} is damaged ({_one_line(err)})"
+    return None
+
+
+def not_a_store(path) -> str:
+    """The sentence refusing ``path`` as a sweep store: damaged, or not one at all."""
+    damage = store_damage(path)
+    if damage is not None:
+        return f"{path} looks like an lfjax sweep store but {damage}; it cannot be read"
+    return f"{path} is not an lfjax sweep store (format {STORE_FORMAT!r})"
+
+
+def consolidated_damage(path) -> str | None:
+    """Why the store's consolidated metadata (``.zmetadata``) cannot be read, or None."""
+    file = Path(path) / ".zmetadata"
+    if not file.is_file():
+        return None
+    try:
+        json.loads(file.read_text())
+    except (OSError, ValueError) as err:
+        return f".zmetadata (the consolidated metadata) is damaged ({_one_line(err)})"
+    return None
+
+
+class StoreDamagedError(ValueError):
+    """A store's configuration or coordinates no longer match the checksum written with
+    them (``metadata_checksum``): no chunk can be trusted to be computed as recorded."""
+
+
+def metadata_checksum(group) -> int:
+    """BLAKE2b-64 of a store's configuration attributes (all but ``runs_json``,
+    ``completed_utc`` and itself, which change as runs end) and of every array without an
+    ``eye`` axis, with the ``eye`` and ``is_average`` coordinates (names, dtypes, shapes and
+    values); never 0. ``group``: the store's open Zarr group."""
+    h = hashlib.blake2b(digest_size=8)
+    attrs = {k: v for k, v in dict(group.attrs).items() if k not in _UNCHECKED_ATTRS}
+    h.update(json.dumps(attrs, sort_keys=True).encode())
+    for name in sorted(group.array_keys()):
+        array = group[name]
+        dims = array.attrs.get("_ARRAY_DIMENSIONS", [])
+        if name in BOOKKEEPING or ("eye" in dims and name not in ("eye", "is_average")):
+            continue
+        a = np.asarray(array[...])
+        if a.dtype.kind == "f":
+            a = np.where(np.isnan(a), np.nan, a).astype(a.dtype)
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes() if a.dtype.kind not in "OUS" else json.dumps(a.tolist()).encode())
+    return int.from_bytes(h.digest(), "little") or 1
+
+
+def metadata_problem(path) -> str | None:
+    """Why the store's configuration and coordinates cannot be trusted (they do not match
+    ``metadata_checksum``, or cannot be read), or None (they match, or the store predates
+    the checksum)."""
+    try:
+        group = _open_group(path)
+        stored = group.attrs.get("metadata_checksum")
+        if stored is None:
+            return None
+        if metadata_checksum(group) != int(stored):
+            return ("its configuration or coordinates do not match the checksum written with "
+                    "them (attribute metadata_checksum): an attribute or a coordinate file was "
+                    "altered")
+    except Exception as err:  # noqa: BLE001 - any failure to read them is damage
+        return f"its configuration or coordinates cannot be read ({_one_line(err)})"
+    return None
+
+
 def check_store_matches(path, config: SweepConfig) -> None:
     """Raise :class:`StoreMismatchError` unless ``path`` was made by ``config`` and this
-    lfjax version."""
+    lfjax version (a :class:`StoreDamagedError` when its recorded configuration fails its
+    checksum)."""
     if not is_store(path):
-        raise ValueError(f"{path} exists but is not an lfjax sweep store (format "
-                         f"{STORE_FORMAT!r}); choose another --out")
+        raise ValueError(f"{not_a_store(path)}; choose another --out")
+    problem = metadata_problem(path)
+    if problem is not None:
+        raise StoreDamagedError(f"{path}: {problem}; it cannot be resumed safely (verify it "
+                                f"with lfjax sweep {path} --verify; write a new store to "
+                                f"another --out)")
     attrs = _open_group(path).attrs
     stored = {"config": json.loads(attrs["config_json"]), "lfjax_version": attrs["lfjax_version"]}
     current = json.loads(json.dumps(_stored_record(config), sort_keys=True))
@@ -477,12 +609,71 @@ def check_store_matches(path, config: SweepConfig) -> None:
         raise StoreMismatchError(path, differences)
 
 
-def completed_chunks(path) -> np.ndarray:
-    """(n_chunks,) bool: which chunks are written."""
-    import zarr
+@dataclasses.dataclass
+class Bookkeeping:
+    """A store's chunk marks as read back, each chunk's file alone when the whole array
+    cannot be read.
 
-    group = zarr.open_group(str(path), mode="r", zarr_format=ZARR_FORMAT)
-    return np.asarray(group["chunk_complete"][:], bool)
+    done : (n_chunks,) bool, marked complete (False where the mark cannot be trusted)
+    sums : (n_chunks,) uint64, checksums written with them (0: none)
+    damaged : {chunk: why} chunks whose marks are unreadable, missing or contradict each
+        other (the bookkeeping file is named); they are recomputed on resume
+    has_checksums : the store records checksums (a store from before them does not)
+    """
+
+    done: np.ndarray
+    sums: np.ndarray
+    damaged: dict
+    has_checksums: bool
+
+
+def _read_marks(group, name: str, n: int, dtype) -> tuple[np.ndarray, dict]:
+    values = np.zeros(n, dtype)
+    try:
+        values[:] = np.asarray(group[name][:], dtype)
+        return values, {}
+    except Exception:  # noqa: BLE001 - read each chunk's file alone to name the damaged one
+        pass
+    broken = {}
+    for i in range(n):
+        try:
+            values[i] = np.asarray(group[name][i], dtype)
+        except Exception as err:  # noqa: BLE001 - a damaged file, whatever the decoder says
+            broken[i] = f"bookkeeping file {name}/{i} is unreadable ({_one_line(err, 80)})"
+    return values, broken
+
+
+def read_bookkeeping(path) -> Bookkeeping:
+    """The store's :class:`Bookkeeping` (``chunk_complete`` and ``chunk_checksum``): a
+    damaged or missing mark file is named, not raised. Marks are written complete first,
+    checksum second, and unmarked in the same order: a chunk marked complete without a
+    checksum, or with a checksum but not complete, has lost a bookkeeping file."""
+    group = _open_group(path)
+    n = int(group["chunk_complete"].shape[0])
+    done, damaged = _read_marks(group, "chunk_complete", n, bool)
+    has_checksums = "chunk_checksum" in group
+    sums = np.zeros(n, np.uint64)
+    if has_checksums:
+        sums, broken = _read_marks(group, "chunk_checksum", n, np.uint64)
+        for i, why in broken.items():
+            damaged[i] = f"{damaged[i]}; {why}" if i in damaged else why
+        for i in range(n):
+            if i in damaged:
+                continue
+            if done[i] and not sums[i]:
+                damaged[i] = (f"bookkeeping file chunk_checksum/{i} is missing or altered (the "
+                              f"chunk is marked complete without its checksum)")
+            elif not done[i] and sums[i]:
+                damaged[i] = (f"bookkeeping file chunk_complete/{i} is missing or altered (not "
+                              f"marked complete, yet its checksum was written)")
+    done = done & ~np.isin(np.arange(n), list(damaged))
+    return Bookkeeping(done, sums, damaged, has_checksums)
+
+
+def completed_chunks(path) -> np.ndarray:
+    """(n_chunks,) bool: which chunks are written (a chunk whose marks are damaged is not:
+    :func:`read_bookkeeping`)."""
+    return read_bookkeeping(path).done
 
 
 def chunk_dataset(config: SweepConfig, tasks: list[Task], results: dict, start: int, stop: int):
@@ -530,12 +721,15 @@ def chunk_dataset(config: SweepConfig, tasks: list[Task], results: dict, start: 
                        for name, a in arrays.items()})
 
 
-def chunk_checksum(part) -> int:
+def chunk_checksum(part, zernike_um=None) -> int:
     """BLAKE2b-64 of a chunk's eye variables (name, dtype, shape and values; every NaN
-    counted alike), as an unsigned 64-bit integer; never 0."""
+    counted alike) and, when given (checksum scheme 2, :data:`CHECKSUM_SCHEME`), its eyes'
+    ``zernike_um`` (n, n_modes) µm, as an unsigned 64-bit integer; never 0."""
     h = hashlib.blake2b(digest_size=8)
-    for name in sorted(_EYE_VARIABLES):
-        a = np.asarray(part[name].values)
+    arrays = [(name, np.asarray(part[name].values)) for name in sorted(_EYE_VARIABLES)]
+    if zernike_um is not None:
+        arrays.append(("zernike_um", np.asarray(zernike_um, np.float64)))
+    for name, a in arrays:
         if a.dtype.kind == "f":
             a = np.where(np.isnan(a), np.nan, a).astype(a.dtype)
         h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
@@ -543,15 +737,20 @@ def chunk_checksum(part) -> int:
     return int.from_bytes(h.digest(), "little") or 1
 
 
-def write_chunk(path, chunk_index: int, part, start: int, stop: int) -> None:
-    """Write one chunk's variables into its region, then mark the chunk complete with the
-    checksum of what was written."""
+def write_chunk(path, chunk_index: int, part, start: int, stop: int, zernike_um=None) -> None:
+    """Write one chunk's variables into its region (and, given, its eyes' ``zernike_um``:
+    rewritten, so a recomputed chunk repairs them too), then mark the chunk complete with
+    the checksum of what was written."""
     import xarray as xr
 
     part.to_zarr(str(path), region={"eye": slice(start, stop)}, mode="r+", consolidated=False,
                  zarr_format=ZARR_FORMAT)
+    if zernike_um is not None:
+        _open_group(path, "r+")["zernike_um"][start:stop] = np.asarray(zernike_um, float)
+        # the checksum of the coefficients as stored (float64 both ways: the same bits)
     xr.Dataset({"chunk_complete": (("chunk",), np.ones(1, bool)),
-                "chunk_checksum": (("chunk",), np.array([chunk_checksum(part)], np.uint64))}
+                "chunk_checksum": (("chunk",), np.array([chunk_checksum(part, zernike_um)],
+                                                        np.uint64))}
                ).to_zarr(str(path), region={"chunk": slice(chunk_index, chunk_index + 1)},
                          mode="r+", consolidated=False, zarr_format=ZARR_FORMAT)
 
@@ -560,8 +759,9 @@ def unmark_chunks(path, chunks) -> None:
     """Mark ``chunks`` not complete (their data are to be recomputed)."""
     import zarr
 
-    group = zarr.open_group(str(path), mode="r+", zarr_format=ZARR_FORMAT)
-    for i in chunks:
+    group = zarr.open_group(str(path), mode="r+", zarr_format=ZARR_FORMAT,
+                            use_consolidated=False)
+    for i in chunks:  # each mark is its own file: a damaged one is replaced, not read
         group["chunk_complete"][int(i)] = False
         if "chunk_checksum" in group:
             group["chunk_checksum"][int(i)] = 0
@@ -572,25 +772,30 @@ class Verification:
     """What :func:`verify_store` found, chunk indices in each list.
 
     ok : complete and their data match the checksum
-    corrupt : complete but their data are missing, unreadable or do not match ({i: why})
+    corrupt : complete but their data are missing, unreadable or do not match, or their
+        bookkeeping (``chunk_complete/<i>``, ``chunk_checksum/<i>``) is damaged ({i: why})
     unchecked : complete, written without a checksum (a store from before checksums)
     incomplete : not yet computed
+    problems : damage to the store as a whole (its configuration or coordinates against
+        their checksum, its consolidated metadata), one sentence each
     """
 
     ok: list[int]
     corrupt: dict[int, str]
     unchecked: list[int]
     incomplete: list[int]
+    problems: list[str] = dataclasses.field(default_factory=list)
 
     @property
     def healthy(self) -> bool:
-        return not self.corrupt
+        return not self.corrupt and not self.problems
 
     def summary(self) -> str:
         n = len(self.ok) + len(self.corrupt) + len(self.unchecked) + len(self.incomplete)
         lines = [f"{len(self.ok)} of {n} chunks verified, {len(self.corrupt)} corrupt, "
                  f"{len(self.incomplete)} not computed"
                  + (f", {len(self.unchecked)} without checksum" if self.unchecked else "")]
+        lines += [f"  store: {why}" for why in self.problems]
         lines += [f"  chunk {i}: {why}" for i, why in sorted(self.corrupt.items())]
         if self.corrupt:
             lines.append("  (lfjax sweep CONFIG --out STORE --resume recomputes them)")
@@ -599,38 +804,52 @@ class Verification:
 
 def verify_store(path, chunks=None) -> Verification:
     """Read every complete chunk (or those in ``chunks``) back from the store and compare it
-    with the checksum written with it. A deleted chunk file reads as fill values (NaN) and a
-    truncated one fails to decode: both are reported corrupt, naming the reason."""
+    with the checksum written with it; check the chunk marks themselves
+    (:func:`read_bookkeeping`), the configuration and coordinates against
+    ``metadata_checksum`` and the consolidated metadata. A deleted chunk file reads as fill
+    values (NaN) and a truncated one fails to decode: both are reported corrupt, naming the
+    reason. Reports every damage it finds and raises only for a path that is no sweep store
+    (ValueError, :func:`not_a_store`)."""
     import xarray as xr
-    import zarr
 
     path = Path(path)
     if not is_store(path):
-        raise ValueError(f"{path} is not an lfjax sweep store")
-    group = zarr.open_group(str(path), mode="r", zarr_format=ZARR_FORMAT)
-    done = np.asarray(group["chunk_complete"][:], bool)
-    sums = (np.asarray(group["chunk_checksum"][:], np.uint64) if "chunk_checksum" in group
-            else np.zeros(done.size, np.uint64))
-    size = int(group.attrs["chunk_size"])
-    ds = xr.open_zarr(str(path), consolidated=False, zarr_format=ZARR_FORMAT)
-    n_eye = ds.sizes["eye"]
+        raise ValueError(not_a_store(path))
     result = Verification([], {}, [], [])
-    for i in range(done.size) if chunks is None else chunks:
-        if not done[i]:
+    for problem in (consolidated_damage(path), metadata_problem(path)):
+        if problem is not None:
+            result.problems.append(problem)
+    try:
+        marks = read_bookkeeping(path)
+        attrs = _open_group(path).attrs
+        size = int(attrs["chunk_size"])
+        with_zernike = int(attrs.get("checksum_scheme", 1)) >= 2
+        ds = xr.open_zarr(str(path), consolidated=False, zarr_format=ZARR_FORMAT)
+        n_eye = ds.sizes["eye"]
+    except Exception as err:  # noqa: BLE001 - report, never raise
+        result.problems.append(f"its chunk bookkeeping cannot be read ({_one_line(err)})")
+        return result
+    names = list(_EYE_VARIABLES) + (["zernike_um"] if with_zernike else [])
+    for i in range(marks.done.size) if chunks is None else chunks:
+        if i in marks.damaged:
+            result.corrupt[i] = marks.damaged[i]
+            continue
+        if not marks.done[i]:
             result.incomplete.append(i)
             continue
-        if not sums[i]:
+        if not marks.sums[i]:
             result.unchecked.append(i)
             continue
         start, stop = i * size, min((i + 1) * size, n_eye)
         try:
-            part = ds[list(_EYE_VARIABLES)].isel(eye=slice(start, stop)).load()
+            part = ds[names].isel(eye=slice(start, stop)).load()
         except Exception as err:  # noqa: BLE001 - any decode failure means corrupt data
-            result.corrupt[i] = f"unreadable ({type(err).__name__}: {' '.join(str(err).split())[:120]})"
+            result.corrupt[i] = f"unreadable ({_one_line(err)})"
             continue
-        if chunk_checksum(part) != int(sums[i]):
-            result.corrupt[i] = "data do not match the checksum written with them (a chunk " \
-                                "file missing or altered)"
+        zernike = part["zernike_um"].values if with_zernike else None
+        if chunk_checksum(part, zernike) != int(marks.sums[i]):
+            result.corrupt[i] = ("data do not match the checksum written with them (a chunk "
+                                 "file missing or altered, its eyes' zernike_um among them)")
             continue
         result.ok.append(i)
     return result
@@ -638,14 +857,32 @@ def verify_store(path, chunks=None) -> Verification:
 
 def open_store(path, complete_only: bool = False):
     """The sweep's Dataset (loaded into memory). ``complete_only``: keep only the eyes of
-    completed chunks (a partial sweep read while it runs, or after an interruption)."""
+    completed chunks (a partial sweep read while it runs, or after an interruption). A
+    chunk whose marks are damaged (:func:`read_bookkeeping`) counts as not complete, with a
+    warning naming it; damaged consolidated metadata are read around, with a warning."""
     import xarray as xr
 
     path = Path(path)
     if not is_store(path):
-        raise ValueError(f"{path} is not an lfjax sweep store")
-    ds = xr.open_zarr(str(path), consolidated=_has_consolidated(path),
-                      zarr_format=ZARR_FORMAT).load()
+        raise ValueError(not_a_store(path))
+    damage = consolidated_damage(path)
+    if damage is not None:
+        warnings.warn(f"{path}: {damage}; read from the arrays' own metadata (lfjax sweep "
+                      f"--resume rewrites it)", stacklevel=2)
+    marks = read_bookkeeping(path)
+    if marks.damaged:
+        warnings.warn(f"{path}: chunk(s) {sorted(marks.damaged)} counted as not computed: "
+                      + "; ".join(marks.damaged[i] for i in sorted(marks.damaged))
+                      + " (lfjax sweep CONFIG --out STORE --resume recomputes them)",
+                      stacklevel=2)
+    lazy = xr.open_zarr(str(path), consolidated=_has_consolidated(path) and damage is None,
+                        zarr_format=ZARR_FORMAT)
+    ds = lazy.drop_vars(list(BOOKKEEPING), errors="ignore").load()
+    ds["chunk_complete"] = ("chunk", marks.done)
+    ds["chunk_complete"].attrs.update(lazy["chunk_complete"].attrs)
+    if marks.has_checksums:
+        ds["chunk_checksum"] = ("chunk", marks.sums)
+        ds["chunk_checksum"].attrs.update(lazy["chunk_checksum"].attrs)
     if complete_only:
         size = int(ds.attrs["chunk_size"])
         done = np.repeat(ds.chunk_complete.values, size)[: ds.sizes["eye"]]
@@ -695,7 +932,16 @@ __all__ = [
     "STORE_FORMAT",
     "StoreLock",
     "StoreLockedError",
+    "StoreDamagedError",
+    "StoreRaceError",
+    "Bookkeeping",
+    "CHECKSUM_SCHEME",
     "Verification",
+    "metadata_checksum",
+    "metadata_problem",
+    "not_a_store",
+    "read_bookkeeping",
+    "store_damage",
     "chunk_checksum",
     "clean_interrupted_creations",
     "is_disk_full",
@@ -710,6 +956,7 @@ __all__ = [
     "create_store",
     "is_store",
     "open_store",
+    "stored_attribute",
     "stored_samplings",
     "spectral_record",
     "stored_spectra",

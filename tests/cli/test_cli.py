@@ -341,7 +341,7 @@ def _library_inputs():
         "design": ([check_output_folder, design.design_cdp_D, design.design_panel,
                     design.DesignConstraints, Sampling, design.check_design],
                    {"min_gap_fraction", "panel", "n_fft", "transform", "mft_pupil_samples",
-                    "edge_width_samples"}),
+                    "edge_width_samples", "need_bytes", "parameter"}),
     }
 
 

@@ -332,6 +332,11 @@ def test_a_design_that_breaks_its_tolerance_is_never_ok_nor_chosen():
     assert "fails: the display's accommodation RMSE 1.137 D" in text and "chosen: 3x3" in text
     none = DesignResult([refused, failing], 1.5, [1.0, 2.0], DesignConstraints(), objective, {})
     assert none.best is None and none.summary().endswith("chosen: none (no count is ok)")
+    # a count kept for resuming keeps its verdict: a resumed run must not choose it
+    from lfjax.design.resume import fit_fields, fit_record
+
+    resumed = DesignFit(**fit_fields(fit_record(failing)))
+    assert resumed.failed == failing.failed and not resumed.ok
 
 
 def test_cli_design_exits_non_zero_when_no_count_qualifies(capsys, tmp_path, monkeypatch):
@@ -372,3 +377,74 @@ def test_notebook_executes(tmp_path):
     assert "lenslet_pitch_mm" in text and "sampling limit" in text
     out = tmp_path / "display_design_out"
     assert {p.name for p in out.iterdir()} == {"design.json", "design.png"}
+
+
+# ------------------------------------------------------------------ outputs whole, counts kept
+
+
+def test_design_outputs_are_whole_or_absent_and_a_failed_run_resumes_its_counts(
+        capsys, tmp_path, monkeypatch):
+    """A full disk while design.png is written: exit 1, no --out folder (not design.json
+    alone), no staging folder; the fitted count is kept beside it. The same command then
+    resumes: its plan says so, nothing is fitted again, the outputs are written and the
+    kept counts removed."""
+    import errno
+
+    from matplotlib.figure import Figure
+
+    from lfjax.design.resume import counts_folder
+
+    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    out = tmp_path / "design"
+    real_savefig = Figure.savefig
+
+    def full_disk(self, fname, *args, **kwargs):
+        Path(fname).write_bytes(b"\x89PNG\r\n\x1a\n truncated")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Figure, "savefig", full_disk)
+    assert cli.main([*TINY, "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "No space left on device" in err and "the finished counts are kept in" in err
+    kept = counts_folder(out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [kept.name]  # no out, no staging
+    assert [p.name for p in kept.iterdir()] == ["count-2.json"]
+    first = json.loads((kept / "count-2.json").read_text())["fit"]
+
+    monkeypatch.setattr(Figure, "savefig", real_savefig)
+    assert cli.main([*TINY, "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert f"  2x2  resumed: fitted earlier, kept in {kept}" in said
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["design"]  # kept counts removed
+    two = json.loads((out / "design.json").read_text())["designs"][1]
+    assert two["loss_history"] == first["history"]  # the kept fit, not a new one
+    assert two["specification"]["build"]["lenslet_pitch_mm"]["value"] == first["panel"]["leaves"][1]
+
+
+def test_a_kept_count_is_used_only_for_the_same_inputs(tmp_path):
+    """The key covers the inputs: the same call loads a kept count (and fits nothing), a
+    change of steps or of the training eyes does not."""
+    from lfjax.design.resume import count_key, load_count, panel_leaves, save_count
+    from lfjax.design.fit import DesignFit
+
+    panel = near_eye_microdisplay()
+    cdp = float(panel.cdp_D)
+    common = dict(depths_D=np.array([1.0, 2.0]), cdp_D=cdp, constraints=DesignConstraints(),
+                  objective=Objective(), wavelengths_nm=(550.0,), steps=1, tol=1e-4,
+                  report_accuracy="fit", sampling=Sampling(2.0), eye_chunk=1,
+                  train_zernike_um=sample_eyes(0, 1).zernike_um,
+                  test_zernike_um=sample_eyes(1, 1).zernike_um)
+    key = count_key(panel, 2, **common)
+    kept = DesignFit(2, panel=panel, start=panel, history=[1.0, 0.5],
+                     test={"loss": 0.5, "image_at_peak": 0.3}, notes=["a note"], time_s=3.0)
+    save_count(tmp_path, key, kept)
+    loaded = DesignFit(**load_count(tmp_path, 2, key))
+    assert loaded.history == [1.0, 0.5] and loaded.test == kept.test and loaded.notes == ["a note"]
+    assert panel_leaves(loaded.panel) == panel_leaves(panel)
+    assert load_count(tmp_path, 2, count_key(panel, 2, **dict(common, steps=2))) is None
+    assert load_count(tmp_path, 2, count_key(panel, 2, **dict(
+        common, train_zernike_um=sample_eyes(5, 1).zernike_um))) is None
+    result = fit_design(panel, depth_range_D=(1.0, 2.0), n_depths=2, cdp_D=cdp, views_per_side=(2,),
+                        train_eyes=sample_eyes(0, 1), test_eyes=sample_eyes(1, 1), steps=1,
+                        report_accuracy="fit", sampling=Sampling(2.0), counts_dir=tmp_path)
+    assert result.fits[0].history == [1.0, 0.5]  # loaded, not fitted (a fit takes seconds)

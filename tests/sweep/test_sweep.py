@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import socket
@@ -437,6 +438,122 @@ def test_verify_finds_missing_and_truncated_chunks_and_resume_recomputes_them(
     assert_stores_equal(open_store(store), open_store(ref_path))  # bit for bit again
 
 
+def _flip(path: Path, index: int) -> None:
+    data = bytearray(path.read_bytes())
+    data[index] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def test_damaged_bookkeeping_and_coefficients_are_named_and_recomputed_on_resume(
+        reference, tmp_path, capsys):
+    """One chunk per fault: its eyes' coefficients swapped with the next chunk's (covered
+    by its checksum), a flipped byte in chunk_checksum/1 (the file no longer decodes), and
+    chunk_complete/2 deleted (its checksum says it was written). --verify names each file
+    and exits 1 without a traceback; open_store reads around them with a warning; --resume
+    recomputes exactly those chunks, bit for bit."""
+    from lfjax.cli import main
+
+    config, ref_path, _ = reference
+    store = tmp_path / "bookkeeping.zarr"
+    shutil.copytree(ref_path, store)
+    shutil.copyfile(store / "zernike_um" / "1.0", store / "zernike_um" / "0.0")
+    _flip(store / "chunk_checksum" / "1", 5)
+    (store / "chunk_complete" / "2").unlink()
+    check = verify_store(store)
+    assert check.ok == [] and sorted(check.corrupt) == [0, 1, 2], check
+    assert "zernike_um" in check.corrupt[0]
+    assert "chunk_checksum/1 is unreadable" in check.corrupt[1]
+    assert "chunk_complete/2 is missing or altered" in check.corrupt[2]
+    assert main(["sweep", str(store), "--verify"]) == 1
+    out, err = capsys.readouterr()
+    assert "0 of 3 chunks verified, 3 corrupt" in out and "Traceback" not in err
+    assert "chunk 1: bookkeeping file chunk_checksum/1 is unreadable" in out
+    with pytest.warns(UserWarning, match=r"chunk\(s\) \[1, 2\] counted as not computed"):
+        partial = open_store(store, complete_only=True)
+    assert partial.sizes["eye"] == 2  # chunk 0's eyes: their marks are intact
+    run = run_sweep(config, store, resume=True, progress=False)
+    assert run.computed_chunks == [0, 1, 2] and sorted(run.recomputed_chunks) == [0, 1, 2]
+    assert "chunk 2: bookkeeping file chunk_complete/2" in capsys.readouterr().err
+    assert verify_store(store).ok == [0, 1, 2]
+    assert_stores_equal(open_store(store), open_store(ref_path))  # coefficients repaired too
+
+
+def test_the_configuration_and_coordinates_are_covered_by_a_checksum(reference, tmp_path,
+                                                                      capsys):
+    from lfjax.cli import main
+    from lfjax.sweep.store import StoreDamagedError
+
+    config, ref_path, _ = reference
+    assert verify_store(ref_path).problems == []
+    store = tmp_path / "config.zarr"
+    shutil.copytree(ref_path, store)
+    attrs = json.loads((store / ".zattrs").read_text())
+    attrs["cdp_D"] = 2.5  # what the claims read; the config_json is untouched
+    (store / ".zattrs").write_text(json.dumps(attrs))
+    check = verify_store(store)
+    assert not check.healthy and "do not match the checksum" in check.problems[0]
+    assert main(["sweep", str(store), "--verify"]) == 1
+    assert "store: its configuration or coordinates do not match" in capsys.readouterr().out
+    with pytest.raises(StoreDamagedError, match="cannot be resumed safely"):
+        run_sweep(config, store, resume=True, progress=False)
+    shutil.rmtree(store)
+    shutil.copytree(ref_path, store)
+    import zarr
+
+    zarr.open_group(str(store), mode="r+", zarr_format=2, use_consolidated=False)["depth"][0] = 9.0
+    assert "do not match the checksum" in " ".join(verify_store(store).problems)  # a coordinate
+    shutil.copyfile(store / "depth" / "0", store / "accommodation" / "0")  # unreadable: said
+    assert "cannot be read (ValueError" in verify_store(store).problems[0]
+
+
+def test_damaged_metadata_files_are_reported_as_damage_not_as_a_foreign_folder(
+        reference, tmp_path, capsys):
+    from lfjax.cli import main
+
+    config, ref_path, _ = reference
+    store = tmp_path / "metadata.zarr"
+    shutil.copytree(ref_path, store)
+    text = (store / ".zmetadata").read_text()
+    (store / ".zmetadata").write_text(text[: len(text) // 2])  # truncated
+    check = verify_store(store)
+    assert check.ok == [0, 1, 2] and ".zmetadata (the consolidated metadata) is damaged" in \
+        check.problems[0]
+    with pytest.warns(UserWarning, match="zmetadata"):
+        assert open_store(store).sizes["eye"] == 6  # read around it
+    run = run_sweep(config, store, resume=True, progress=False)  # rewrites it as it ends
+    assert run.computed_chunks == [] and verify_store(store).healthy
+    text = (store / ".zattrs").read_text()
+    (store / ".zattrs").write_text(text[: len(text) // 2])
+    assert main(["sweep", str(store), "--verify"]) == 2
+    err = capsys.readouterr().err
+    assert "looks like an lfjax sweep store but its metadata file .zattrs is damaged" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_racing_creators_get_a_one_line_refusal(reference, tmp_path, capsys, monkeypatch):
+    """The other writer's store appears between this one's check and its rename."""
+    from lfjax.cli import main
+    from lfjax.sweep import store as store_module
+
+    config, ref_path, _ = reference
+    toml = write_toml(tmp_path / "race.toml", config)
+    store = tmp_path / "race.zarr"
+    real_clean = store_module.clean_interrupted_creations
+
+    def other_writer_wins(path):
+        shutil.copytree(ref_path, path)
+        return real_clean(path)
+
+    monkeypatch.setattr(store_module, "clean_interrupted_creations", other_writer_wins)
+    assert main(["sweep", str(toml), "--out", str(store), "--no-progress"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(f"lfjax sweep: error: {store} was created by another process "
+                              f"while this one was creating it"), err
+    assert "OSError" not in "\n".join(err) and "Directory not empty" not in "\n".join(err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["race.toml", "race.zarr"]
+    assert_stores_equal(open_store(store), open_store(ref_path))  # the winner's, untouched
+
+
 def test_an_interrupted_store_creation_leaves_no_hidden_folder(tmp_path, capsys):
     gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True, check=True)
@@ -690,3 +807,36 @@ def test_a_layout_file_made_for_a_larger_pupil_is_refused_before_anything_is_pla
         "Make it for this pupil, or give a pupil that holds it")
     data["population"]["pupil_diameters_mm"] = [6.0]  # the pupil it was made for
     assert config_from_dict(data).layouts == ("2x2", str(path))
+
+
+def test_a_missing_distributed_peer_is_named_within_the_timeout(reference, tmp_path):
+    """Two of two processes expected, one started (as the coordinator, and as a peer
+    whose coordinator never started): each stops after --distributed-timeout with one line
+    naming the coordinator, the processes seen and the time waited — not XLA's 300 s wait
+    and SIGABRT."""
+    config, _, _ = reference
+    toml = write_toml(tmp_path / "alone.toml", config)
+    procs = {}
+    for pid in (0, 1):
+        port = _free_port()
+        procs[pid] = (port, subprocess.Popen(
+            [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out",
+             str(tmp_path / f"alone{pid}.zarr"), "--distributed", "--coordinator",
+             f"127.0.0.1:{port}", "--num-processes", "2", "--process-id", str(pid),
+             "--distributed-timeout", "3", "--no-progress"],
+            env=subprocess_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    for pid, (port, proc) in procs.items():
+        try:
+            _, err = proc.communicate(timeout=120)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert proc.returncode == 1, err[-3000:]
+        line = err.strip().splitlines()[-1]
+        assert line.startswith(f"lfjax sweep: error: distributed start-up: not every process "
+                               f"connected to the coordinator 127.0.0.1:{port}"), err[-3000:]
+        assert f"saw 1 of 2 processes (this one, process {pid})" in line
+        assert re.search(r"within [34] s", line), line
+        assert ("this process runs it" in line) == (pid == 0)
+        assert "Check failure" not in err and "Aborted" not in err
+    assert not any(tmp_path.glob("alone*.zarr"))

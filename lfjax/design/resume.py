@@ -1,0 +1,133 @@
+"""Finished counts of :func:`lfjax.design.fit_design` kept on disk, so a run interrupted or
+failed after some counts resumes from them instead of fitting them again.
+
+Each finished count is written (whole: temporary name, then rename) to
+``FOLDER/count-N.json`` with a key: a BLAKE2b digest of everything its fit depends on
+(the starting panel, the count, depths, CDP, constraints, objective, wavelengths, steps,
+tolerance, report setting, sampling, eye chunk, the training and held-out eyes'
+coefficients and the lfjax version). A later call with the same inputs loads it; a count
+whose key differs (any input changed) is fitted again. The command line keeps the folder
+beside its output folder (:func:`counts_folder`) and removes it once the outputs are
+written.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from lfjax._version import __version__
+from lfjax.base.files import atomic_write_text
+from lfjax.display.panel import Panel
+from lfjax.model.layout_files import jsonable
+
+COUNTS_FORMAT = "lfjax-design-count/1"
+
+
+def counts_folder(out_dir) -> Path:
+    """Where ``lfjax design --out DIR`` keeps its finished counts: ``.DIR.design-counts``
+    beside ``DIR`` (outside it, so the output folder stays whole or absent)."""
+    out = Path(out_dir).absolute()
+    return out.parent / f".{out.name}.design-counts"
+
+
+def panel_leaves(panel: Panel) -> list[float]:
+    """The panel's numeric fields as host floats (pixel pitch, lenslet pitch, fill, focal
+    length, gap, distance (mm or fractions), pixel fill), in ``Panel``'s order."""
+    return [float(np.asarray(v)) for v in (panel.pixel_pitch_mm, panel.lenslet_pitch_mm,
+                                           panel.fill, panel.focal_length_mm, panel.gap_mm,
+                                           panel.distance_mm, panel.pixel_fill)]
+
+
+def panel_statics(panel: Panel) -> dict:
+    """The panel's static fields (pixel count, design pupil, aperture, diffraction, name)."""
+    return dict(pixel_count=list(panel.pixel_count), pupil_diameter_mm=panel.pupil_diameter_mm,
+                aperture=panel.aperture, diffraction=panel.diffraction, name=panel.name)
+
+
+def _panel_record(panel: Panel | None):
+    return None if panel is None else {"leaves": panel_leaves(panel),
+                                       "statics": panel_statics(panel)}
+
+
+def _panel_from(record):
+    if record is None:
+        return None
+    statics = dict(record["statics"], pixel_count=tuple(record["statics"]["pixel_count"]))
+    return Panel(*record["leaves"], **statics)
+
+
+def _digest(array) -> str:
+    a = np.ascontiguousarray(np.asarray(array, np.float64))
+    return hashlib.blake2b(f"{a.shape}|".encode() + a.tobytes(), digest_size=16).hexdigest()
+
+
+def count_key(panel: Panel, n_per_side: int, *, depths_D, cdp_D: float, constraints,
+              objective, wavelengths_nm, steps: int, tol: float, report_accuracy: str,
+              sampling, eye_chunk, train_zernike_um, test_zernike_um) -> str:
+    """The digest naming everything a count's fit and report depend on (hex)."""
+    record = {
+        "format": COUNTS_FORMAT, "lfjax_version": __version__, "n_per_side": int(n_per_side),
+        "panel": _panel_record(panel), "depths_D": [float(d) for d in np.asarray(depths_D)],
+        "cdp_D": float(cdp_D), "constraints": constraints.as_dict(),
+        "objective": dict(objective.as_dict(), name=objective.name),
+        "wavelengths_nm": [float(w) for w in wavelengths_nm], "steps": int(steps),
+        "tol": float(tol), "report_accuracy": report_accuracy,
+        "sampling": None if sampling is None else dataclasses.asdict(sampling),
+        "eye_chunk": None if eye_chunk is None else int(eye_chunk),
+        "train_eyes": _digest(train_zernike_um),
+        "test_eyes": None if test_zernike_um is None else _digest(test_zernike_um),
+    }
+    text = json.dumps(jsonable(record), sort_keys=True)
+    return hashlib.blake2b(text.encode(), digest_size=16).hexdigest()
+
+
+def fit_record(fit) -> dict:
+    """A :class:`~lfjax.design.fit.DesignFit` as JSON-ready data (:func:`fit_from_record`)."""
+    return jsonable({
+        "n_per_side": fit.n_per_side, "panel": _panel_record(fit.panel),
+        "start": _panel_record(fit.start), "refused": fit.refused, "failed": fit.failed,
+        "history": [float(v) for v in fit.history], "train": fit.train, "test": fit.test,
+        "start_test": fit.start_test, "time_s": float(fit.time_s), "notes": list(fit.notes),
+    })
+
+
+def fit_fields(record: dict) -> dict:
+    """Inverse of :func:`fit_record`: the keywords of a
+    :class:`~lfjax.design.fit.DesignFit` (``DesignFit(**fit_fields(record))``)."""
+    return dict(n_per_side=int(record["n_per_side"]), panel=_panel_from(record["panel"]),
+                start=_panel_from(record["start"]), refused=record["refused"],
+                failed=record.get("failed"), history=list(record["history"]), train=record["train"], test=record["test"],
+                start_test=record["start_test"], time_s=float(record["time_s"]),
+                notes=list(record["notes"]))
+
+
+def save_count(folder, key: str, fit) -> Path:
+    """Keep a finished count: ``folder/count-N.json`` (written whole)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    return atomic_write_text(folder / f"count-{fit.n_per_side}.json",
+                             json.dumps({"format": COUNTS_FORMAT, "key": key,
+                                         "fit": fit_record(fit)}) + "\n")
+
+
+def load_count(folder, n_per_side: int, key: str):
+    """The count kept in ``folder`` for ``n_per_side`` if its key is ``key`` (same inputs),
+    as :func:`fit_fields`, else None (none kept, another run's, or unreadable: it is then
+    fitted again)."""
+    path = Path(folder) / f"count-{int(n_per_side)}.json"
+    try:
+        record = json.loads(path.read_text())
+        if record.get("format") != COUNTS_FORMAT or record.get("key") != key:
+            return None
+        return fit_fields(record["fit"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+__all__ = ["COUNTS_FORMAT", "count_key", "counts_folder", "fit_fields", "fit_record",
+           "load_count", "save_count"]
