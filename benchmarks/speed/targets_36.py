@@ -47,6 +47,9 @@ def main() -> None:
     p.add_argument("--after", type=Path, required=True, help="checkout measured second (B)")
     p.add_argument("--sweep-eyes", type=int, default=47, help="eyes of the sweep (plus the average eye)")
     p.add_argument("--skip-reproduce", action="store_true")
+    p.add_argument("--skip-sweep", action="store_true")
+    p.add_argument("--keep", type=Path, default=None,
+                   help="copy the after checkout's warm reproduce output here (to compare)")
     p.add_argument("--out", type=Path, default=None, help="full log of every command")
     args = p.parse_args()
     from _common import header
@@ -67,14 +70,16 @@ def main() -> None:
                                         tmp / name, log)
                     rows.append((f"reproduce {phase}", name, wall, rss, rc, None))
                     print(f"reproduce {phase:4s} {name:6s}: {wall:7.1f} s, peak {rss:.2f} GiB, exit {rc}", flush=True)
-        for name, checkout in checkouts.items():
+            if args.keep is not None:
+                shutil.copytree(tmp / "after" / "reproduce_warm", args.keep, dirs_exist_ok=True)
+        for name, checkout in ({} if args.skip_sweep else checkouts).items():
             config = tmp / name / "sweep.toml"
             run(checkout, ["sweep", "--template", str(config)], tmp / name / "caches", tmp / name, log)
             text = config.read_text()
             text, n = re.subn(r"(?m)^n_eyes\s*=.*$", f"n_eyes = {args.sweep_eyes}", text)
             assert n == 1, "the template names n_eyes once"
             config.write_text(text)
-        for phase in ("compile", "timed"):
+        for phase in () if args.skip_sweep else ("compile", "timed"):
             for name, checkout in checkouts.items():
                 store = tmp / name / f"sweep_{phase}.zarr"
                 wall, rss, rc = run(checkout, ["sweep", str(tmp / name / "sweep.toml"), "--out", str(store),
