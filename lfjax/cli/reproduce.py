@@ -57,7 +57,8 @@ def add_parser(sub) -> None:
                           "paper's")
     rep.add_argument("--accuracy", choices=ACCURACY_PLANS, default=None,
                      help="how the spectrum is sampled: 'claims' (default) plans each "
-                          "layout's wavelength step for peaks to 0.01 D and cut-offs to "
+                          "layout's wavelengths (a uniform step or a Gauss rule in V(lambda), "
+                          "whichever needs fewer) for peaks to 0.01 D and cut-offs to "
                           "0.25 cpd; 'vsotf' uses 10 nm steps (lfjax 0.3's plan, made for a "
                           "VSOTF error of 1e-3). --quick: 30 nm steps")
     rep.add_argument("--no-alternatives", action="store_true",

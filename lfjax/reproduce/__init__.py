@@ -2,8 +2,8 @@
 
 The study (paper §4): a 3 mm pupil, the display's central depth plane (CDP) at 2 D, natural
 view plus 2×2, 3×3 and 4×4 viewpoints, points rendered from CDP − 2 D to CDP + 2 D in
-0.5 D steps, through-focus on a 0.2 D accommodation grid, 400–700 nm in 10 nm steps,
-seeded virtual eyes (Thibos et al. 2002) plus the average eye; VSOTF and Strehl ratio.
+0.5 D steps, through-focus on a 0.2 D accommodation grid, 400–700 nm (the paper: 10 nm
+steps; here each layout's spectrum is planned for what the findings read), seeded virtual eyes (Thibos et al. 2002) plus the average eye; VSOTF and Strehl ratio.
 
 The parts, each importing only those listed before it:
 
