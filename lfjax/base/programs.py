@@ -34,20 +34,24 @@ _LOADED: dict[str, tuple[Callable, object]] = {}
 _FAILED: set[str] = set()
 
 
-def enable_program_cache(folder) -> Path | None:
-    """Keep exported programs in ``folder`` (created if needed); None turns the cache off.
-    Returns the folder, or None when it cannot be written."""
-    global _FOLDER
+def cache_folder(folder) -> Path | None:
+    """``folder`` created if needed and returned when this process can write in it, else
+    None (a cache that cannot be written is off). None gives None."""
     if folder is None:
-        _FOLDER = None
         return None
     path = Path(folder)
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError:
-        _FOLDER = None
         return None
-    _FOLDER = path if os.access(path, os.W_OK) else None
+    return path if os.access(path, os.W_OK) else None
+
+
+def enable_program_cache(folder) -> Path | None:
+    """Keep exported programs in ``folder`` (created if needed); None turns the cache off.
+    Returns the folder, or None when it cannot be written."""
+    global _FOLDER
+    _FOLDER = cache_folder(folder)
     return _FOLDER
 
 
@@ -170,6 +174,7 @@ def _write(key: str, entry) -> None:
 
 
 __all__ = [
+    "cache_folder",
     "call_cached",
     "clear_loaded",
     "enable_program_cache",

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lfjax.base.programs import source_digest
+from lfjax.base.programs import cache_folder, source_digest
 from lfjax.planner.plan import Plan, plan_sampling
 
 _SIGNATURE = inspect.signature(plan_sampling)  # the arguments a plan is keyed by
@@ -38,16 +38,7 @@ def enable_plan_cache(folder) -> Path | None:
     Returns the folder, or None when it cannot be written (plans are then kept in memory
     only)."""
     global _FOLDER
-    if folder is None:
-        _FOLDER = None
-        return None
-    path = Path(folder)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        _FOLDER = None
-        return None
-    _FOLDER = path if os.access(path, os.W_OK) else None
+    _FOLDER = cache_folder(folder)
     return _FOLDER
 
 
