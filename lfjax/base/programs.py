@@ -22,12 +22,13 @@ import functools
 import hashlib
 import os
 import pickle
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import jax
 import numpy as np
+
+from lfjax.base.files import atomic_write_bytes
 
 _FOLDER: Path | None = None
 _LOADED: dict[str, tuple[Callable, object]] = {}
@@ -162,15 +163,11 @@ def _export(key: str, fn, static, tree, is_array, arrays, rest):
 
 
 def _write(key: str, entry) -> None:
-    tmp = None
-    try:  # written whole, then renamed: a reader never sees half a file
-        fd, tmp = tempfile.mkstemp(dir=_FOLDER, suffix=".tmp")
-        with os.fdopen(fd, "wb") as f:
-            pickle.dump(entry, f, protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(tmp, _FOLDER / f"{key}.jaxexport")
-    except (OSError, pickle.PicklingError, TypeError, AttributeError):  # an optimisation: a full disk costs a re-trace
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
+    try:  # whole or not at all: a reader never sees half a file
+        atomic_write_bytes(_FOLDER / f"{key}.jaxexport",
+                           pickle.dumps(entry, protocol=pickle.HIGHEST_PROTOCOL))
+    except (OSError, pickle.PicklingError, TypeError, AttributeError):
+        pass  # an optimisation: a full disk or an unpicklable output costs a re-trace
 
 
 __all__ = [
