@@ -7,6 +7,8 @@ the variants run one by one."""
 
 from __future__ import annotations
 
+import contextlib
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -141,21 +143,42 @@ def test_numbers_do_not_recompile_static_choices_do():
                            sampling=lfjax.Sampling(2.0), options=options, check_aliasing=False)
         return jax.block_until_ready(tf.vsotf)
 
-    first = run(ModelOptions())
-    jax.monitoring.register_event_duration_secs_listener(listener)
+    # counted compiles must be real ones: a program another test (or another worker, through
+    # the session's shared disk cache) already compiled would be found, not compiled, so
+    # the in-memory, persistent and exported-program caches are all out of play here
+    from lfjax.base import programs
+
+    kept_folder = programs.program_cache_folder()
+    programs.enable_program_cache(None)
+    programs.clear_loaded()
+    jax.clear_caches()
+    with _persistent_cache_off():
+        first = run(ModelOptions())
+        jax.monitoring.register_event_duration_secs_listener(listener)
+        try:
+            numeric = [ModelOptions(lca_A=640.0), ModelOptions(sa_slope_um_per_D=-0.06),
+                       ModelOptions(sce="intensity"), ModelOptions(accommodation_sa="unscaled"),
+                       ModelOptions(wavelength_normalisation="unit_sum"),
+                       ModelOptions(sce_rho_scale=0.5, lca_c_nm=200.0)]
+            values = [run(o) for o in numeric]
+            assert compiles == [], f"a numeric change recompiled: {compiles}"
+            assert all(not np.allclose(v, first) for v in values)
+            assert "ncsf" in STATIC_CHOICES
+            run(ModelOptions(ncsf="campbell_green_2004"))
+            assert len(compiles) == 1, compiles
+        finally:
+            jax.monitoring.unregister_event_duration_listener(listener)
+            programs.enable_program_cache(kept_folder)
+
+
+@contextlib.contextmanager
+def _persistent_cache_off():
+    kept = jax.config.jax_enable_compilation_cache
+    jax.config.update("jax_enable_compilation_cache", False)
     try:
-        numeric = [ModelOptions(lca_A=640.0), ModelOptions(sa_slope_um_per_D=-0.06),
-                   ModelOptions(sce="intensity"), ModelOptions(accommodation_sa="unscaled"),
-                   ModelOptions(wavelength_normalisation="unit_sum"),
-                   ModelOptions(sce_rho_scale=0.5, lca_c_nm=200.0)]
-        values = [run(o) for o in numeric]
-        assert compiles == [], f"a numeric change recompiled: {compiles}"
-        assert all(not np.allclose(v, first) for v in values)
-        assert "ncsf" in STATIC_CHOICES
-        run(ModelOptions(ncsf="campbell_green_2004"))
-        assert len(compiles) == 1, compiles
+        yield
     finally:
-        jax.monitoring.unregister_event_duration_listener(listener)
+        jax.config.update("jax_enable_compilation_cache", kept)
 
 
 @pytest.mark.parametrize("batch", ["vmap", "map", "loop"])

@@ -75,9 +75,15 @@ def subprocess_env(**extra) -> dict:
 def persistent_compilation_cache():
     """The command line's compilation cache, here too: the subprocesses below compile the
     same programs as this process, and load them from it instead."""
+    from lfjax.base.programs import enable_program_cache
     from lfjax.cli import enable_compilation_cache
+    from lfjax.planner.cache import enable_plan_cache
 
     enable_compilation_cache()
+    yield
+    # the other modules in this process run with the caches as the session set them
+    enable_program_cache(None)
+    enable_plan_cache(None)
 
 
 def assert_stores_equal(a, b, rtol: float = 0.0, atol: float = 0.0):
