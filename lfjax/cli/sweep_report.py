@@ -4,10 +4,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
+import warnings
 from pathlib import Path
 
 from lfjax.cli import common
-from lfjax.sweep.report import default_out_dir, sweep_report
+from lfjax.sweep.report import FlatCurveWarning, default_out_dir, sweep_report
 
 COMMAND = "sweep-report"
 
@@ -43,8 +45,16 @@ def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
     out = Path(args.out) if args.out else default_out_dir(args.store)
     try:
-        files = sweep_report(args.store, out, draws=args.draws, seed=args.seed,
-                             progress=not args.no_progress)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", FlatCurveWarning)
+            files = sweep_report(args.store, out, draws=args.draws, seed=args.seed,
+                                 progress=not args.no_progress)
+        for warning in caught:
+            if issubclass(warning.category, FlatCurveWarning):
+                print(f"{prog}: warning: {warning.message}", file=sys.stderr)
+            else:
+                warnings.showwarning(warning.message, warning.category, warning.filename,
+                                     warning.lineno)
     except KeyboardInterrupt:
         return common.interrupted(prog)
     except ValueError as err:

@@ -26,6 +26,7 @@ from __future__ import annotations
 import json
 import tempfile
 import tomllib
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +80,63 @@ def _virtual(ds):
     return ds.isel(eye=np.flatnonzero(~ds.is_average.values))
 
 
+class FlatCurveWarning(UserWarning):
+    """A stored through-focus curve has no maximum: its peak quantities are left out."""
+
+
+PEAK_VARIABLES = ("predicted_accommodation", "accommodation_error",
+                  "predicted_accommodation_continuous", "continuous_error", "peak_value",
+                  "cutoff_frequency", "mtf_at_peak")
+"""Store variables read from a metric's peak (dims ``eye, pupil, layout, depth, metric``)."""
+
+
+def flat_curves(ds):
+    """Where a metric's through-focus curve has no maximum: bool DataArray (``eye, pupil,
+    layout, depth, metric``), True where every finite value of the curve over the
+    accommodation states is the same number (at least two of them). A store written before
+    lfjax refused layouts outside the calculation pupil holds such curves (VSOTF exactly 1
+    at every state): their "peak", error and cut-off are not results."""
+    import xarray as xr
+
+    flags = []
+    for metric in ds.metric.values:
+        curve = ds[str(metric)].astype(np.float64)
+        finite = curve.notnull().sum("accommodation")
+        span = curve.max("accommodation") - curve.min("accommodation")
+        flags.append((finite >= 2) & (span <= 1e-12 * np.maximum(1.0, abs(curve).max("accommodation"))))
+    return xr.concat(flags, dim="metric").assign_coords(metric=ds.metric.values)
+
+
+def without_flat_curves(ds):
+    """``ds`` with every peak quantity (:data:`PEAK_VARIABLES`) NaN where
+    :func:`flat_curves` is True, and ``continuous_peak_success`` False there."""
+    flat = flat_curves(ds)
+    if not bool(flat.any()):
+        return ds
+    out = ds.copy()
+    for name in PEAK_VARIABLES:
+        if name in out.data_vars:
+            out[name] = out[name].where(~flat)
+    if "continuous_peak_success" in out.data_vars:
+        out["continuous_peak_success"] = out["continuous_peak_success"] & ~flat
+    return out
+
+
+def flat_curve_cells(ds) -> list[tuple[float, str, str, int, int]]:
+    """(pupil mm, layout, metric, eyes with a flat curve, cells) per (pupil, layout,
+    metric) holding any: what :func:`without_flat_curves` leaves out, for the summary."""
+    flat = flat_curves(_virtual(ds))
+    rows = []
+    for pupil in flat.pupil.values:
+        for layout in flat.layout.values:
+            for metric in flat.metric.values:
+                cell = flat.sel(pupil=pupil, layout=layout, metric=metric).values
+                if cell.any():
+                    rows.append((float(pupil), str(layout), str(metric),
+                                 int(cell.any(axis=-1).sum()), int(cell.sum())))
+    return rows
+
+
 def percentile_table(ds):
     """Population percentiles per pupil × layout × depth × quantity (pandas DataFrame).
 
@@ -89,11 +147,11 @@ def percentile_table(ds):
     ``depth_D`` (absolute), ``depth_rel_cdp_D``, ``variable`` (the store's name),
     ``metric``, ``units``, ``n``, ``mean``, ``p5``, ``p25``, ``p50``, ``p75``, ``p95``.
     A cell with no finite value (natural view off the CDP; a metric without continuous
-    peaks) has no row.
+    peaks) has no row. Curves without a maximum (:func:`flat_curves`) are left out.
     """
     import pandas as pd
 
-    pop = _virtual(ds)
+    pop = without_flat_curves(_virtual(ds))
     rows = []
     for variable, metric, units in QUANTITIES:
         if variable not in pop.data_vars:
@@ -347,6 +405,12 @@ def _summary(path: Path, store: Path, ds, config, table, samplings: dict, files:
             + f". Everything below is computed on those {counts['virtual_done']:,} eyes.")
     else:
         add(f"- All {counts['chunks']} chunks complete ({config.chunk_size} eyes per chunk).")
+    for pupil, layout, metric, eyes, cells in flat_curve_cells(ds):
+        add(f"- **Left out, no peak**: {pupil:g} mm {layout}: the {metric} curve is flat over "
+            f"every accommodation state (no maximum) for {eyes:,} eyes ({cells:,} eye×depth "
+            f"cells); their peaks, errors and cut-offs are not results and no statistic "
+            f"counts them. A store written before lfjax refused layouts whose views lie "
+            f"outside the calculation pupil holds such curves: run the sweep again.")
     add(f"- Pupils: {', '.join(f'{p:g}' for p in config.pupil_diameters_mm)} mm. CDP "
         f"{config.cdp_D:g} D; rendered depths "
         f"{', '.join(f'{d:+g}' for d in ds.depth_rel_cdp.values)} D from the CDP (natural "
@@ -442,6 +506,10 @@ def _ten_eye_reason(ds, sample_size: int) -> str | None:
     if "natural" not in layouts or len(lf) < 2:
         return (f"the claims need natural view and at least two of {', '.join(LF_LAYOUTS)}; "
                 f"the store has {', '.join(layouts)}")
+    flat = sorted({f"{pupil:g} mm {layout}" for pupil, layout, *_ in flat_curve_cells(ds)})
+    if flat:
+        return (f"the claims read every eye's peak, and some curves have none "
+                f"({', '.join(flat)}: see above)")
     return None
 
 
@@ -483,6 +551,11 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
 
     check_writable(out, REPORT_BYTES, "out_dir")  # read-only or full: said before any work
     ds = open_store(store, complete_only=True)
+    for pupil, layout, metric, eyes, _ in flat_curve_cells(ds):
+        warnings.warn(f"{store}: {pupil:g} mm {layout}: the {metric} curve of {eyes} eye(s) is "
+                      f"flat over every accommodation state (no peak); the report leaves "
+                      f"them out (a store written before lfjax refused views outside the "
+                      f"calculation pupil: run the sweep again)", FlatCurveWarning, stacklevel=2)
     if ds.sizes["eye"] == 0 or not np.any(~ds.is_average.values):
         raise ParameterError("store_path", "{store_path} {store} has no complete chunk of virtual eyes yet",
                              store=store)
@@ -566,6 +639,9 @@ def _wavelength_step(ds, config) -> float:
 
 
 __all__ = [
+    "FlatCurveWarning",
+    "flat_curves",
+    "without_flat_curves",
     "FILES",
     "PERCENTILES",
     "QUANTITIES",

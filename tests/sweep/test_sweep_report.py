@@ -547,3 +547,23 @@ def test_a_store_without_recorded_rules_resumes_on_its_one_grid(store, tmp_path)
     for spectrum in spectra.values():
         np.testing.assert_allclose(spectrum.wavelengths_nm, expected.wavelengths_nm)
         np.testing.assert_allclose(spectrum.weights, expected.weights, rtol=1e-12)
+
+
+def test_flat_curves_are_left_out_and_said(ds):
+    """A store written before lfjax refused views outside the calculation pupil holds VSOTF
+    exactly 1 at every state for such a layout: the report must not show its "peak"."""
+    bad = ds.copy()
+    vs = ds.vsotf.load().copy()
+    window = vs.sel(layout="3x3").notnull()
+    vs.loc[dict(layout="3x3")] = vs.sel(layout="3x3").where(~window, 1.0)
+    bad["vsotf"] = vs
+    flat = sr.flat_curves(bad)
+    assert flat.sel(layout="3x3", metric="vsotf").all() and not flat.sel(layout="2x2").any()
+    assert not sr.flat_curves(ds).any()
+    table = sr.percentile_table(bad)
+    assert table[(table.layout == "3x3") & (table.metric == "vsotf")].empty
+    pd.testing.assert_frame_equal(
+        table[table.layout != "3x3"].reset_index(drop=True),
+        sr.percentile_table(ds).query("layout != '3x3'").reset_index(drop=True))
+    assert [row[:4] for row in sr.flat_curve_cells(bad)] == [(3.0, "3x3", "vsotf", N_EYES)]
+    assert "some curves have none (3 mm 3x3" in sr._ten_eye_reason(bad, 10)
