@@ -107,15 +107,18 @@ def test_sweep_template_refuses_a_read_only_folder_in_one_line(tmp_path, capsys,
 
 # ----------------------------------------------------------------------------- Ctrl-C
 
-SIGINT_RUNS = 3
-"""SIGINTs at random points of a tiny ``lfjax optimise --front 2`` run. The issue asks for 20;
-each costs a fresh interpreter and JAX import (~5-10 s of CPU on the 2 shared cores), so 20
-would add minutes to the suite: 3 here (about 20 s in all), spread over start-up,
-planning and compilation (a seeded draw in each third of 2 ... 10 s after the start).
-Measured by hand on 2 busy cores (``--front 3``, SIGINT at 15, 30, 45 s): before the fix,
-one ended with a traceback (-2), one with 130 after 7.1 s, one with a segmentation fault
-(-11) 33 s after the signal; after it (and at 60 s too), 4 of 4 exited with 130 within
-0.6 s."""
+SIGINT_RUNS = 20
+"""SIGINTs at random points of a tiny ``lfjax optimise --front 2`` run, as the issue asks:
+one seeded draw in each of 20 equal parts of 0.3 ... 8 s after the start, so they cover
+the interpreter's start-up, JAX's import, planning, tracing, compilation and the solver.
+Each run is its own test (pytest-xdist spreads them over the workers); together they cost
+about 1.5 minutes of one worker. Measured by hand on 2 busy cores (``--front 3``, SIGINT at
+15, 30, 45 s): before the fix, one ended with a traceback (-2), one with 130 after 7.1 s,
+one with a segmentation fault (-11) 33 s after the signal; after it (and at 60 s too), 4 of
+4 exited with 130 within 0.6 s."""
+
+SIGINT_DELAYS_S = 0.3 + (7.7 / SIGINT_RUNS) * (
+    np.arange(SIGINT_RUNS) + np.random.default_rng(37).uniform(size=SIGINT_RUNS))
 
 
 WITH_SIGINT = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
@@ -125,30 +128,28 @@ WITH_SIGINT = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_
 (Not Popen's preexec_fn: forking this process, multithreaded by JAX, is unsafe.)"""
 
 
-def test_ctrl_c_exits_130_within_2_s_leaving_nothing(tmp_path):
-    # one random point in each of SIGINT_RUNS equal parts of 2 ... 10 s
-    width = 8.0 / SIGINT_RUNS
-    delays = 2.0 + width * (np.arange(SIGINT_RUNS) + np.random.default_rng(37).uniform(size=SIGINT_RUNS))
+@pytest.mark.parametrize("k", range(SIGINT_RUNS))
+def test_ctrl_c_exits_130_within_2_s_leaving_nothing(k, tmp_path):
+    delay = float(SIGINT_DELAYS_S[k])
     env = {**os.environ, "PYTHONWARNINGS": "ignore", "LFJAX_CACHE_DIR": str(tmp_path / "cache")}
-    for k, delay in enumerate(delays):
-        out = tmp_path / f"out{k}"
-        proc = subprocess.Popen(
-            [sys.executable, "-c", WITH_SIGINT, *COMMANDS["optimise"], "--front", "2",
-             "--out", str(out)], env=env, cwd=tmp_path, stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE, text=True)
-        time.sleep(delay)
-        sent = time.monotonic()
-        proc.send_signal(signal.SIGINT)
-        try:
-            _, err = proc.communicate(timeout=60)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-        took = time.monotonic() - sent
-        assert proc.returncode == 130, (delay, proc.returncode, err[-2000:])
-        assert took <= 2.0, (delay, took)
-        assert "Traceback" not in err, err[-2000:]
-        assert ("lfjax optimise: interrupted" in err  # while it runs, or while it starts:
-                or err.strip() == "lfjax: interrupted while starting; nothing written"), err
-        left = [p.name for p in tmp_path.iterdir() if p.name.startswith((".lfjax", f"out{k}"))]
-        assert left == [], (delay, left)
+    out = tmp_path / f"out{k}"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", WITH_SIGINT, *COMMANDS["optimise"], "--front", "2",
+         "--out", str(out)], env=env, cwd=tmp_path, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    took = time.monotonic() - sent
+    assert proc.returncode == 130, (delay, proc.returncode, err[-2000:])
+    assert took <= 2.0, (delay, took)
+    assert "Traceback" not in err, err[-2000:]
+    assert ("lfjax optimise: interrupted" in err  # while it runs, or while it starts:
+            or err.strip() == "lfjax: interrupted while starting; nothing written"), err
+    left = [p.name for p in tmp_path.iterdir() if p.name.startswith((".lfjax", f"out{k}"))]
+    assert left == [], (delay, left)
