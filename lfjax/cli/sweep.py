@@ -101,12 +101,36 @@ def _reachable(address: str | None) -> str:
     """Whether something accepts connections at ``address`` (HOST:PORT), in words."""
     host, _, port = (address or "").rpartition(":")
     if not host or not port.isdigit():
-        return "its address is unknown"
+        return "the coordinator's address is unknown"
     try:
         with socket.create_connection((host.strip("[]"), int(port)), timeout=1.0):
-            return "it accepts connections"
+            return "the coordinator accepts connections"
     except OSError as err:
-        return f"it does not answer ({err.strerror or err})"
+        return f"the coordinator does not answer ({err.strerror or err})"
+
+
+def _clients_connected(address: str | None) -> int | None:
+    """Connections the coordinator running in this process holds at ``address`` (HOST:PORT):
+    the established TCP sockets whose local port is the coordinator's (one per process that
+    reached it, this one included), read from Linux's /proc/net/tcp and tcp6. None where
+    that cannot be read."""
+    port = (address or "").rpartition(":")[2]
+    if not port.isdigit():
+        return None
+    wanted = f"{int(port):04X}"
+    peers = set()
+    try:
+        for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+            with open(table) as f:
+                next(f)
+                for line in f:
+                    field = line.split()
+                    local, remote, state = field[1], field[2], field[3]
+                    if state == "01" and local.rpartition(":")[2] == wanted:
+                        peers.add(remote)
+    except OSError:
+        return None
+    return len(peers)
 
 
 def start_distributed(prog: str, kwargs: dict, timeout_s: float) -> None:
@@ -125,11 +149,18 @@ def start_distributed(prog: str, kwargs: dict, timeout_s: float) -> None:
         address, n, i = (kwargs.get(k) for k in ("coordinator_address", "num_processes",
                                                  "process_id"))
         role = " (this process runs it)" if i == 0 else ""
+        total = n if n is not None else "?"
+        seen = _clients_connected(address) if i == 0 else None
+        if seen:
+            # the coordinator sees who reached it; a peer sees only itself
+            saw = (f"{seen} of {total} processes connected to it (this one, process 0, "
+                   f"included)")
+        else:
+            saw = (f"this process (process {i if i is not None else '?'} of {total}) "
+                   f"cannot see which others did; {_reachable(address)}")
         print(f"{prog}: error: distributed start-up: not every process connected to the "
               f"coordinator {address or '(from the cluster environment)'}{role} within "
-              f"{time.monotonic() - started:.0f} s: saw 1 of {n if n is not None else '?'} "
-              f"processes (this one, process {i if i is not None else '?'}); "
-              f"{_reachable(address)}. Start all {n if n is not None else ''} processes with "
+              f"{time.monotonic() - started:.0f} s: {saw}. Start all {n if n is not None else ''} processes with "
               f"the same --coordinator and --num-processes, each with its own --process-id, "
               f"or wait longer (--distributed-timeout)", file=sys.stderr, flush=True)
         os._exit(1)

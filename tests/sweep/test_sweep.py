@@ -816,22 +816,32 @@ def test_a_layout_file_made_for_a_larger_pupil_is_refused_before_anything_is_pla
 
 
 def test_a_missing_distributed_peer_is_named_within_the_timeout(reference, tmp_path):
-    """Two of two processes expected, one started (as the coordinator, and as a peer
-    whose coordinator never started): each stops after --distributed-timeout with one line
-    naming the coordinator, the processes seen and the time waited — not XLA's 300 s wait
-    and SIGABRT."""
+    """Processes missing at start-up: two of three started with one coordinator, and one
+    of two started whose coordinator never did. Each stops after --distributed-timeout
+    with one line naming the coordinator, the processes seen (the coordinator counts the
+    processes that reached it; a peer can see only itself) and the time waited — not
+    XLA's 300 s wait and SIGABRT."""
     config, _, _ = reference
     toml = write_toml(tmp_path / "alone.toml", config)
+    shared, lonely = _free_port(), _free_port()
+    cases = {  # name: (port, processes expected, process id, what it must say it saw)
+        "coordinator": (shared, 3, 0, "2 of 3 processes connected to it (this one, process "
+                                      "0, included)"),
+        "peer": (shared, 3, 1, "this process (process 1 of 3) cannot see which others did"),
+        "orphan": (lonely, 2, 1, "this process (process 1 of 2) cannot see which others "
+                                 "did; the coordinator does not answer"),
+    }
     procs = {}
-    for pid in (0, 1):
-        port = _free_port()
-        procs[pid] = (port, subprocess.Popen(
+    for name, (port, n, pid, _) in cases.items():
+        procs[name] = subprocess.Popen(
             [sys.executable, "-m", "lfjax.cli", "sweep", str(toml), "--out",
-             str(tmp_path / f"alone{pid}.zarr"), "--distributed", "--coordinator",
-             f"127.0.0.1:{port}", "--num-processes", "2", "--process-id", str(pid),
-             "--distributed-timeout", "3", "--no-progress"],
-            env=subprocess_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
-    for pid, (port, proc) in procs.items():
+             str(tmp_path / f"alone-{name}.zarr"), "--distributed", "--coordinator",
+             f"127.0.0.1:{port}", "--num-processes", str(n), "--process-id", str(pid),
+             # the peer outlives the coordinator's count
+             "--distributed-timeout", "6" if name == "peer" else "3", "--no-progress"],
+            env=subprocess_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for name, proc in procs.items():
+        port, n, pid, saw = cases[name]
         try:
             _, err = proc.communicate(timeout=120)
         finally:
@@ -841,8 +851,8 @@ def test_a_missing_distributed_peer_is_named_within_the_timeout(reference, tmp_p
         line = err.strip().splitlines()[-1]
         assert line.startswith(f"lfjax sweep: error: distributed start-up: not every process "
                                f"connected to the coordinator 127.0.0.1:{port}"), err[-3000:]
-        assert f"saw 1 of 2 processes (this one, process {pid})" in line
-        assert re.search(r"within [34] s", line), line
+        assert saw in line, (name, line)
+        assert re.search(r"within [3-7] s", line), line
         assert ("this process runs it" in line) == (pid == 0)
         assert "Check failure" not in err and "Aborted" not in err
     assert not any(tmp_path.glob("alone*.zarr"))
