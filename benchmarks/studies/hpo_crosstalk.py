@@ -43,9 +43,12 @@ def tables(study: dict, crosstalk: dict) -> str:
             lines.append(f"| {scan} | {row['value']:g} | {np.mean(row['gain_whole']):.3f} "
                          f"| {np.mean(row['gain_x']):.3f} | {row['vsotf_whole_at_peak'][1]:.3f} "
                          f"| {row['cutoff_x_cpd'][1]:.1f} | {row['cutoff_x_cpd'][-1]:.1f} |")
-        t = s["threshold"]
-        lines.append(f"| {scan} | gain {crosstalk['config']['gain_threshold']:g} at | "
-                     f"{'none in the scan' if t is None else f'{t:.3g}'} | | | | |")
+        level = crosstalk["config"]["gain_threshold"]
+        values = [r["value"] for r in s["rows"]]
+        cross = [hpo.threshold_crossing(values, [np.mean(r[f"gain_{b}"]) for r in s["rows"]], level)
+                 for b in ("whole", "x")]
+        shown = ["none in the scan" if t is None else f"**{t:.3g}**" for t in cross]
+        lines.append(f"| {scan} | gain {level:g} reached at | {shown[0]} | {shown[1]} | | | |")
     return "\n".join(lines)
 
 
@@ -56,26 +59,26 @@ def figure(study: dict, crosstalk: dict, path: Path) -> None:
 
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.6))
     ax = axes[0]
-    colours = {"x": "tab:blue", "y": "tab:orange", "whole": "k"}
-    for name, row in study["rows"].items():
-        if name == "natural":
-            continue
-        d = np.asarray(row["depths_D"])
-        style = "-" if "HPO" in name else ":"
-        if "phone" in name:
-            style = "--"
-        if not ("HPO" in name or name == f"{study['config']['views'][len(study['config']['views']) // 2]}x"
-                f"{study['config']['views'][len(study['config']['views']) // 2]}"):
-            continue
-        for band in ("whole", "x", "y"):
-            ax.plot(d, row[f"peak_{band}_D"], style, color=colours[band], marker="o", ms=3,
-                    label=f"{name}, {band}")
+    rows = study["rows"]
+    mid = study["config"]["views"][len(study["config"]["views"]) // 2]
+    palette = iter(["tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink"])
+    for name, row in rows.items():
+        if "HPO" in name:
+            ax.plot(row["depths_D"], row["peak_whole_D"], "-", marker="o", ms=3, color=next(palette),
+                    label=f"{name}: whole")
+    for band, colour in (("x", "tab:blue"), ("y", "tab:orange")):
+        row = rows[f"1x{mid} HPO"]
+        ax.plot(row["depths_D"], row[f"peak_{band}_D"], "--", color=colour,
+                label=f"1x{mid} HPO: {band} band")
+    grid = rows[f"{mid}x{mid}"]
+    ax.plot(grid["depths_D"], grid["peak_whole_D"], ":", color="k", marker="s", ms=3,
+            label=f"{mid}x{mid} full parallax: whole")
     d = np.asarray(study["config"]["depths_D"])
     ax.plot(d, d, color="0.7", lw=4, alpha=0.5, label="follows depth")
     ax.set_xlabel("rendered depth (D)")
-    ax.set_ylabel("predicted accommodation (D)")
-    ax.set_title("HPO strips (solid, dashed: lenticular phone) vs n×n (dotted)", fontsize=9)
-    ax.legend(fontsize=6, ncol=2)
+    ax.set_ylabel("predicted accommodation (D), mean of eyes")
+    ax.set_title(f"HPO 1×n strips vs {mid}×{mid} (CDP {study['config']['cdp_D']:g} D)", fontsize=9)
+    ax.legend(fontsize=6)
     ax = axes[1]
     names = [n for n in study["rows"] if n != "natural"]
     gx = [np.mean(study["rows"][n]["cutoff_x_cpd"]) for n in names]
@@ -87,14 +90,17 @@ def figure(study: dict, crosstalk: dict, path: Path) -> None:
     ax.axhline(nat["cutoff_x_cpd"][0], color="tab:blue", ls=":", lw=1)
     ax.axhline(nat["cutoff_y_cpd"][0], color="tab:orange", ls=":", lw=1)
     ax.set_xticks(pos, names, rotation=30, ha="right", fontsize=7)
-    ax.set_ylabel("MTF cut-off at the whole-VSOTF peak (cpd), mean over depths and eyes")
+    ax.set_ylabel("MTF cut-off at the peak (cpd), mean of depths")
     ax.set_title("resolution cost (dotted: natural view)", fontsize=9)
     ax.legend(fontsize=7)
     ax = axes[2]
     for scan, s in crosstalk["scans"].items():
         v = [r["value"] for r in s["rows"]]
         g = [np.mean(r["gain_whole"]) for r in s["rows"]]
-        ax.plot(v, g, marker="o", label=scan)
+        line, = ax.plot(v, g, marker="o", label=f"{scan} (whole)")
+        if scan.startswith("strips"):
+            ax.plot(v, [np.mean(r["gain_x"]) for r in s["rows"]], "--", marker="^",
+                    color=line.get_color(), label=f"{scan} (x band)")
     ax.axhline(crosstalk["config"]["gain_threshold"], color="0.5", ls=":")
     ax.set_xlabel("view width / pitch (width scans) · leakage weight (leakage scans)")
     ax.set_ylabel("accommodative gain (slope of peak vs depth)")
@@ -110,6 +116,8 @@ def main(argv=None) -> int:
     parser.add_argument("--crosstalk-eyes", type=int, default=100)
     parser.add_argument("--out", default=str(Path(__file__).with_name("hpo_crosstalk")))
     parser.add_argument("--report-only", action="store_true")
+    parser.add_argument("--crosstalk-views", type=int, default=3,
+                        help="n of the cross-talk scans' n×n grid and 1×n strips")
     args = parser.parse_args(argv)
     enable_compilation_cache()
     out = Path(args.out)
@@ -121,7 +129,8 @@ def main(argv=None) -> int:
     else:
         study = hpo.run_hpo_study(hpo.HpoConfig(n_eyes=args.eyes))
         (out / "hpo.json").write_text(json.dumps(study))
-        crosstalk = hpo.run_crosstalk_study(hpo.HpoConfig(n_eyes=args.crosstalk_eyes))
+        crosstalk = hpo.run_crosstalk_study(hpo.HpoConfig(n_eyes=args.crosstalk_eyes,
+                                                         crosstalk_views=args.crosstalk_views))
         (out / "crosstalk.json").write_text(json.dumps(crosstalk))
     figure(study, crosstalk, out / "hpo_crosstalk.png")
     command = "python benchmarks/studies/hpo_crosstalk.py " + " ".join(
@@ -129,8 +138,9 @@ def main(argv=None) -> int:
     peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     text = (f"# HPO strips and cross-talk\n\n`{command.strip()}` — HPO study "
             f"{study['config']['n_eyes']} eyes {study['seconds']:.0f} s, cross-talk "
-            f"{crosstalk['config']['n_eyes']} eyes {crosstalk['seconds']:.0f} s; this run "
-            f"{time.perf_counter() - t0:.0f} s, peak memory {peak_mib:.0f} MiB.\n\n"
+            f"{crosstalk['config']['n_eyes']} eyes {crosstalk['seconds']:.0f} s; "
+            + ("tables and figure rebuilt from the json files" if args.report_only else
+               f"this run {time.perf_counter() - t0:.0f} s, peak memory {peak_mib:.0f} MiB") + ".\n\n"
             f"Lenticular phone Δ = {study['y_defocus_phone_D']:.3f} D.\n\n" + tables(study, crosstalk) + "\n")
     (out / "REPORT.md").write_text(text)
     print(text)

@@ -34,7 +34,7 @@ from lfjax.base.errors import ParameterError
 from lfjax.base.sampling import AliasingError, Sampling, finer_step
 from lfjax.display.lenticular import lenticular_phone, strip_display
 from lfjax.model.eyes import sample_eyes
-from lfjax.model.layouts import grid_layout
+from lfjax.model.layouts import grid_layout, make_layout
 from lfjax.model.spectral import make_spectrum
 from lfjax.model.strips import strip_layout
 from lfjax.vision.orientation import BANDS, orientation_through_focus
@@ -187,7 +187,6 @@ def run_crosstalk_study(config: HpoConfig = HpoConfig(), progress=print) -> dict
 
     def layouts(ratio):
         grid = grid_layout(n, pupil)
-        from lfjax.model.layouts import make_layout
         grid = make_layout(np.asarray(grid.centres_mm), np.full(n * n, ratio * pitch), pupil,
                            name=f"{n}x{n} w/p {ratio:g}")
         strips = strip_layout(n, pupil, width_mm=ratio * pitch)
