@@ -48,7 +48,11 @@ def aperture_edge_distance(dx_mm, dy_mm, size_mm, edge_scale_mm, shape: str):
     Circle: the area-exact shifted radius of :func:`disk_edge_distance`.
     Square (side ``size_mm``): the distance to the nearer side (a logistic straight edge
     keeps the area exactly; the four corners are off by O(edge²)).
+    Strip (width ``size_mm`` along x, unbounded along y: a lenticular view, which the pupil
+    crops to its chord): the distance to the nearer vertical side.
     """
+    if shape == "strip":
+        return 0.5 * size_mm - jnp.abs(dx_mm)
     if shape == "square":
         half = 0.5 * size_mm
         return jnp.minimum(half - jnp.abs(dx_mm), half - jnp.abs(dy_mm))
@@ -92,19 +96,26 @@ def fresnel_transfer_1d(n: int, dx_mm, wavelength_mm, distance_mm, extent_mm=Non
     return jnp.where(lam_z >= 2.0 * extent * dx_mm, far, near)
 
 
-def fresnel_propagate(field, dx_mm, wavelength_mm, distance_mm, extent_mm=None):
+def fresnel_propagate(field, dx_mm, wavelength_mm, distance_mm, extent_mm=None,
+                      along_y: bool = True):
     """Fresnel propagation of a sampled field (…, n, n) over ``distance_mm`` (mm).
 
     A linear convolution with the Fresnel impulse response, computed by FFT on a grid padded
     to ≥ 2n with the separable transfer function of :func:`fresnel_transfer_1d` (exact in
     the window for a field that is zero outside it). Normalised so that z → 0 returns the
     field (the constant phase exp(ikz) dropped). ``extent_mm``: the width of the region
-    (mm, ≤ n·dx) holding the field and where it is wanted. Returns complex (…, n, n).
+    (mm, ≤ n·dx) holding the field and where it is wanted. ``along_y=False`` propagates
+    along x only (a cylindrical lenslet diffracts across its axis only). Returns complex
+    (…, n, n).
     """
     n = field.shape[-1]
     transfer = fresnel_transfer_1d(n, dx_mm, wavelength_mm, distance_mm, extent_mm)
     n_pad = transfer.shape[0]
     pad = [(0, 0)] * (field.ndim - 2) + [(0, n_pad - n), (0, n_pad - n)]
+    if not along_y:
+        pad_x = [(0, 0)] * (field.ndim - 1) + [(0, n_pad - n)]
+        out = jnp.fft.ifft(jnp.fft.fft(jnp.pad(field, pad_x), axis=-1) * transfer, axis=-1)
+        return out[..., :n]
     spectrum = jnp.fft.fft2(jnp.pad(field, pad))
     out = jnp.fft.ifft2(spectrum * transfer[:, None] * transfer[None, :])
     return out[..., :n, :n]

@@ -3,14 +3,15 @@
 :mod:`~lfjax.display.lenslets` holds the display optics the kernel takes (lenslet
 diffraction, pixel blur); :mod:`~lfjax.display.panel` derives a layout, a central depth
 plane and those optics from a panel's geometry; :mod:`~lfjax.display.spectra` gives the
-emission spectra of display primaries. Imports only :mod:`lfjax.base` and :mod:`lfjax.model`.
+emission spectra of display primaries; :mod:`~lfjax.display.lenticular` the lenticular
+(horizontal-parallax-only) views and the leakage between views. Imports only :mod:`lfjax.base` and :mod:`lfjax.model`.
 """
 
-from lfjax.display import lenslets, panel, spectra
+from lfjax.display import lenslets, lenticular, panel, spectra
 from lfjax.display.lenslets import DisplayOptics, LensletArray, ideal_display
 from lfjax.display.panel import Panel, near_eye_microdisplay, phone_panel
 from lfjax.display.spectra import DisplayPrimaries, display_primaries, display_spectrum
 
-__all__ = ["lenslets", "panel", "spectra", "DisplayOptics", "LensletArray", "ideal_display",
+__all__ = ["lenslets", "lenticular", "panel", "spectra", "DisplayOptics", "LensletArray", "ideal_display",
            "Panel", "near_eye_microdisplay", "phone_panel", "DisplayPrimaries",
            "display_primaries", "display_spectrum"]

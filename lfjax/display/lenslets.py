@@ -100,7 +100,9 @@ class DisplayOptics(eqx.Module):
     pixel_width_arcmin: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
 
     def __check_init__(self):
-        check_choices("DisplayOptics", diffraction=self.diffraction, aperture=self.aperture)
+        # "strip": a lenticular view (lfjax.display.lenticular), for DisplayOptics only
+        check_choices("DisplayOptics", diffraction=self.diffraction,
+                      **({} if self.aperture == "strip" else {"aperture": self.aperture}))
         if _concrete(self.fresnel_distance_mm, self.pixel_width_arcmin):
             z = np.asarray(self.fresnel_distance_mm, float)
             w = np.asarray(self.pixel_width_arcmin, float)

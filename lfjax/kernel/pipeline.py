@@ -189,25 +189,36 @@ def render(elemental, scene: Scene, pair_index, n_fft: int, freq_step_cpd: float
     # A scan over views keeps memory at one (n_depth, n_k, L, Lx) block; an einsum over the
     # view axis lowers to tiny per-pixel matmuls, slow on CPU.
     init = jnp.zeros(pair_index.shape + elemental.shape[2:], elemental.dtype)
-    otf, _ = jax.lax.scan(
-        add_view, init,
-        (jnp.moveaxis(elemental, 1, 0), jnp.moveaxis(ramp_y, 1, 0), jnp.moveaxis(ramp_x, 1, 0)),
-    )
+    mixing = getattr(scene.display, "view_mixing", None)
+    if mixing is not None:
+        # Leakage (lfjax.display.lenticular): view n carries K[n, m] of view m's content,
+        # displaced by view m's shift (the neighbour's parallax at the rendered depth).
+        # Every view's ramp, (n_depth, n_sub, L, Lx), weighted and summed per view: with
+        # K = I each view's own ramp comes out exactly (1·r + 0 + …), bit for bit.
+        ramps = ramp_y[..., :, None] * ramp_x[..., None, :]
+
+        def add_mixed_view(total, view):
+            elemental_n, k_n = view
+            ramp = jnp.sum(k_n.astype(ramps.real.dtype)[None, :, None, None] * ramps, axis=1)
+            return total + ramp[:, None] * elemental_n[pair_index], None
+
+        otf, _ = jax.lax.scan(add_mixed_view, init, (jnp.moveaxis(elemental, 1, 0),
+                                                     mixing))
+    else:
+        otf, _ = jax.lax.scan(
+            add_view, init,
+            (jnp.moveaxis(elemental, 1, 0), jnp.moveaxis(ramp_y, 1, 0), jnp.moveaxis(ramp_x, 1, 0)),
+        )
     energy = jnp.real(jnp.sum(elemental[:, :, 0, 0], axis=1))[pair_index]
     if scene.display is not None:
         otf = otf * pixel_transfer(fx_rad, fy_rad, scene.display)
     return otf / energy[..., None, None]
 
 
-@eqx.filter_jit
-def reference_normalisers(scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
-                          config: PipelineConfig):
-    """VSOTF denominator Σ NCSF·Re OTF_ref and PSF peak (per arcmin²) of the reference eye:
-    no monochromatic aberrations, accommodated on the CDP and the point rendered on it,
-    accommodation SA and LCA kept, through the same layout or the open pupil, of an ideal
-    display (no lenslet diffraction, point emitters; the subapertures keep their shape), so
-    VSOTF and Strehl values stay comparable when display effects are switched on. Compiled
-    here (``eqx.filter_jit``), for callers that evaluate it once for many calls."""
+def reference_otf(scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
+                  config: PipelineConfig):
+    """The reference's rendered OTF, (L, L//2+1) half plane on its own window (the
+    reference :func:`reference_normalisers` describes)."""
     if config.vsotf_reference == "paper":
         centres, diameters = scene.centres_mm, scene.diameters_mm
     else:
@@ -223,7 +234,20 @@ def reference_normalisers(scene: Scene, spectrum: Spectrum, accommodation: Accom
     n_fft = max(b[2] for b in config.reference_bands)
     elemental = elemental_otfs(jnp.zeros((1,), cdp.dtype), 1.0, reference_scene, spectrum, on_cdp,
                                config.reference_bands, config.sampling)
-    otf = render(elemental, reference_scene, on_cdp.pair_index, n_fft, config.freq_step_cpd)[0, 0]
+    return render(elemental, reference_scene, on_cdp.pair_index, n_fft, config.freq_step_cpd)[0, 0]
+
+
+@eqx.filter_jit
+def reference_normalisers(scene: Scene, spectrum: Spectrum, accommodation: Accommodation,
+                          config: PipelineConfig):
+    """VSOTF denominator Σ NCSF·Re OTF_ref and PSF peak (per arcmin²) of the reference eye:
+    no monochromatic aberrations, accommodated on the CDP and the point rendered on it,
+    accommodation SA and LCA kept, through the same layout or the open pupil, of an ideal
+    display (no lenslet diffraction, point emitters; the subapertures keep their shape), so
+    VSOTF and Strehl values stay comparable when display effects are switched on. Compiled
+    here (``eqx.filter_jit``), for callers that evaluate it once for many calls."""
+    n_fft = max(b[2] for b in config.reference_bands)
+    otf = reference_otf(scene, spectrum, accommodation, config)
     weighted_ncsf = ncsf_half_plane(n_fft, config.freq_step_cpd, config.ncsf)
     return vsotf_numerator(otf, weighted_ncsf), psf_peak(otf, n_fft, config.freq_step_cpd)
 
@@ -329,6 +353,7 @@ __all__ = [
     "vsotf_and_strehl",
     "otf_stack",
     "reference_normalisers",
+    "reference_otf",
     "elemental_otfs",
     "render",
     "checked_inputs",

@@ -2,9 +2,10 @@
 
 :mod:`~lfjax.studies.display_effects` (lenslet diffraction, pixels and real spectra on the
 paper's layouts), :mod:`~lfjax.studies.array_views` (a whole lenslet array against the
-idealised views) and :mod:`~lfjax.studies.tradeoff` (the spatio-angular trade-off of a panel).
+idealised views), :mod:`~lfjax.studies.tradeoff` (the spatio-angular trade-off of a panel)
+and :mod:`~lfjax.studies.hpo` (horizontal-parallax-only views and cross-talk).
 """
 
-from lfjax.studies import array_views, display_effects, tradeoff
+from lfjax.studies import array_views, display_effects, hpo, tradeoff
 
-__all__ = ["array_views", "display_effects", "tradeoff"]
+__all__ = ["array_views", "display_effects", "hpo", "tradeoff"]

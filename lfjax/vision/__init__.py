@@ -5,14 +5,15 @@
 preparation seam every entry point and application shares: checks, states, sampling,
 configuration, scene), :mod:`~lfjax.vision.psf` (PSFs and
 OTF stacks), :mod:`~lfjax.vision.images` (retinal images), :mod:`~lfjax.vision.resolution`
-(the perceivable cut-off of a display) and :mod:`~lfjax.vision.claims` (the paper's
+(the perceivable cut-off of a display), :mod:`~lfjax.vision.orientation` (through-focus by
+orientation band) and :mod:`~lfjax.vision.claims` (the paper's
 findings as checkable criteria).
 """
 
-from lfjax.vision import claims, focus, images, peaks, prepare, psf, resolution
+from lfjax.vision import claims, focus, images, orientation, peaks, prepare, psf, resolution
 from lfjax.vision.focus import ThroughFocus, metrics_at, through_focus, through_focus_variants
 from lfjax.vision.peaks import Peaks, accommodation_peaks
 
-__all__ = ["claims", "focus", "images", "peaks", "prepare", "psf", "resolution", "ThroughFocus",
-           "metrics_at", "through_focus", "through_focus_variants", "Peaks",
+__all__ = ["claims", "focus", "images", "orientation", "peaks", "prepare", "psf", "resolution",
+           "ThroughFocus", "metrics_at", "through_focus", "through_focus_variants", "Peaks",
            "accommodation_peaks"]
