@@ -192,6 +192,8 @@ def blur_radius_arcmin(
         if display.diffracts:
             beam = np.full_like(diam, pupil_diameter_mm)
         extra = float(display.pixel_width_arcmin) / math.sqrt(2.0) / ARCMIN_PER_RADIAN
+        # the lenslets' own aberration (lfjax.display.aberrations): its largest ray angle
+        extra += float(getattr(display, "aberration_slope_rad", lambda d: 0.0)(diam))
     geometric = (mism * dist + d * 0.5 * beam).max() * 1e-3  # rad (D in 1/m, mm → m)
     airy = 3.0 * 1.22 * max_wavelength_nm * 1e-6 / diam.min()
     return (geometric + airy + aberration_slope_rad + extra) * ARCMIN_PER_RADIAN
