@@ -917,6 +917,10 @@ def save_design(result: DesignResult, out_dir, command: str | None = None,
         "provenance": dict(result.provenance, lfjax_version=__version__, command=command,
                            utc=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")),
     }
+    if result.constraints.lens_form is not None:
+        record["constraints"]["lens_form"] = {"value": result.constraints.lens_form, "unit": None}
+        record["constraints"]["refractive_index"] = {"value": result.constraints.refractive_index,
+                                                     "unit": "unitless"}
     names = ["design.json"]
     chosen = best or next((f for f in result.fits if f.panel is not None), None)
     with staged_output(out, force) as stage:  # both files, or neither
