@@ -196,6 +196,8 @@ def blur_radius_arcmin(
         y_defocus = float(getattr(display, "y_defocus_D", 0.0))
         if y_defocus:
             d = max(d, np.abs(np.asarray(relative_defocus_D, float) + y_defocus).max(initial=0.0))
+        # the lenslets' own aberration (lfjax.display.aberrations): its largest ray angle
+        extra += float(getattr(display, "aberration_slope_rad", lambda d: 0.0)(diam))
     geometric = (mism * dist + d * 0.5 * beam).max() * 1e-3  # rad (D in 1/m, mm → m)
     airy = 3.0 * 1.22 * max_wavelength_nm * 1e-6 / diam.min()
     return (geometric + airy + aberration_slope_rad + extra) * ARCMIN_PER_RADIAN

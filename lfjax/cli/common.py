@@ -65,6 +65,7 @@ FLAGS: dict[str, dict[str, str]] = {
         # lfjax.design.DesignConstraints (its min_gap_fraction is not a flag)
         "min_eye_box_mm": "--min-eye-box", "min_fill": "--min-fill",
         "min_f_number": "--f-number", "max_f_number": "--f-number",
+        "lens_form": "--lens-form", "refractive_index": "--refractive-index",
         "distance_range_mm": "--distance-range",
         # lfjax.design.check_design (fit_design's checks) and Sampling
         "n_depths": "--n-depths", "views_per_side": "--views", "wavelengths_nm": "--wavelengths",

@@ -21,6 +21,7 @@ from lfjax.design import (
     save_design,
 )
 from lfjax.design.resume import counts_folder
+from lfjax.display.aberrations import LENS_FORMS
 from lfjax.display.lenslets import DIFFRACTION_MODES
 from lfjax.display.panel import PRESETS
 from lfjax.model.eyes import sample_eyes
@@ -87,6 +88,11 @@ def add_parser(sub) -> None:
                      help="smallest lenslet fill, aperture/pitch in (0, 1] (default 0.5)")
     des.add_argument("--f-number", metavar=("LO", "HI"), nargs=2, type=common.finite_float,
                      default=(1.0, 8.0), help="lenslet f-number range (default 1 8)")
+    des.add_argument("--lens-form", choices=LENS_FORMS, default=None,
+                     help="the lenslets' form: each view then carries its lenslet's spherical "
+                          "aberration (lfjax.display.aberrations; default: aberration-free lenslets)")
+    des.add_argument("--refractive-index", metavar="N", type=common.finite_float, default=1.5,
+                     help="the lenslets' refractive index with --lens-form, in (1, 4] (default 1.5)")
     des.add_argument("--diffraction", choices=DIFFRACTION_MODES, default="fresnel",
                      help="lenslet diffraction in the model (default fresnel)")
     common.add_eyes(des, 10, 20, "held-out eyes, >= 0 (default 20; 0: report on the training eyes)")
@@ -117,7 +123,8 @@ def run(args) -> int:
         constraints = DesignConstraints(
             min_eye_box_mm=args.min_eye_box, min_fill=args.min_fill,
             min_f_number=args.f_number[0], max_f_number=args.f_number[1],
-            distance_range_mm=None if args.distance_range is None else tuple(args.distance_range))
+            distance_range_mm=None if args.distance_range is None else tuple(args.distance_range),
+            lens_form=args.lens_form, refractive_index=args.refractive_index)
         sampling = None if args.freq_step is None else Sampling(args.freq_step)
         fit = dict(depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
                    views_per_side=tuple(args.views), wavelengths_nm=tuple(args.wavelengths),

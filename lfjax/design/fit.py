@@ -46,6 +46,7 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import json
+import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -57,6 +58,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from lfjax._version import __version__
+from lfjax.display.aberrations import LENS_FORMS, panel_aberration
 from lfjax.display.lenslets import DisplayOptics, lenslets_for_layout
 from lfjax.model.eyes import Eyes
 from lfjax.base.errors import ParameterError
@@ -101,6 +103,11 @@ class DesignConstraints:
     min_f_number, max_f_number : the lenslets' focal length over aperture (default 1 … 8)
     distance_range_mm : (low, high) to fit the viewing distance too, mm; None (default)
         keeps the panel's
+    lens_form : None (default: aberration-free lenslets, the designs as before) or the
+        lenslets' form (:data:`lfjax.display.aberrations.LENS_FORMS`): each view then carries
+        its lenslet's on-axis spherical aberration, which grows as a⁴/f³, so the fit weighs
+        fast, wide lenslets against their aberration
+    refractive_index : the lenslets' refractive index, in (1, 4] (default 1.5; with ``lens_form``)
     min_gap_fraction : the gap's lower bound as a fraction of its upper bound, in (0, 1]
         (default 0.75; the fastest f-number still applies). At a fixed CDP and distance the
         gap changes nothing but the pixels' angle p/(z_0·M), which a shorter gap only
@@ -114,9 +121,16 @@ class DesignConstraints:
     max_f_number: float = 8.0
     distance_range_mm: tuple | None = None
     min_gap_fraction: float = 0.75
+    lens_form: str | None = None
+    refractive_index: float = 1.5
 
     def __post_init__(self):
         finite_scalar("min_gap_fraction", self.min_gap_fraction, 0.0, 1.0, lo_open=True)
+        if self.lens_form is not None and self.lens_form not in LENS_FORMS:
+            raise ParameterError("lens_form", "{lens_form} must be one of {allowed} or None "
+                                 "(aberration-free lenslets), got {got!r}",
+                                 allowed=", ".join(LENS_FORMS), got=self.lens_form)
+        finite_scalar("refractive_index", self.refractive_index, 1.0, 4.0, lo_open=True)
         finite_scalar("min_eye_box_mm", self.min_eye_box_mm, 0.0, lo_open=True)
         finite_scalar("min_fill", self.min_fill, 0.0, 1.0, lo_open=True)
         # the two ends of one range (one flag, --f-number LO HI): each says which end it is
@@ -218,8 +232,18 @@ def start_box(template: Panel, n_per_side: int, cdp_D: float, constraints: Desig
 # ----------------------------------------------------------------------------- problem
 
 
-def _with_display(problem, panel: Panel):
-    return eqx.tree_at(lambda p: p.display, problem, panel.optics())
+def _panel_optics(panel: Panel, constraints: DesignConstraints | None):
+    """The panel's optics, with its lenslets' on-axis aberration when ``constraints`` names a
+    lens form (:func:`lfjax.display.aberrations.panel_aberration`, differentiable in the panel)."""
+    optics = panel.optics()
+    if constraints is None or constraints.lens_form is None:
+        return optics
+    return optics.with_aberration(panel_aberration(panel, refractive_index=constraints.refractive_index,
+                                                   lens_form=constraints.lens_form))
+
+
+def _with_display(problem, panel: Panel, constraints: DesignConstraints | None = None):
+    return eqx.tree_at(lambda p: p.display, problem, _panel_optics(panel, constraints))
 
 
 def design_loss(x, problem, template: Panel, n_per_side: int, constraints: DesignConstraints):
@@ -227,7 +251,7 @@ def design_loss(x, problem, template: Panel, n_per_side: int, constraints: Desig
     box coordinates ``x``: its n×n views as the layout, its lenslet diffraction and pixel
     blur as the problem's display. Scalar, differentiable in ``x``."""
     panel = panel_from_box(x, template, n_per_side, problem.cdp_D, constraints)
-    return layout_loss(panel.layout(n_per_side), _with_display(problem, panel))
+    return layout_loss(panel.layout(n_per_side), _with_display(problem, panel, constraints))
 
 
 _value_and_grad = eqx.filter_jit(jax.value_and_grad(design_loss))
@@ -266,7 +290,7 @@ def design_loss_chunked(x, problem, template: Panel, n_per_side: int,
         # x enters explicitly (not closed over) so that the reverse pass recomputes the
         # chunk's panel and pipeline from it
         p = panel_from_box(x_, template, n_per_side, problem.cdp_D, constraints)
-        sub = eqx.tree_at(lambda q: q.eyes.zernike_um, _with_display(problem, p), zernike_um)
+        sub = eqx.tree_at(lambda q: q.eyes.zernike_um, _with_display(problem, p, constraints), zernike_um)
         return objective_terms(p.layout(n_per_side), sub)
 
     per_chunk = jax.lax.map(lambda zc: chunk_terms(x, zc), z.reshape(-1, chunk, z.shape[-1]))
@@ -289,7 +313,18 @@ def _worst_optics(template: Panel, n_per_side: int, cdp_D: float,
             candidates.append(panel.optics())
     width = max(float(c.pixel_width_arcmin) for c in candidates)
     distance = min(float(c.fresnel_distance_mm) for c in candidates)
-    return DisplayOptics(template.diffraction, template.aperture, distance, width)
+    worst = DisplayOptics(template.diffraction, template.aperture, distance, width)
+    if constraints.lens_form is None:
+        return worst
+    # the widest aberrated rays of the box (host, over all its corners): the field guard's
+    # sampling must hold them
+    n_box = 3 if constraints.distance_range_mm is None else 4
+    slopes = []
+    for corner in itertools.product((0.0, 1.0), repeat=n_box):
+        panel = panel_from_box(np.asarray(corner), template, n_per_side, cdp_D, constraints)
+        optics = _panel_optics(panel, constraints)
+        slopes.append((optics.aberration_slope_rad(panel.layout(n_per_side).diameters_mm), optics.aberration))
+    return worst.with_aberration(max(slopes, key=lambda t: t[0])[1])
 
 
 def design_problem(template: Panel, n_per_side: int, eyes: Eyes, depths_D, cdp_D: float,
@@ -349,12 +384,14 @@ def _mtf_at(layout, problem, accommodation_D):
                            problem.config, problem.reference).radial_mtf[0, :, 0, :]
 
 
-def perceivable_resolution(panel: Panel, n_per_side: int, problem, predicted_D) -> np.ndarray:
+def perceivable_resolution(panel: Panel, n_per_side: int, problem, predicted_D,
+                           constraints: DesignConstraints | None = None) -> np.ndarray:
     """Perceivable cut-off (cpd, (n_eyes, n_depth)) of every eye of ``problem`` at its own
     predicted accommodation ``predicted_D`` (n_eyes, n_depth) D:
     :func:`lfjax.vision.resolution.perceivable_cutoff_cpd` of the radial MTF there, with the panel's
-    optics. One eye per call (each eye has its own states)."""
-    problem = _with_display(problem, panel)
+    optics (and its lenslets' aberration when ``constraints`` names a lens form). One eye
+    per call (each eye has its own states)."""
+    problem = _with_display(problem, panel, constraints)
     layout = panel.layout(n_per_side)
     depths = np.asarray(problem.depths_D, float)
     out = []
@@ -757,8 +794,8 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
         scores = {}
         for key, candidate in (("fit", fit.panel), ("start", fit.start)):
             t1 = time.perf_counter()
-            evaluation = evaluate_layout(candidate.layout(n), _with_display(report, candidate))
-            res = perceivable_resolution(candidate, n, report, evaluation["values"]["peak_D"])
+            evaluation = evaluate_layout(candidate.layout(n), _with_display(report, candidate, constraints))
+            res = perceivable_resolution(candidate, n, report, evaluation["values"]["peak_D"], constraints)
             scores[key] = (_summary_numbers(evaluation, res), evaluation)
             if tell is not None:
                 tell(f"report of the {'fitted' if key == 'fit' else 'starting'} panel on "
@@ -880,6 +917,10 @@ def save_design(result: DesignResult, out_dir, command: str | None = None,
         "provenance": dict(result.provenance, lfjax_version=__version__, command=command,
                            utc=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")),
     }
+    if result.constraints.lens_form is not None:
+        record["constraints"]["lens_form"] = {"value": result.constraints.lens_form, "unit": None}
+        record["constraints"]["refractive_index"] = {"value": result.constraints.refractive_index,
+                                                     "unit": "unitless"}
     names = ["design.json"]
     chosen = best or next((f for f in result.fits if f.panel is not None), None)
     with staged_output(out, force) as stage:  # both files, or neither

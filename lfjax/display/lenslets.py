@@ -61,6 +61,7 @@ from lfjax.base.apertures import fresnel_propagate as fresnel_propagate
 from lfjax.base.apertures import fresnel_transfer_1d as fresnel_transfer_1d
 from lfjax.model.layouts import Layout
 from lfjax.base.units import ARCMIN_PER_RADIAN
+from lfjax.display.aberrations import LensletAberration
 
 DIFFRACTION_MODES = ("off", "fresnel", "modulus")
 APERTURE_SHAPES = ("circle", "square")
@@ -92,17 +93,24 @@ class DisplayOptics(eqx.Module):
         coordinates, mm (> 0; used when ``diffraction`` is on).
     pixel_width_arcmin : () angular width of one emitter's image on the CDP seen from the
         eye, arcmin (≥ 0; 0 = point emitters, the paper's ideal).
+    aberration : :class:`lfjax.display.aberrations.LensletAberration` or None: the
+        lenslets' wavefront error every view carries (None, or all zero: aberration-free
+        lenslets, the numbers without it bit for bit).
     """
 
     diffraction: str = eqx.field(static=True, default="off")
     aperture: str = eqx.field(static=True, default="circle")
     fresnel_distance_mm: jnp.ndarray = eqx.field(converter=as_real_array, default=1.0)
     pixel_width_arcmin: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
+    aberration: LensletAberration | None = None
 
     def __check_init__(self):
         # "strip": a lenticular view (lfjax.display.lenticular), for DisplayOptics only
         check_choices("DisplayOptics", diffraction=self.diffraction,
                       **({} if self.aperture == "strip" else {"aperture": self.aperture}))
+        if self.aberration is not None and not isinstance(self.aberration, LensletAberration):
+            raise ParameterError("aberration", "{aberration} must be a LensletAberration or None, got "
+                                 "{got}", owner="DisplayOptics", got=type(self.aberration).__name__)
         if _concrete(self.fresnel_distance_mm, self.pixel_width_arcmin):
             z = np.asarray(self.fresnel_distance_mm, float)
             w = np.asarray(self.pixel_width_arcmin, float)
@@ -135,7 +143,21 @@ class DisplayOptics(eqx.Module):
         w = eqx.error_if(self.pixel_width_arcmin,
                          ~(jnp.isfinite(self.pixel_width_arcmin) & (self.pixel_width_arcmin >= 0)),
                          "pixel_width_arcmin must be finite and >= 0 arcmin")
-        return DisplayOptics(self.diffraction, self.aperture, z, w)
+        aberration = None if self.aberration is None else self.aberration.checked()
+        return DisplayOptics(self.diffraction, self.aperture, z, w, aberration)
+
+    def aberration_slope_rad(self, diameters_mm) -> float:
+        """Host bound on the lenslet aberration's ray angle (rad) over views of
+        ``diameters_mm`` (mm; the smallest decides); 0 without an aberration."""
+        if self.aberration is None:
+            return 0.0
+        d = float(np.min(np.asarray(diameters_mm, float)))
+        return self.aberration.slope_rad(0.5 * d, self.aperture)
+
+    def with_aberration(self, aberration: LensletAberration | None) -> DisplayOptics:
+        """This display with the lenslets' ``aberration`` (None: aberration-free)."""
+        return DisplayOptics(self.diffraction, self.aperture, self.fresnel_distance_mm,
+                             self.pixel_width_arcmin, aberration)
 
 
 def ideal_display() -> DisplayOptics:

@@ -69,8 +69,16 @@ def _pupil_parts(
                     jnp.exp(-math.log(10.0) * sce_rho * xx[0] ** 2))
     if diffracts:
         source = jax.nn.sigmoid(sub_inside / edge)
+        aperture_field = source.astype(jnp.result_type(complex))
+        if display.aberration is not None:
+            # the lenslet's wavefront error multiplies its magnified aperture before the
+            # Fresnel propagation (lfjax.display.aberrations)
+            w_lens = display.aberration.wavefront_um(xx - centre_mm[0], yy - centre_mm[1],
+                                                     0.5 * diameter_mm, shape)
+            lens_phase = (-2.0 * jnp.pi / (wavelength_mm * 1e3)) * w_lens
+            aperture_field = aperture_field * jax.lax.complex(jnp.cos(lens_phase), jnp.sin(lens_phase))
         beam = fresnel_propagate(
-            source.astype(jnp.result_type(complex)), dx_mm, wavelength_mm,
+            aperture_field, dx_mm, wavelength_mm,
             display.fresnel_distance_mm, pupil_diameter_mm, along_y=shape != "strip",
         )
         intensity = jnp.real(beam) ** 2 + jnp.imag(beam) ** 2
@@ -176,6 +184,12 @@ def _state_wavefronts_um(eye_um, c20_um, c40_um, window_centres_mm, offsets_mm, 
         ))(window_centres_mm)
         w = w + w_eye[None]
     return w.astype(real)
+
+
+def _lenslet_wavefronts_um(display, diameters_mm, offsets_mm):
+    """Each view's lenslet wavefront (µm) on its own window (n_sub, n, n), [y, x]."""
+    return jax.vmap(lambda d: display.aberration.wavefront_um(
+        offsets_mm[None, :], offsets_mm[:, None], 0.5 * d, display.aperture))(diameters_mm)
 
 
 def pupil_window_size(n_fft: int, sampling: Sampling) -> int:
@@ -324,6 +338,10 @@ def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, s
         offsets = (jnp.arange(n_pupil, dtype=real) - n_pupil // 2) * dx
         w = _state_wavefronts_um(zernike_um, c20, c40, _window_centres_mm(centres_mm, display),
                                  offsets, pupil_diameter_mm, accommodation.sa_radius_mm, measured_pupil_mm)
+        if display is not None and display.aberration is not None and not display.diffracts:
+            # geometric views: each window is centred on its view, so the lenslet's wavefront
+            # (lfjax.display.aberrations) is a function of the offsets and the view's size
+            w = w + _lenslet_wavefronts_um(display, diameters_mm, offsets)[None]
         phase = (-2.0 * jnp.pi / (wl_nm * 1e-3)) * w
         if jnp.iscomplexobj(amp):  # lenslet diffraction: a complex beam in the pupil
             field = amp[None] * jax.lax.complex(jnp.cos(phase), jnp.sin(phase))

@@ -38,6 +38,7 @@ import numpy as np
 from lfjax.base.errors import ParameterError
 from lfjax.base.grids import DepthGrid, inclusive_grid
 from lfjax.base.units import check_dioptres
+from lfjax.display.aberrations import LensletAberration
 from lfjax.display.lenslets import DisplayOptics, display_optics_at
 from lfjax.display.spectra import DISPLAY_NAMES
 from lfjax.model.eyes import THIBOS_PUPILS_MM
@@ -59,7 +60,7 @@ MAX_ACCOMMODATION_STATES = 10_000
 state for every eye, and continuous peaks refine off the grid."""
 
 UNIT_SUFFIXES = {"_D": "dioptres", "_mm": "millimetres", "_nm": "nanometres",
-                 "_cpd": "cycles per degree", "_arcmin": "arcminutes"}
+                 "_cpd": "cycles per degree", "_arcmin": "arcminutes", "_um": "micrometres"}
 """A key's unit is the suffix of its name (``cdp_D`` is in D); a key without one has none."""
 
 
@@ -318,6 +319,17 @@ class SweepConfig(DepthGrid):
         "paper's ideal display", example=300.0))
     pixel_width_arcmin: float = field(default=0.0, metadata=_key(
         "display", "angular width of the emitters (0: points)", Range(lo=0)))
+    lenslet_spherical_um: float = field(default=0.0, metadata=_key(
+        "display", "lenslets' spherical aberration W040 at each view's rim "
+        "(lfjax.display.aberrations; 0: aberration-free)", Range(lo=-100, hi=100)))
+    lenslet_coma_um: float = field(default=0.0, metadata=_key(
+        "display", "lenslets' coma W131 at each view's rim, tilt removed, field along x",
+        Range(lo=-100, hi=100)))
+    lenslet_astigmatism_um: float = field(default=0.0, metadata=_key(
+        "display", "lenslets' astigmatism W222 at each view's rim, field along x",
+        Range(lo=-100, hi=100)))
+    lenslet_field_curvature_um: float = field(default=0.0, metadata=_key(
+        "display", "lenslets' field curvature W220 at each view's rim", Range(lo=-100, hi=100)))
     accommodation_step_D: float = field(default=0.2, metadata=_key(
         "accommodation", "step of the absolute accommodation grid 0 ... max_D",
         Range(lo=0, lo_open=True), name="step_D"))
@@ -408,10 +420,24 @@ class SweepConfig(DepthGrid):
     def display_optics(self):
         """The display's :class:`~lfjax.display.lenslets.DisplayOptics`, or None (ideal display)."""
         if self.lenslet_distance_mm is not None:
-            return display_optics_at(self.lenslet_distance_mm, self.cdp_D, self.pixel_width_arcmin)
-        if self.pixel_width_arcmin > 0:
-            return DisplayOptics(pixel_width_arcmin=self.pixel_width_arcmin)
-        return None
+            optics = display_optics_at(self.lenslet_distance_mm, self.cdp_D, self.pixel_width_arcmin)
+        elif self.pixel_width_arcmin > 0:
+            optics = DisplayOptics(pixel_width_arcmin=self.pixel_width_arcmin)
+        else:
+            optics = None
+        aberration = self.lenslet_aberration()
+        if aberration is None:
+            return optics
+        return (DisplayOptics() if optics is None else optics).with_aberration(aberration)
+
+    def lenslet_aberration(self):
+        """The lenslets' :class:`~lfjax.display.aberrations.LensletAberration` from the
+        ``lenslet_*_um`` keys, or None when they are all 0 (the display without one)."""
+        values = (self.lenslet_spherical_um, self.lenslet_coma_um, self.lenslet_astigmatism_um,
+                  self.lenslet_field_curvature_um)
+        if not any(values):
+            return None
+        return LensletAberration(*values)
 
     @property
     def n_total_eyes(self) -> int:

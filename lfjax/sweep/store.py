@@ -165,6 +165,11 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         "spectra_json": json.dumps(spectra, sort_keys=True),
         "display": json.dumps({"lenslet_distance_mm": config.lenslet_distance_mm,
                                "pixel_width_arcmin": config.pixel_width_arcmin,
+                               **({} if config.lenslet_aberration() is None else {
+                                   "lenslet_aberration_um": [
+                                       config.lenslet_spherical_um, config.lenslet_coma_um,
+                                       config.lenslet_astigmatism_um,
+                                       config.lenslet_field_curvature_um]}),
                                "spectrum": config.display_spectrum or "V(lambda) white"}),
         "n_chunks": int(config.n_chunks),
         "chunk_size": int(config.chunk_size),

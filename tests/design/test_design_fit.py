@@ -448,3 +448,24 @@ def test_a_kept_count_is_used_only_for_the_same_inputs(tmp_path):
                         train_eyes=sample_eyes(0, 1), test_eyes=sample_eyes(1, 1), steps=1,
                         report_accuracy="fit", sampling=Sampling(2.0), counts_dir=tmp_path)
     assert result.fits[0].history == [1.0, 0.5]  # loaded, not fitted (a fit takes seconds)
+
+
+def test_a_lens_form_puts_the_lenslets_aberration_into_the_design_loss():
+    """DesignConstraints(lens_form=...) gives each view its lenslet's on-axis spherical
+    aberration (a⁴/f³ of the panel at the box point): the loss changes, the box's worst
+    aberration is in the planned display, and a bad lens form or index is refused naming it
+    and its range. (The aberration's own gradients: tests/display/test_aberrations.py.)"""
+    template = dataclasses.replace(near_eye_microdisplay(), diffraction="off")
+    plain = DesignConstraints()
+    lens = DesignConstraints(lens_form="plano-convex-eye")
+    problem = design_problem(template, 2, sample_eyes(0, 1), np.array([1.0, 2.0]), 1.5, lens,
+                             sampling=Sampling(1.0))
+    assert problem.display.aberration is not None
+    assert float(problem.display.aberration.spherical_um) > 0.1  # f/1 at the widest lenslets
+    x = np.array([0.4, 0.6, 0.5])
+    f = jax.jit(lambda x_, c: design_loss(x_, problem, template, 2, c), static_argnums=1)
+    assert float(f(x, lens)) != float(f(x, plain))
+    with pytest.raises(ParameterError, match="lens_form must be one of plano-convex-eye"):
+        DesignConstraints(lens_form="meniscus")
+    with pytest.raises(ParameterError, match=r"refractive_index must be finite and in \(1, 4\]"):
+        DesignConstraints(refractive_index=0.9)

@@ -152,6 +152,19 @@ def test_impossible_values_are_named(changes, message):
     assert message in str(err.value)
 
 
+def test_lenslet_aberration_keys_reach_the_display_and_are_refused_out_of_range():
+    """[display] lenslet_*_um keys: all 0 is the display without an aberration (None, as
+    before); a value becomes the DisplayOptics' LensletAberration; out of [-100, 100] µm is
+    refused, naming the key, its unit and its range."""
+    assert tiny_config().display_optics() is None
+    optics = tiny_config(display={"lenslet_spherical_um": 0.5, "lenslet_astigmatism_um": -0.2}).display_optics()
+    assert float(optics.aberration.spherical_um) == 0.5
+    assert float(optics.aberration.astigmatism_um) == -0.2 and optics.diffraction == "off"
+    with pytest.raises(SweepConfigError) as err:
+        tiny_config(display={"lenslet_coma_um": 150.0})
+    assert "display.lenslet_coma_um must be in [-100, 100] um, got 150" in str(err.value)
+
+
 def test_config_round_trips_through_toml(tmp_path):
     config = tiny_config(sampling={"freq_step_cpd": 1.5}, model={"sce": "intensity"})
     again = load_config(write_toml(tmp_path / "c.toml", config))
