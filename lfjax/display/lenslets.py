@@ -47,6 +47,8 @@ Appl. Opt. 48, 6132 (2009) (transfer-function versus impulse-response sampling).
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 
 import equinox as eqx
@@ -155,9 +157,9 @@ class DisplayOptics(eqx.Module):
         return self.aberration.slope_rad(0.5 * d, self.aperture)
 
     def with_aberration(self, aberration: LensletAberration | None) -> DisplayOptics:
-        """This display with the lenslets' ``aberration`` (None: aberration-free)."""
-        return DisplayOptics(self.diffraction, self.aperture, self.fresnel_distance_mm,
-                             self.pixel_width_arcmin, aberration)
+        """This display (of its own class: a lenticular display keeps its views' fields)
+        with the lenslets' ``aberration`` (None: aberration-free)."""
+        return dataclasses.replace(self, aberration=aberration)
 
 
 def ideal_display() -> DisplayOptics:

@@ -127,7 +127,8 @@ class ViewOptics(DisplayOptics):
                          ~((self.leakage_weight >= 0) & (self.leakage_weight <= 1)),
                          "leakage_weight must be in [0, 1]")
         return ViewOptics(base.diffraction, base.aperture, base.fresnel_distance_mm,
-                          base.pixel_width_arcmin, y, w, self.neighbours)
+                          base.pixel_width_arcmin, aberration=base.aberration, y_defocus_D=y,
+                          leakage_weight=w, neighbours=self.neighbours)
 
 
 def strip_display(layout: Layout | None = None, *, y_defocus_D=0.0, leakage_weight=0.0,
@@ -138,7 +139,8 @@ def strip_display(layout: Layout | None = None, *, y_defocus_D=0.0, leakage_weig
     layout's (:func:`~lfjax.model.strips.neighbour_matrix`), or none without a layout."""
     neighbours = None if layout is None else jnp.asarray(neighbour_matrix(layout))
     return ViewOptics(diffraction, aperture, fresnel_distance_mm, pixel_width_arcmin,
-                      y_defocus_D, leakage_weight, neighbours)
+                      y_defocus_D=y_defocus_D, leakage_weight=leakage_weight,
+                      neighbours=neighbours)
 
 
 def check_display_for_layout(display: DisplayOptics | None, layout: Layout) -> None:
