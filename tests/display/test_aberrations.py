@@ -5,12 +5,14 @@ aberration bit for bit, finite-difference gradients and bad input."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import helpers as H
 import lfjax
 from lfjax.base.errors import ParameterError
 from lfjax.display.aberrations import (
@@ -234,3 +236,20 @@ def test_panel_aberration_is_differentiable_in_the_lens_numbers():
 def test_bad_aberration_input_names_the_parameter_unit_and_range(build, match):
     with pytest.raises(ParameterError, match=match):
         build()
+
+
+# ----------------------------------------------------------------------------- the notebook
+
+NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "lenslet_aberrations.ipynb"
+
+
+def test_notebook_matches_its_script_twin():
+    outputs = H.committed_notebook_outputs(NOTEBOOK)
+    assert len([o for o in outputs if "image/png" in o.get("data", {})]) >= 2
+
+
+def test_notebook_executes(tmp_path):
+    """notebooks/lenslet_aberrations.ipynb runs top to bottom at its tiny size."""
+    _, images, text = H.execute_notebook_tiny(NOTEBOOK, tmp_path)
+    assert len(images) >= 2
+    assert "plano-convex n = 1.5, 10° off axis" in text
