@@ -79,7 +79,8 @@ def channel_spectra(primaries: DisplayPrimaries | str = "oled",
     return tuple(display_spectrum(primaries, c, options) for c in channels)
 
 
-def _single_eye(eye: Eyes) -> Eyes:
+def single_eye(eye: Eyes) -> Eyes:
+    """``eye`` if it is an :class:`~lfjax.model.eyes.Eyes` of one eye, else a clear error."""
     if not isinstance(eye, Eyes):
         raise TypeError(f"eye must be an lfjax Eyes of one eye, got {type(eye).__name__}")
     if eye.n_eyes != 1:
@@ -143,7 +144,7 @@ def natural_otfs(eye: Eyes, accommodation_D: float, object_depths_D, spectra,
     The open pupil with its CDP at the object (defocus ``a − d``), its accommodation SA at
     ``a``: :func:`lfjax.kernel.pipeline.otf_stack` mapped over the CDP leaf, one compiled
     program for every object depth."""
-    eye = _single_eye(eye)
+    eye = single_eye(eye)
     depths = jnp.asarray(_check_depths("object_depths_D", object_depths_D))
     out = []
     for spectrum in spectra:
@@ -151,15 +152,21 @@ def natural_otfs(eye: Eyes, accommodation_D: float, object_depths_D, spectra,
                            pupil_diameter_mm=pupil_diameter_mm, cdp_D=float(depths[0]),
                            spectrum=spectrum, options=options, sampling=sampling,
                            check_aliasing=False, traced_checks=False)
-        acc = prepared.accommodation(options)
-
-        def one(d, prepared=prepared, acc=acc, spectrum=spectrum):
-            scene = eqx.tree_at(lambda s: (s.cdp_D, s.depths_D), prepared.scene,
-                                (d, jnp.reshape(d, (1,))))
-            return otf_stack(eye, scene, spectrum, acc, prepared.config)[0, 0, 0]
-
-        out.append(jax.lax.map(one, depths))
+        out.append(_natural_stack(eye, prepared.scene, spectrum, prepared.accommodation(options),
+                                  prepared.config, depths))
     return jnp.stack(out)
+
+
+@eqx.filter_jit
+def _natural_stack(eye, scene, spectrum, accommodation, config, depths):
+    """One compiled program per configuration: the open pupil's OTF with its CDP moved to
+    every object depth (the defocus a − d), (n_object, L, L//2+1)."""
+
+    def one(d):
+        moved = eqx.tree_at(lambda s: (s.cdp_D, s.depths_D), scene, (d, jnp.reshape(d, (1,))))
+        return otf_stack(eye, moved, spectrum, accommodation, config)[0, 0, 0]
+
+    return jax.lax.map(one, depths)
 
 
 def embed_otf(otf_half, n_fft: int):
@@ -186,7 +193,7 @@ def display_otfs(eye: Eyes, layout: Layout | None, accommodation_D: float, depth
     if layout is None:
         return natural_otfs(eye, accommodation_D, depths_D, spectra, sampling,
                             pupil_diameter_mm=pupil_diameter_mm, options=options)
-    eye = _single_eye(eye)
+    eye = single_eye(eye)
     depths = _check_depths("depths_D", depths_D)
     out = [polychromatic_otf(eye, [float(accommodation_D)], pupil_diameter_mm, cdp_D, spectrum,
                              sampling, options, layout, depths, check_aliasing=False,
@@ -275,7 +282,7 @@ def rest_of_scene(eye: Eyes, layout: Layout | None, accommodation_D: float, dept
     ``accommodation_D`` (D): the measures of :func:`blur_measures` with the true defocus
     ``true_defocus_D = d − a`` and the OTFs (``display_otf``, ``natural_otf``, each
     (3, n_depth, L, L//2+1), with ``freq_step_cpd``)."""
-    eye = _single_eye(eye)
+    eye = single_eye(eye)
     depths = _check_depths("depths_D", depths_D)
     a = float(accommodation_D)
     if not (np.isfinite(a) and 0 <= a <= 10):
@@ -309,6 +316,7 @@ __all__ = [
     "PRIMARIES",
     "DEFAULT_DEFOCUS_GRID_D",
     "channel_spectra",
+    "single_eye",
     "common_sampling",
     "natural_otfs",
     "display_otfs",

@@ -48,7 +48,7 @@ from lfjax.model.options import ModelOptions
 from lfjax.vision.focus import through_focus
 from lfjax.vision.images import retinal_image
 from lfjax.vision.scene_blur import (
-    _single_eye,
+    single_eye,
     channel_spectra,
     common_sampling,
     display_otfs,
@@ -208,7 +208,7 @@ def predicted_accommodation(eye: Eyes, layout: Layout | None, fixation_D: float,
     """The eye's predicted accommodation (continuous VSOTF peak, D) for a point rendered at
     ``fixation_D`` by ``layout`` (None: a real point), in the display's white."""
     white = display_spectrum(primaries, "white", options)
-    tf = through_focus(_single_eye(eye), layout, [float(fixation_D)], None, pupil_diameter_mm,
+    tf = through_focus(single_eye(eye), layout, [float(fixation_D)], None, pupil_diameter_mm,
                        cdp_D, spectrum=white, options=options, continuous_peaks=("vsotf",),
                        display=display)
     a = float(tf.continuous_accommodation_D()[0, 0])
@@ -268,7 +268,7 @@ def retinal_scene(eye: Eyes, pixel_arcmin: float, *, image=None, depth_map_D=Non
     if not (pixel > 0 and math.isfinite(pixel)):
         raise ParameterError("pixel_arcmin", "{pixel_arcmin} must be > 0 arcmin, got {got}",
                              got=pixel_arcmin)
-    eye = _single_eye(eye)
+    eye = single_eye(eye)
     if (image is None) == (layers is None):
         raise ParameterError("image", "give either {image} with depth_map_D, or layers with "
                              "alpha and depths_D")
