@@ -89,7 +89,10 @@ def run_scene_blur(eyes: Eyes, config: SceneBlurConfig = SceneBlurConfig(),
         layout, optics, cdp, label = config.display(name)
         labels.append(label)
         cdps.append(cdp)
-        tf = through_focus(eyes, layout, [config.fixation_D], None, config.pupil_diameter_mm, cdp,
+        # natural viewing: a real point at the fixated depth (the open pupil shows its point
+        # at its CDP, whatever depth it is given)
+        tf = through_focus(eyes, layout, [config.fixation_D], None, config.pupil_diameter_mm,
+                           config.fixation_D if layout is None else cdp,
                            spectrum=white, options=options, continuous_peaks=("vsotf",),
                            display=optics)
         a = np.asarray(tf.continuous_accommodation_D()[:, 0], float)

@@ -206,8 +206,10 @@ def predicted_accommodation(eye: Eyes, layout: Layout | None, fixation_D: float,
                             options: ModelOptions = ModelOptions(),
                             display: DisplayOptics | None = None) -> float:
     """The eye's predicted accommodation (continuous VSOTF peak, D) for a point rendered at
-    ``fixation_D`` by ``layout`` (None: a real point), in the display's white."""
+    ``fixation_D`` by ``layout`` (None: a real point there), in the display's white."""
     white = display_spectrum(primaries, "white", options)
+    if layout is None:  # the open pupil shows its point at its CDP, whatever the depth
+        cdp_D = float(fixation_D)
     tf = through_focus(single_eye(eye), layout, [float(fixation_D)], None, pupil_diameter_mm,
                        cdp_D, spectrum=white, options=options, continuous_peaks=("vsotf",),
                        display=display)
