@@ -1,7 +1,11 @@
 """The blur of the rest of the scene (lfjax.vision.scene_blur): the natural-viewing reference
 against through_focus of the open pupil, and the equivalent defocus's own zero and sign."""
 
+from pathlib import Path
+
 import numpy as np
+
+import helpers as H
 
 from lfjax.base.sampling import Sampling
 from lfjax.kernel.metrics import radial_mtf
@@ -41,3 +45,19 @@ def test_equivalent_defocus_of_natural_viewing_is_the_true_defocus_with_its_sign
     np.testing.assert_allclose(out["mtf_ratio"], 1.0, rtol=1e-6)
     # LCA: red is sharper for the farther point, blue for the nearer one
     assert out["cue_natural"][0] > 0 > out["cue_natural"][1]
+
+
+NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "scene_blur.ipynb"
+
+
+def test_notebook_matches_its_script_twin():
+    outputs = H.committed_notebook_outputs(NOTEBOOK)
+    assert len([o for o in outputs if "image/png" in o.get("data", {})]) >= 2
+
+
+def test_notebook_executes(tmp_path):
+    """notebooks/scene_blur.ipynb runs top to bottom at its tiny size (one layout, laser
+    primaries, a 32×32 scene)."""
+    _, images, text = H.execute_notebook_tiny(NOTEBOOK, tmp_path)
+    assert len(images) >= 2
+    assert "equivalent" in text and "colour cue" in text
