@@ -46,6 +46,8 @@ class SceneBlurConfig:
     pupil_diameter_mm : calculation pupil, mm
     grid_step_D : step of the natural-defocus search of the equivalent defocus, D
     grid_margin_D : the search spans the true defocus ± this, D
+    accommodation_offsets_D : accommodation states searched for the predicted accommodation,
+        relative to the fixated depth, D (−3 … +1 D in 0.2 D: from past a 2 D CDP to beyond)
     """
 
     fixation_D: float = 4.0
@@ -56,6 +58,7 @@ class SceneBlurConfig:
     pupil_diameter_mm: float = 3.0
     grid_step_D: float = 0.1
     grid_margin_D: float = 1.5
+    accommodation_offsets_D: tuple = tuple(np.round(np.arange(-3.0, 1.0 + 1e-9, 0.2), 6))
 
     def __post_init__(self):
         bad = [d for d in self.displays if d not in DISPLAYS]
@@ -91,10 +94,13 @@ def run_scene_blur(eyes: Eyes, config: SceneBlurConfig = SceneBlurConfig(),
         cdps.append(cdp)
         # natural viewing: a real point at the fixated depth (the open pupil shows its point
         # at its CDP, whatever depth it is given)
+        # The search reaches from the fixated depth down past the CDP: a display whose views
+        # drive accommodation weakly (lenslet diffraction) leaves the eye near its CDP.
         tf = through_focus(eyes, layout, [config.fixation_D], None, config.pupil_diameter_mm,
                            config.fixation_D if layout is None else cdp,
-                           spectrum=white, options=options, continuous_peaks=("vsotf",),
-                           display=optics)
+                           spectrum=white, options=options,
+                           accommodation_offsets_D=config.accommodation_offsets_D,
+                           continuous_peaks=("vsotf",), display=optics)
         a = np.asarray(tf.continuous_accommodation_D()[:, 0], float)
         grid_a = np.asarray(tf.predicted_accommodation_D()[:, 0], float)
         acc[i] = np.where(np.isfinite(a), a, grid_a)

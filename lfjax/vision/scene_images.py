@@ -61,6 +61,11 @@ each with its complex spectrum and the OTF on the scene grid (a bound measured o
 512×512×8×3 benchmark: the peak stays below it)."""
 
 
+SEARCH_OFFSETS_D = tuple(np.round(np.arange(-3.0, 1.0 + 1e-9, 0.2), 6))
+"""Accommodation states searched by :func:`predicted_accommodation`, relative to the
+fixated depth, D."""
+
+
 def default_memory_limit_bytes() -> int:
     """Half of this machine's physical memory (the scene's working set must fit in it)."""
     try:
@@ -210,8 +215,11 @@ def predicted_accommodation(eye: Eyes, layout: Layout | None, fixation_D: float,
     white = display_spectrum(primaries, "white", options)
     if layout is None:  # the open pupil shows its point at its CDP, whatever the depth
         cdp_D = float(fixation_D)
+    # from 3 D farther than the fixated depth (past the CDP, where a display whose views
+    # drive accommodation weakly leaves the eye) to 1 D nearer, in 0.2 D states
     tf = through_focus(single_eye(eye), layout, [float(fixation_D)], None, pupil_diameter_mm,
-                       cdp_D, spectrum=white, options=options, continuous_peaks=("vsotf",),
+                       cdp_D, spectrum=white, options=options,
+                       accommodation_offsets_D=SEARCH_OFFSETS_D, continuous_peaks=("vsotf",),
                        display=display)
     a = float(tf.continuous_accommodation_D()[0, 0])
     if not math.isfinite(a):
