@@ -7,7 +7,8 @@ to virtual eyes, report it on held-out eyes), ``lfjax sweep`` (:mod:`~lfjax.cli.
 population sweep into a resumable Zarr store), ``lfjax sweep-report``
 (:mod:`~lfjax.cli.sweep_report`: its distributions, percentiles and what ten eyes cannot
 tell) and ``lfjax design`` (:mod:`~lfjax.cli.design`: a buildable lenslet display fitted to
-a panel and eyes). What they share — flags declared once, argument types, the
+a panel and eyes) and ``lfjax retina`` (:mod:`~lfjax.cli.retina`: the retinal image of a
+scene with depth through a display or in natural viewing). What they share — flags declared once, argument types, the
 parameter↔flag table, the error and exit conventions, the compilation cache — is in
 :mod:`~lfjax.cli.common`.
 
@@ -23,10 +24,11 @@ import sys
 import time
 
 from lfjax._version import __version__
-from lfjax.cli import common, design, optimise, reproduce, sweep, sweep_report
+from lfjax.cli import common, design, optimise, reproduce, retina, sweep, sweep_report
 from lfjax.cli.common import enable_compilation_cache
 
-SUBCOMMANDS = {module.COMMAND: module for module in (reproduce, optimise, sweep, sweep_report, design)}
+SUBCOMMANDS = {module.COMMAND: module for module in (reproduce, optimise, sweep, sweep_report, design,
+                                                   retina)}
 """Each subcommand's module: ``add_parser(sub)`` declares its flags, ``run(args)`` runs it."""
 
 

@@ -73,6 +73,15 @@ FLAGS: dict[str, dict[str, str]] = {
         # lfjax.base.files.check_output_folder
         "out_dir": "--out", "force": "--force",
     },
+    "retina": {
+        # lfjax.vision.scene_images.retinal_scene and the command's own readers
+        "image": "--image", "depth_map_D": "--depth", "layers_file": "--layers-file",
+        "layers": "--layers-file", "alpha": "--layers-file", "depths_D": "--layers-file",
+        "n_layers": "--n-layers", "pixel_arcmin": "--pixel-arcmin", "display": "--display",
+        "primaries": "--primaries", "eye": "--eye", "accommodation_D": "--accommodation",
+        "fixation_D": "--fixation", "cdp_D": "--cdp", "occlusion": "--no-occlusion",
+        "out_dir": "--out", "force": "--force",
+    },
 }
 """The one parameter↔flag table: for each subcommand, the library parameter a check names
 (:attr:`~lfjax.base.errors.ParameterError.parameters`) → the flag (or positional) that

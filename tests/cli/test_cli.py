@@ -329,6 +329,7 @@ def _library_inputs():
     from lfjax.base.sampling import Sampling
     from lfjax.sweep.report import sweep_report
     from lfjax.sweep.run import check_store_target
+    from lfjax.vision.scene_images import retinal_scene
 
     return {
         "reproduce": ([rep.check_reproduce, rep.StudyConfig.quick],
@@ -338,6 +339,9 @@ def _library_inputs():
         "sweep": ([check_store_target, sweep.run_sweep],
                   {"config", "progress", "devices", "on_plan"}),
         "sweep-report": ([sweep_report], {"sample_size", "dpi", "progress"}),
+        "retina": ([retinal_scene, check_output_folder],
+                   {"pupil_diameter_mm", "options", "boundary", "memory_limit_bytes",
+                    "need_bytes", "parameter"}),
         "design": ([check_output_folder, design.design_cdp_D, design.design_panel,
                     design.DesignConstraints, Sampling, design.check_design],
                    {"min_gap_fraction", "panel", "n_fft", "transform", "mft_pupil_samples",

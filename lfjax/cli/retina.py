@@ -1,0 +1,191 @@
+"""``lfjax retina``: the retinal image of a scene with depth through a light-field display or in
+natural viewing (:func:`lfjax.vision.scene_images.retinal_scene`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from lfjax.base.errors import ParameterError
+from lfjax.base.files import check_output_folder, staged_output
+from lfjax.cli import common
+from lfjax.display.panel import PRESETS
+from lfjax.display.spectra import DISPLAY_NAMES
+from lfjax.model.eyes import average_eye, sample_eyes
+from lfjax.model.layouts import grid_layout
+from lfjax.vision.scene_images import demo_scene, retinal_scene
+
+COMMAND = "retina"
+DISPLAY_CHOICES = ("natural", "2x2", "3x3", "4x4") + tuple(PRESETS)
+
+
+def add_parser(sub) -> None:
+    rp = sub.add_parser(
+        COMMAND,
+        help="retinal image of a scene with depth, through a light-field display or natural "
+             "viewing; retina.png, retina.npy, retina.json",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "The retinal image of a scene with depth (lfjax.vision.scene_images). The scene is\n"
+            "an image with a depth map (--image, --depth: .npy arrays, the image (3, H, W) or\n"
+            "(H, W, 3) luminance per R, G, B primary or (H, W) grey, the depth map (H, W) in\n"
+            "dioptres), layers at depths (--layers-file: an .npz with layers (n, 3, H, W)\n"
+            "premultiplied colour, alpha (n, H, W) coverage and depths_D (n,) nearest first),\n"
+            "or --demo (a synthetic scene at 4, 2 and 0.5 D). Each layer is blurred by its own\n"
+            "polychromatic PSF per primary - the display's rendering of its depth, or a real\n"
+            "surface there (--display natural) - and the layers are composited front to back\n"
+            "with occlusion (each layer's coverage blurred with its own PSF attenuates what lies\n"
+            "behind; partial occlusion at edges and the views' own perspectives are left out:\n"
+            "see docs/guides/scene-blur.md). The eye is the Thibos et al. (2002) average eye or\n"
+            "virtual eye N (--eye N, seed 0), accommodated at --accommodation D or by default at\n"
+            "its predicted accommodation (continuous VSOTF peak) for the depth at the image\n"
+            "centre (or --fixation D).\n\n"
+            "Outputs in DIR: retina.png (scene and retinal image side by side), retina.npy\n"
+            "(3, H, W) and retina.json (accommodation, layer depths, settings), all or none."
+        ),
+    )
+    src = rp.add_mutually_exclusive_group(required=True)
+    src.add_argument("--image", metavar="IMG.npy", help="image, .npy (with --depth)")
+    src.add_argument("--layers-file", metavar="LAYERS.npz",
+                     help=".npz with layers, alpha and depths_D (nearest first)")
+    src.add_argument("--demo", action="store_true", help="the synthetic three-depth scene")
+    rp.add_argument("--depth", metavar="DEPTH.npy", help="depth map, D, .npy of the image's shape")
+    rp.add_argument("--size", metavar="N", type=common.positive_int, default=256,
+                    help="pixels across the --demo scene (default 256)")
+    rp.add_argument("--n-layers", metavar="N", type=common.positive_int, default=8,
+                    help="layers cut from a depth map (default 8)")
+    rp.add_argument("--pixel-arcmin", metavar="A", type=common.finite_float, default=1.0,
+                    help="visual angle of one scene pixel, arcmin (default 1)")
+    rp.add_argument("--display", choices=DISPLAY_CHOICES, default="3x3",
+                    help="natural viewing, the paper's n x n views (CDP --cdp) or a panel preset "
+                         "(its own CDP, lenslet diffraction and pixels) (default 3x3)")
+    rp.add_argument("--cdp", metavar="D", type=common.finite_float, default=2.0,
+                    help="CDP of the n x n layouts, D (default 2)")
+    rp.add_argument("--primaries", choices=DISPLAY_NAMES, default="oled",
+                    help="the display's primaries (default oled)")
+    rp.add_argument("--eye", metavar="N", default="average",
+                    help="'average' (default) or the index of a Thibos virtual eye (seed 0)")
+    rp.add_argument("--accommodation", metavar="D", type=common.finite_float, default=None,
+                    help="accommodation, D (default: the eye's predicted one)")
+    rp.add_argument("--fixation", metavar="D", type=common.finite_float, default=None,
+                    help="fixated depth for the predicted accommodation, D (default: the depth "
+                         "at the image centre)")
+    rp.add_argument("--no-occlusion", action="store_true",
+                    help="add the layers instead of compositing them with occlusion")
+    common.add_out(rp, "lfjax-retina", "output folder (default lfjax-retina)")
+    common.add_force(rp, "write into a non-empty --out (files of the same names are replaced)")
+
+
+def _eye(text: str):
+    if text == "average":
+        return average_eye(3.0)
+    try:
+        index = int(text)
+    except ValueError:
+        index = -1
+    if index < 0:
+        raise ParameterError("eye", "{eye} must be 'average' or an eye index >= 0, got {got!r}",
+                             got=text)
+    return sample_eyes(0, index + 1, 3.0)[index:index + 1]
+
+
+def _load(path: str, parameter: str):
+    try:
+        return np.load(path)
+    except (OSError, ValueError) as err:
+        raise ParameterError(parameter, "{" + parameter + "} {path} cannot be read: {why}",
+                             path=path, why=err) from None
+
+
+def _scene(args) -> dict:
+    if args.demo:
+        img, depth = demo_scene(args.size)
+        return dict(image=img, depth_map_D=depth, n_layers=args.n_layers)
+    if args.layers_file:
+        data = _load(args.layers_file, "layers_file")
+        missing = [k for k in ("layers", "alpha", "depths_D") if k not in data]
+        if missing:
+            raise ParameterError("layers_file", "{layers_file} lacks {missing}",
+                                 missing=", ".join(missing))
+        return dict(layers=data["layers"], alpha=data["alpha"], depths_D=data["depths_D"])
+    if not args.depth:
+        raise ParameterError("depth_map_D", "{depth_map_D} is required with {image}")
+    img = _load(args.image, "image")
+    if img.ndim == 3 and img.shape[-1] == 3 and img.shape[0] != 3:
+        img = np.moveaxis(img, -1, 0)
+    return dict(image=img, depth_map_D=_load(args.depth, "depth_map_D"), n_layers=args.n_layers)
+
+
+def _display(name: str):
+    if name == "natural":
+        return "natural"
+    if name in PRESETS:
+        return PRESETS[name]()
+    return grid_layout(int(name[0]))
+
+
+def _figure(path: Path, scene, retina, title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(8, 4.2))
+    for a, im, name in ((ax[0], scene, "scene"), (ax[1], retina, "retina")):
+        im = np.moveaxis(np.asarray(im), 0, -1)
+        a.imshow(np.clip(im / max(float(np.max(scene)), 1e-12), 0, 1), origin="lower")
+        a.set_title(name)
+        a.set_xticks([]), a.set_yticks([])
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run(args) -> int:
+    prog = f"{common.PROG} {COMMAND}"
+    try:
+        out = check_output_folder(args.out, args.force, parameter="out_dir")
+        eye = _eye(args.eye)
+        scene = _scene(args)
+        display = _display(args.display)
+        result = retinal_scene(eye, args.pixel_arcmin, display=display, primaries=args.primaries,
+                               accommodation_D=args.accommodation, fixation_D=args.fixation,
+                               cdp_D=args.cdp, occlusion=not args.no_occlusion, **scene)
+    except KeyboardInterrupt:
+        return common.interrupted(prog)
+    except ValueError as err:
+        return common.refuse(prog, err, COMMAND)
+    except Exception as err:  # one line, no traceback
+        return common.unexpected_error(prog, err)
+    retina = np.asarray(result["retina"])
+    shown = scene.get("image")
+    if shown is None:  # the layers seen through a pinhole: front to back, no blur
+        alpha = np.asarray(scene["alpha"], float)[:, None]
+        behind = np.cumprod(np.concatenate([np.ones_like(alpha[:1]), 1 - alpha[:-1]]), axis=0)
+        shown = np.sum(behind * np.asarray(scene["layers"], float), axis=0)
+    shown = np.asarray(shown, float)
+    shown = shown if shown.ndim == 3 else np.repeat(shown[None], 3, axis=0)
+    summary = dict(accommodation_D=result["accommodation_D"], fixation_D=result["fixation_D"],
+                   layer_depths_D=[float(d) for d in result["depths_D"]],
+                   freq_step_cpd=result["freq_step_cpd"], display=args.display,
+                   primaries=args.primaries, eye=args.eye, pixel_arcmin=args.pixel_arcmin,
+                   occlusion=not args.no_occlusion, command=common.command_line(args.argv))
+    try:
+        with staged_output(out, args.force) as tmp:
+            np.save(tmp / "retina.npy", retina)
+            (tmp / "retina.json").write_text(json.dumps(summary, indent=1) + "\n")
+            _figure(tmp / "retina.png", shown, retina,
+                    f"{args.display}, eye {args.eye} at {result['accommodation_D']:.2f} D "
+                    f"(fixating {result['fixation_D']:.2f} D), {args.primaries} primaries")
+    except KeyboardInterrupt:
+        return common.interrupted(prog)
+    except Exception as err:
+        return common.unexpected_error(prog, err)
+    print(f"{prog}: eye {args.eye} at {result['accommodation_D']:.3f} D (fixating "
+          f"{result['fixation_D']:.2f} D), {len(result['depths_D'])} layers; wrote retina.png, "
+          f"retina.npy, retina.json to {out}")
+    return 0

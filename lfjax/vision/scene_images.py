@@ -1,0 +1,357 @@
+"""Retinal images of a scene with depth, through a light-field display or in natural viewing.
+
+A scene is a stack of fronto-parallel layers at depths (D), nearest first, each a colour
+image per display primary (R, G, B) with a coverage ``alpha`` in [0, 1]; an image with a
+depth map is cut into such layers (:func:`layers_from_depth_map`). Every layer is seen
+through its own polychromatic PSF per primary — the display's rendering of that depth
+(:func:`lfjax.vision.scene_blur.display_otfs`) or a real surface at that depth
+(:func:`lfjax.vision.scene_blur.natural_otfs`) — and the blurred layers are composited front
+to back (:func:`composite_layers`)::
+
+    R_c = Σ_k T_k · (h_kc ∗ α_k I_kc),   T_0 = 1,   T_{k+1} = T_k · (1 − h_kc ∗ α_k)
+
+**The layered approximation and what it leaves out.** Each layer's coverage is blurred with
+the layer's own PSF and attenuates everything behind it (the "blur, then composite over"
+rule of layered depth-of-field rendering). At an occluding edge the true optics differ:
+light from a background point next to the edge passes the occluder through part of the
+pupil only, so its PSF is the pupil *vignetted* by the occluder's shadow (partial occlusion:
+the background is seen a little around the edge, and its blur there is narrower and
+shifted), whereas the layers multiply the full background blur by a blurred transmission.
+The light-field display has the same gap in a different form: each view shows its own
+perspective, so it reveals background the single image and depth map do not hold
+(disocclusions), which no input here provides. Away from occluding edges (within about one
+blur radius of them) the layered image is exact for the model's PSFs; within one layer a
+depth map's depths are quantised to the layer's depth (at most half the layer spacing, D).
+
+Everything from the layers and the OTFs on is ``jax.numpy``: differentiable in the scene
+(layers, coverage) and, through :func:`scene_otfs`, in the display's parameters (layout
+centres and diameters, CDP).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from lfjax.base.errors import ParameterError
+from lfjax.base.sampling import Sampling
+from lfjax.display.lenslets import DisplayOptics
+from lfjax.display.panel import Panel
+from lfjax.display.spectra import DisplayPrimaries, display_spectrum
+from lfjax.model.eyes import Eyes
+from lfjax.model.layouts import Layout
+from lfjax.model.options import ModelOptions
+from lfjax.vision.focus import through_focus
+from lfjax.vision.images import retinal_image
+from lfjax.vision.scene_blur import (
+    single_eye,
+    channel_spectra,
+    common_sampling,
+    display_otfs,
+    embed_otf,
+)
+
+BYTES_PER_PIXEL_LAYER = 4 * 2 * 4
+"""Working memory per padded pixel, layer and channel, bytes: float32 colour and coverage,
+each with its complex spectrum and the OTF on the scene grid (a bound measured on the
+512×512×8×3 benchmark: the peak stays below it)."""
+
+
+SEARCH_OFFSETS_D = tuple(np.round(np.arange(-3.0, 1.0 + 1e-9, 0.2), 6))
+"""Accommodation states searched by :func:`predicted_accommodation`, relative to the
+fixated depth, D."""
+
+
+def default_memory_limit_bytes() -> int:
+    """Half of this machine's physical memory (the scene's working set must fit in it)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2)
+    except (ValueError, OSError, AttributeError):
+        return 8 * 2**30
+
+
+def _finite_image(name: str, x, ndim: tuple[int, ...]) -> np.ndarray:
+    a = np.asarray(x, float)
+    if a.ndim not in ndim:
+        raise ParameterError(name, "{" + name + "} must have {dims} dimensions, got shape {got}",
+                             dims=" or ".join(map(str, ndim)), got=a.shape)
+    if not np.all(np.isfinite(a)):
+        raise ParameterError(name, "{" + name + "} contains NaN or infinite values")
+    if np.any(a < 0):
+        raise ParameterError(name, "{" + name + "} must be non-negative (luminance), min {got:g}",
+                             got=float(a.min()))
+    return a
+
+
+def check_depths(name: str, depths) -> np.ndarray:
+    """Finite depths in the model's range [0, 10] D, or a ``ParameterError`` naming ``name``."""
+    d = np.asarray(depths, float)
+    if np.any(np.isnan(d)):
+        raise ParameterError(name, "{" + name + "} contains NaN")
+    if np.any(~np.isfinite(d)) or np.any(d < 0) or np.any(d > 10):
+        raise ParameterError(name, "{" + name + "} must be depths in [0, 10] D (0 D: infinity; "
+                             "negative depths are not real points), got min {lo:g}, max {hi:g}",
+                             lo=float(np.min(d)), hi=float(np.max(d)))
+    return d
+
+
+def layers_from_depth_map(image, depth_map_D, n_layers: int = 8):
+    """Cut an image with a depth map into layers, nearest first.
+
+    Parameters
+    ----------
+    image : (n_channel, H, W) or (H, W) non-negative luminance per primary
+    depth_map_D : (H, W) depth of every pixel, D, in [0, 10]
+    n_layers : int >= 1; the layers are evenly spaced in dioptres from the nearest to the
+        farthest depth present (fewer when the map has fewer distinct depths)
+
+    Returns
+    -------
+    (layers (n_layers, n_channel, H, W) premultiplied α·I, alpha (n_layers, H, W) in {0, 1},
+    depths_D (n_layers,) decreasing). Each pixel goes to the layer nearest its depth in D.
+    """
+    img = _finite_image("image", image, (2, 3))
+    if img.ndim == 2:
+        img = img[None]
+    depth = check_depths("depth_map_D", depth_map_D)
+    if depth.shape != img.shape[-2:]:
+        raise ParameterError("depth_map_D", "{depth_map_D} must have the image's shape {want}, "
+                             "got {got}", want=img.shape[-2:], got=depth.shape)
+    if int(n_layers) != n_layers or n_layers < 1:
+        raise ParameterError("n_layers", "{n_layers} must be an integer >= 1, got {got}",
+                             got=n_layers)
+    distinct = np.unique(depth)
+    if distinct.size <= n_layers:
+        depths = distinct[::-1].copy()
+    else:
+        depths = np.linspace(depth.max(), depth.min(), int(n_layers))
+    index = np.argmin(np.abs(depth[None] - depths[:, None, None]), axis=0)
+    alpha = (index[None] == np.arange(depths.size)[:, None, None]).astype(np.float32)
+    layers = img[None] * alpha[:, None]
+    return layers.astype(np.float32), alpha, depths
+
+
+def check_layers(layers, alpha, depths_D):
+    """Host checks of a layer stack (:func:`composite_layers`' inputs); returns NumPy arrays."""
+    lay = _finite_image("layers", layers, (4,))
+    a = np.asarray(alpha, float)
+    if a.shape != (lay.shape[0],) + lay.shape[-2:]:
+        raise ParameterError("alpha", "{alpha} must have shape (n_layers, H, W) = {want}, got {got}",
+                             want=(lay.shape[0],) + lay.shape[-2:], got=a.shape)
+    if not np.all(np.isfinite(a)) or np.any(a < 0) or np.any(a > 1):
+        raise ParameterError("alpha", "{alpha} must be coverage in [0, 1]")
+    d = check_depths("depths_D", depths_D)
+    if d.shape != (lay.shape[0],):
+        raise ParameterError("depths_D", "{depths_D} must have one depth per layer ({want}), got "
+                             "shape {got}", want=lay.shape[0], got=d.shape)
+    if d.size > 1 and np.any(np.diff(d) >= 0):
+        raise ParameterError("depths_D", "{depths_D} must be strictly decreasing: layers are given "
+                             "nearest first (front to back), got {got}", got=d.tolist())
+    return lay, a, d
+
+
+def working_bytes(shape, n_layers: int, n_channel: int, pad: int) -> int:
+    """Estimated working memory of :func:`composite_layers`, bytes."""
+    h, w = shape
+    return int(BYTES_PER_PIXEL_LAYER * n_layers * n_channel * (h + 2 * pad) * (w + 2 * pad))
+
+
+def composite_layers(layers, alpha, otf, freq_step_cpd: float, pixel_arcmin: float, *,
+                     occlusion: bool = True, boundary: str = "edge"):
+    """Blur every layer with its OTF and composite front to back (module docstring).
+
+    Parameters
+    ----------
+    layers : (n_layers, n_channel, H, W) premultiplied colour α·I, nearest layer first
+    alpha : (n_layers, H, W) coverage in [0, 1]
+    otf : (n_channel, n_layers, L, L//2+1) half-plane OTFs, OTF(0) = 1
+    freq_step_cpd : the OTFs' frequency step, cpd
+    pixel_arcmin : the scene's pixel, arcmin
+    occlusion : False: the layers add (every layer's light reaches the eye)
+    boundary : as :func:`lfjax.vision.images.retinal_image`
+
+    Returns
+    -------
+    (n_channel, H, W) retinal image per primary.
+    """
+    otf_lc = jnp.swapaxes(jnp.asarray(otf), 0, 1)  # (n_layers, n_channel, L, Lh)
+    colour = retinal_image(layers, pixel_arcmin, otf_lc, freq_step_cpd, boundary=boundary)
+    if not occlusion:
+        return jnp.sum(colour, axis=0)
+    cover = jnp.broadcast_to(jnp.asarray(alpha)[:, None], jnp.shape(layers))
+    blurred = retinal_image(cover, pixel_arcmin, otf_lc, freq_step_cpd, boundary=boundary,
+                            constant=0.0)
+    transmit = jnp.cumprod(1.0 - blurred, axis=0)
+    before = jnp.concatenate([jnp.ones_like(transmit[:1]), transmit[:-1]], axis=0)
+    return jnp.sum(before * colour, axis=0)
+
+
+def resolve_display(display, pupil_diameter_mm: float, cdp_D: float):
+    """(layout or None, DisplayOptics or None, cdp_D, pupil_diameter_mm) of a display given as
+    ``"natural"``/None, a :class:`~lfjax.model.layouts.Layout` or a
+    :class:`~lfjax.display.panel.Panel` (its central views, lenslet diffraction and pixels)."""
+    if display is None or (isinstance(display, str) and display == "natural"):
+        return None, None, cdp_D, pupil_diameter_mm
+    if isinstance(display, Layout):
+        return display, None, cdp_D, pupil_diameter_mm
+    if isinstance(display, Panel):
+        return (display.layout(), display.optics(), float(display.cdp_D),
+                float(display.pupil_diameter_mm))
+    raise ParameterError("display", "{display} must be 'natural', a Layout or a Panel, got {got}",
+                         got=type(display).__name__)
+
+
+def predicted_accommodation(eye: Eyes, layout: Layout | None, fixation_D: float,
+                            primaries: DisplayPrimaries | str = "oled", *,
+                            pupil_diameter_mm: float = 3.0, cdp_D: float = 2.0,
+                            options: ModelOptions = ModelOptions(),
+                            display: DisplayOptics | None = None) -> float:
+    """The eye's predicted accommodation (continuous VSOTF peak, D) for a point rendered at
+    ``fixation_D`` by ``layout`` (None: a real point there), in the display's white."""
+    white = display_spectrum(primaries, "white", options)
+    if layout is None:  # the open pupil shows its point at its CDP, whatever the depth
+        cdp_D = float(fixation_D)
+    # from 3 D farther than the fixated depth (past the CDP, where a display whose views
+    # drive accommodation weakly leaves the eye) to 1 D nearer, in 0.2 D states
+    tf = through_focus(single_eye(eye), layout, [float(fixation_D)], None, pupil_diameter_mm,
+                       cdp_D, spectrum=white, options=options,
+                       accommodation_offsets_D=SEARCH_OFFSETS_D, continuous_peaks=("vsotf",),
+                       display=display)
+    a = float(tf.continuous_accommodation_D()[0, 0])
+    if not math.isfinite(a):
+        a = float(tf.predicted_accommodation_D()[0, 0])
+    return a
+
+
+def scene_otfs(eye: Eyes, layout: Layout | None, accommodation_D: float, depths_D,
+               primaries: DisplayPrimaries | str = "oled", *, pupil_diameter_mm: float = 3.0,
+               cdp_D: float = 2.0, options: ModelOptions = ModelOptions(),
+               display: DisplayOptics | None = None, sampling: Sampling | None = None):
+    """(otf (n_channel, n_layers, L, L//2+1), freq_step_cpd) of every layer depth, per primary."""
+    spectra = channel_spectra(primaries, options)
+    if sampling is None:
+        sampling = common_sampling(eye, [layout], float(accommodation_D), depths_D, spectra,
+                                   pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D,
+                                   options=options, display=display)
+    otf = display_otfs(eye, layout, accommodation_D, depths_D, spectra, sampling,
+                       pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, options=options,
+                       display=display)
+    return embed_otf(otf, max(int(otf.shape[-2]), sampling.n_fft or 0)), sampling.freq_step_cpd
+
+
+def retinal_scene(eye: Eyes, pixel_arcmin: float, *, image=None, depth_map_D=None, layers=None,
+                  alpha=None, depths_D=None, n_layers: int = 8, display="natural",
+                  primaries: DisplayPrimaries | str = "oled", accommodation_D: float | None = None,
+                  fixation_D: float | None = None, pupil_diameter_mm: float = 3.0,
+                  cdp_D: float = 2.0, options: ModelOptions = ModelOptions(),
+                  occlusion: bool = True, boundary: str = "edge",
+                  memory_limit_bytes: int | None = None) -> dict:
+    """The retinal image of a scene with depth (module docstring), per display primary.
+
+    Parameters
+    ----------
+    eye : one eye (``Eyes`` of one member: ``average_eye(3.0)``, ``sample_eyes(...)[i:i+1]``)
+    pixel_arcmin : the scene's pixel, arcmin of visual angle
+    image, depth_map_D : (n_channel, H, W) or (H, W) luminance and (H, W) depths (D); or
+    layers, alpha, depths_D : (n_layers, n_channel, H, W) premultiplied colour, (n_layers,
+        H, W) coverage and (n_layers,) strictly decreasing depths (D), nearest first
+    n_layers : layers cut from a depth map (default 8)
+    display : ``"natural"`` (real surfaces), a :class:`~lfjax.model.layouts.Layout` (ideal
+        display; its CDP ``cdp_D``) or a :class:`~lfjax.display.panel.Panel`
+    primaries : the display's primaries (a built-in name or ``DisplayPrimaries``)
+    accommodation_D : where the eye focuses, D; default its predicted accommodation
+        (:func:`predicted_accommodation`) for the depth at ``fixation_D``
+    fixation_D : the fixated depth, D; default the depth at the image centre
+    occlusion : composite with occlusion (default) or add the layers
+    memory_limit_bytes : refuse scenes whose working set exceeds it (default half the RAM)
+
+    Returns
+    -------
+    dict: ``retina`` (n_channel, H, W), ``accommodation_D``, ``fixation_D``, ``depths_D``
+    of the layers, ``freq_step_cpd``, ``otf``.
+    """
+    pixel = float(pixel_arcmin)
+    if not (pixel > 0 and math.isfinite(pixel)):
+        raise ParameterError("pixel_arcmin", "{pixel_arcmin} must be > 0 arcmin, got {got}",
+                             got=pixel_arcmin)
+    eye = single_eye(eye)
+    if (image is None) == (layers is None):
+        raise ParameterError("image", "give either {image} with depth_map_D, or layers with "
+                             "alpha and depths_D")
+    if image is not None:
+        if depth_map_D is None:
+            raise ParameterError("depth_map_D", "{depth_map_D} is required with image")
+        lay, a, d = layers_from_depth_map(image, depth_map_D, n_layers)
+    else:
+        if alpha is None or depths_D is None:
+            raise ParameterError("alpha", "{alpha} and depths_D are required with layers")
+        lay, a, d = check_layers(layers, alpha, depths_D)
+    if lay.shape[1] not in (1, 3):
+        raise ParameterError("image", "{image} must have 1 or 3 channels (R, G, B), got {got}",
+                             got=lay.shape[1])
+    layout, optics, cdp, pupil = resolve_display(display, pupil_diameter_mm, cdp_D)
+    # memory bound before any optics: the kernel spans the PSF field, at most the image
+    h, w = lay.shape[-2:]
+    pad = max(h, w)
+    need = working_bytes((h, w), lay.shape[0], 3, min(pad, 512))
+    limit = default_memory_limit_bytes() if memory_limit_bytes is None else int(memory_limit_bytes)
+    if need > limit:
+        raise ParameterError("image", "the scene needs about {need:.2f} GB of working memory "
+                             "({n} layers × 3 primaries × {h}×{w} pixels), over the limit of "
+                             "{limit:.2f} GB: use fewer layers or a smaller image",
+                             need=need / 1e9, n=lay.shape[0], h=h, w=w, limit=limit / 1e9)
+    if fixation_D is None:
+        depth_centre = d[np.argmax(a[:, h // 2, w // 2])] if np.any(a[:, h // 2, w // 2] > 0) else d[0]
+        fixation_D = float(depth_centre)
+    if accommodation_D is None:
+        accommodation_D = predicted_accommodation(eye, layout, fixation_D, primaries,
+                                                  pupil_diameter_mm=pupil, cdp_D=cdp,
+                                                  options=options, display=optics)
+    otf, df = scene_otfs(eye, layout, accommodation_D, d, primaries, pupil_diameter_mm=pupil,
+                         cdp_D=cdp, options=options, display=optics)
+    colour = jnp.asarray(lay if lay.shape[1] == 3 else np.repeat(lay, 3, axis=1))
+    retina = composite_layers(colour, jnp.asarray(a), otf, df, pixel, occlusion=occlusion,
+                              boundary=boundary)
+    return dict(retina=retina, accommodation_D=float(accommodation_D), fixation_D=float(fixation_D),
+                depths_D=d, freq_step_cpd=float(df), otf=otf)
+
+
+def demo_scene(n_pixels: int = 128, depths_D=(4.0, 2.0, 0.5)):
+    """A synthetic scene of three depths for figures and tests: (image (3, n, n), depth map).
+
+    A far (last depth) coloured checkerboard background, a mid-depth grating bar and a
+    near letter-like block, each with sharp edges."""
+    n = int(n_pixels)
+    y, x = np.mgrid[0:n, 0:n] / n
+    near, mid, far = depths_D
+    depth = np.full((n, n), far, float)
+    check = ((np.floor(x * 8) + np.floor(y * 8)) % 2).astype(float)
+    img = np.stack([0.2 + 0.8 * check, 0.2 + 0.5 * check, 0.2 + 0.8 * (1 - check)])
+    bar = (np.abs(y - 0.5) < 0.18) & (x > 0.05) & (x < 0.6)
+    grating = 0.5 + 0.5 * np.sign(np.sin(2 * np.pi * x * 16))
+    img[:, bar] = np.stack([grating, grating, grating])[:, bar]
+    depth[bar] = mid
+    block = (np.abs(x - 0.7) < 0.12) & (np.abs(y - 0.55) < 0.25) & ~(
+        (np.abs(x - 0.7) < 0.04) & (y > 0.5))
+    img[:, block] = np.array([1.0, 0.9, 0.2])[:, None]
+    depth[block] = near
+    return img.astype(np.float32), depth
+
+
+__all__ = [
+    "layers_from_depth_map",
+    "check_layers",
+    "check_depths",
+    "composite_layers",
+    "resolve_display",
+    "predicted_accommodation",
+    "scene_otfs",
+    "retinal_scene",
+    "working_bytes",
+    "default_memory_limit_bytes",
+    "demo_scene",
+]
