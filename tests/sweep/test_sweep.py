@@ -817,6 +817,13 @@ def test_hpo_strips_with_leakage_sweep_as_through_focus_computes_them(tmp_path):
     lenticular = direct(y_defocus_D=-0.83, leakage_weight=0.5)
     np.testing.assert_allclose(ds.vsotf.values[:, 0, 0], lenticular, rtol=1e-6, atol=1e-9)
     assert np.nanmax(np.abs(lenticular - direct(y_defocus_D=-0.83))) > 1e-3
+    # the report draws the strips as strips (rectangles spanning the pupil), not discs
+    from matplotlib.patches import Circle, Rectangle
+
+    from lfjax.sweep.report import fig_layouts
+    (ax,) = fig_layouts({(3.0, "1x2"): task.layout}, [3.0], ["1x2"]).axes
+    assert sum(isinstance(p, Rectangle) for p in ax.patches) == 4  # area and edge of each
+    assert sum(isinstance(p, Circle) for p in ax.patches) == 1  # the pupil
 
 
 def test_a_full_disk_keeps_the_finished_chunks_and_says_how_to_resume(reference, tmp_path,
