@@ -11,24 +11,33 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle
+from matplotlib.patches import Circle, Rectangle
 
 COLOURS = ("tab:grey", "tab:red", "tab:blue", "tab:green")
 FIGURES = {"layouts": "layouts.png", "through_focus": "through_focus.png", "history": "history.png"}
 
 
-def draw_layout(ax, layout, pupil_diameter_mm: float, colour: str = "tab:red", title: str | None = None):
-    """Subaperture discs (filled, cropped by the pupil) and the pupil outline on ``ax`` (mm)."""
+def draw_layout(ax, layout, pupil_diameter_mm: float, colour: str = "tab:red", title: str | None = None,
+                aperture: str = "circle"):
+    """Subaperture discs (filled, cropped by the pupil) and the pupil outline on ``ax`` (mm);
+    ``aperture="strip"``: vertical strips ``d`` wide spanning the pupil's height (a 1×n
+    HPO layout, :mod:`lfjax.model.strips`), their edges drawn within the pupil."""
     radius = 0.5 * float(pupil_diameter_mm)
     pupil = Circle((0.0, 0.0), radius, fill=False, lw=1.5, color="black")
     ax.add_patch(pupil)
     centres = np.asarray(layout.centres_mm, float).reshape(-1, 2)
     diameters = np.asarray(layout.diameters_mm, float).reshape(-1)
     for i, ((x, y), d) in enumerate(zip(centres, diameters)):
-        disc = Circle((x, y), 0.5 * d, color=colour, alpha=0.35, lw=0)
-        disc.set_clip_path(pupil)
-        ax.add_patch(disc)
-        edge = Circle((x, y), 0.5 * d, fill=False, color=colour, lw=0.8, ls="--")
+        if aperture == "strip":
+            shape = dict(xy=(x - 0.5 * d, -radius), width=d, height=2.0 * radius)
+            area, edge = (Rectangle(**shape, color=colour, alpha=0.35, lw=0),
+                          Rectangle(**shape, fill=False, color=colour, lw=0.8, ls="--"))
+            edge.set_clip_path(pupil)
+        else:
+            area = Circle((x, y), 0.5 * d, color=colour, alpha=0.35, lw=0)
+            edge = Circle((x, y), 0.5 * d, fill=False, color=colour, lw=0.8, ls="--")
+        area.set_clip_path(pupil)
+        ax.add_patch(area)
         ax.add_patch(edge)
         ax.plot([x], [y], marker="+", color=colour, ms=5)
     lim = 1.15 * max(radius, float(np.max(np.hypot(centres[:, 0], centres[:, 1]) + 0.5 * diameters)))

@@ -38,7 +38,8 @@ from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import Spectrum, make_spectrum
 from lfjax.vision.prepare import States, prepare, with_aliasing_retry
-from lfjax.sweep.config import SweepConfig
+from lfjax.model.strips import strip_layout
+from lfjax.sweep.config import SweepConfig, strip_views
 
 FREQUENCIES_CPD = np.arange(0.0, 61.0, 1.0)
 """Frequency axis (cpd) of the stored MTF at the predicted accommodation (claim 5 reads
@@ -147,7 +148,7 @@ def spectral_plans(config: SweepConfig, rule: str = "auto") -> dict[tuple[int, i
                 depths_D=cdp if entry == "natural" else all_depths,
                 accommodation_D=config.accommodation_D, accommodation_window_D=config.window_D,
                 wavelength_range_nm=(start, stop), options=config.options,
-                display=config.display_optics(),
+                display=config.display_optics(entry, layout),
             ), Targets(vsotf=None, peak_D=config.peak_tolerance_D,
                        cutoff_cpd=config.cutoff_tolerance_cpd,
                        cutoff_threshold=config.cutoff_threshold), estimate_accuracy=False,
@@ -169,7 +170,14 @@ def planned_wavelength_step(config: SweepConfig) -> float:
 
 
 def resolve_layout(config: SweepConfig, entry: str, pupil_mm: float) -> Layout:
-    """A paper layout sized to ``pupil_mm`` (mm), or the layout of a JSON file."""
+    """A paper layout sized to ``pupil_mm`` (mm), a ``1xN`` strip layout across it (pitch
+    ``pupil_mm``/N, width ``strip_width_ratio`` times the pitch:
+    :func:`lfjax.model.strips.strip_layout`), or the layout of a JSON file."""
+    n = strip_views(entry)
+    if n is not None:
+        pitch = float(pupil_mm) / n
+        return strip_layout(n, pupil_mm, pitch_mm=pitch,
+                            width_mm=config.strip_width_ratio * pitch)
     path = config.layout_path(entry)
     if path is None:
         return paper_layouts(pupil_mm)[entry]
@@ -181,14 +189,14 @@ def layout_name(entry: str) -> str:
     return entry if not entry.endswith(".json") else entry.rsplit("/", 1)[-1][: -len(".json")]
 
 
-def _plan(config: SweepConfig, eyes: Eyes, layout: Layout, pupil_mm: float, depths, pairs,
-          spectrum: Spectrum) -> Sampling:
+def _plan(config: SweepConfig, eyes: Eyes, entry: str, layout: Layout, pupil_mm: float, depths,
+          pairs, spectrum: Spectrum) -> Sampling:
     plan = cached_plan_sampling(PlanScene(
         layout=layout, pupil_diameter_mm=pupil_mm, cdp_D=config.cdp_D,
         depths_D=np.asarray(depths, float), accommodation_window_D=None, pairs=pairs,
         wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
         spectral_weights=np.asarray(spectrum.weights), eyes=eyes, options=config.options,
-        display=config.display_optics(),
+        display=config.display_optics(entry, layout),
     ), Targets(vsotf=config.vsotf_tolerance or 1e-3),
         estimate_accuracy=config.vsotf_tolerance is not None,
         overrides=Overrides(freq_step_cpd=config.freq_step_cpd))
@@ -228,18 +236,19 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
             # program carries no traced checks: JAX's persistent cache can then keep it for
             # the next process (a resumed sweep, another host)
             def prepared_at(sampling, check_aliasing=True, layout=layout, states=states,
-                            pupil=pupil, spectrum=task_spectrum):
+                            pupil=pupil, spectrum=task_spectrum, entry=entry):
                 return prepare(eyes, layout, states, pupil_diameter_mm=pupil,
                                cdp_D=config.cdp_D, spectrum=spectrum, options=config.options,
                                sampling=sampling, check_aliasing=check_aliasing,
-                               display=config.display_optics(), traced_checks=False)
+                               display=config.display_optics(entry, layout),
+                               traced_checks=False)
 
             if samplings is not None and (pi, li) in samplings:
                 prepared = prepared_at(samplings[(pi, li)], check_aliasing=False)
             else:
                 prepared, _ = with_aliasing_retry(
-                    prepared_at, _plan(config, eyes, layout, pupil, depths, states.pairs,
-                                       task_spectrum),
+                    prepared_at, _plan(config, eyes, entry, layout, pupil, depths,
+                                       states.pairs, task_spectrum),
                     refine=config.freq_step_cpd is None, what=f"layout {entry} at {pupil:g} mm")
             tasks.append(Task(
                 pi, li, float(pupil), entry, layout, slots, depths, states.allowed,

@@ -40,10 +40,12 @@ from lfjax.base.grids import DepthGrid, inclusive_grid
 from lfjax.base.units import check_dioptres
 from lfjax.display.aberrations import LensletAberration
 from lfjax.display.lenslets import DisplayOptics, display_optics_at
+from lfjax.display.lenticular import MAX_Y_DEFOCUS_D, ViewOptics
 from lfjax.display.spectra import DISPLAY_NAMES
 from lfjax.model.eyes import THIBOS_PUPILS_MM
 from lfjax.model.layout_files import load_layout_json
-from lfjax.model.layouts import PAPER_LAYOUTS, check_views_in_pupil
+from lfjax.model.layouts import Layout, PAPER_LAYOUTS, check_views_in_pupil
+from lfjax.model.strips import neighbour_matrix
 from lfjax.model.options import ModelOptions
 from lfjax.vision.peaks import METRICS, PEAK_METHODS
 
@@ -58,6 +60,24 @@ MIN_WAVELENGTH_STEP_NM = 1.0
 MAX_ACCOMMODATION_STATES = 10_000
 """Most accommodation states on the grid (0.0005 D steps over 5 D); the store holds every
 state for every eye, and continuous peaks refine off the grid."""
+
+MAX_STRIP_VIEWS = 16
+"""Most strips of a ``1xN`` layout entry: 16 strips fill a 3 mm pupil every 0.19 mm, far
+below the paper's finest view pitch (0.75 mm); the frequency grid such narrow strips need
+grows with N."""
+MAX_STRIP_WIDTH_RATIO = 2.0
+"""Widest strip of a ``1xN`` layout, as a multiple of its pitch: at 2 a strip reaches its
+neighbours' centres (the overlap scans of :mod:`lfjax.studies.hpo` stop there too)."""
+
+
+def strip_views(entry: str) -> int | None:
+    """N of a ``1xN`` strip-layout entry of ``display.layouts`` (an HPO layout of N
+    vertical strips across each pupil), or None for any other entry."""
+    if not (isinstance(entry, str) and entry.startswith("1x") and entry[2:].isdigit()
+            and entry[2:] == str(int(entry[2:]))):
+        return None
+    return int(entry[2:])
+
 
 UNIT_SUFFIXES = {"_D": "dioptres", "_mm": "millimetres", "_nm": "nanometres",
                  "_cpd": "cycles per degree", "_arcmin": "arcminutes", "_um": "micrometres"}
@@ -229,9 +249,16 @@ def _layout_entries(key: Key, layouts, base_dir: Path) -> list[str]:
     for entry in layouts:
         if entry in PAPER_LAYOUTS:
             continue
+        n = strip_views(entry)
+        if n is not None:
+            if not 1 <= n <= MAX_STRIP_VIEWS:
+                p.append(f"{key.where}: {entry!r} must have 1 to {MAX_STRIP_VIEWS} strips "
+                         f"(1x1 ... 1x{MAX_STRIP_VIEWS}), got {n}")
+            continue
         if not entry.endswith(".json"):
             p.append(f"{key.where}: {entry!r} is neither a paper layout "
-                     f"({', '.join(PAPER_LAYOUTS)}) nor a .json layout file")
+                     f"({', '.join(PAPER_LAYOUTS)}), a strip layout 1xN (N = 1 ... "
+                     f"{MAX_STRIP_VIEWS}) nor a .json layout file")
             continue
         path = Path(entry) if Path(entry).is_absolute() else base_dir / entry
         if not path.is_file():
@@ -303,8 +330,10 @@ class SweepConfig(DepthGrid):
         "population", "append the Thibos average eye (of the measured pupil), flagged "
         "is_average (claims 4 and 5 compare against it)"))
     layouts: tuple[str, ...] = field(default=PAPER_LAYOUTS, metadata=_key(
-        "display", f"paper layouts ({', '.join(PAPER_LAYOUTS)}, sized to each pupil) or layout "
-        f"JSON files of lfjax optimise (fixed in mm; relative to the config file)",
+        "display", f"paper layouts ({', '.join(PAPER_LAYOUTS)}, sized to each pupil), "
+        f"horizontal-parallax-only strips 1xN (N = 1 ... {MAX_STRIP_VIEWS} vertical strips "
+        f"across each pupil, pitch pupil/N: lfjax.model.strips.strip_layout) or layout JSON "
+        f"files of lfjax optimise (fixed in mm; relative to the config file)",
         NonEmpty(f"layout ({', '.join(PAPER_LAYOUTS)} or a layout JSON file)"), Distinct(),
         _layout_entries))
     cdp_D: float = field(default=2.0, metadata=_key(
@@ -330,6 +359,22 @@ class SweepConfig(DepthGrid):
         Range(lo=-100, hi=100)))
     lenslet_field_curvature_um: float = field(default=0.0, metadata=_key(
         "display", "lenslets' field curvature W220 at each view's rim", Range(lo=-100, hi=100)))
+    strip_width_ratio: float = field(default=1.0, metadata=_key(
+        "display", "width / pitch of the 1xN layouts' strips, unitless (below 1 gaps "
+        "between the strips, above 1 overlap; 1: tangent strips filling the pupil)",
+        Range(0, MAX_STRIP_WIDTH_RATIO, lo_open=True,
+              note="at 2 a strip reaches its neighbours' centres")))
+    strip_y_defocus_D: float = field(default=0.0, metadata=_key(
+        "display", "the 1xN strips' extra defocus along y against x (an astigmatic "
+        "lenticular beam: a panel's CDP minus the vergence of its pixel plane, "
+        "lfjax.display.lenticular.LenticularPanel.y_defocus_D; about -0.83 D for "
+        "lenticular_phone(), -28.5 D for lenticular_near_eye()); 0: the idealised 1-D light "
+        "field", Range(-MAX_Y_DEFOCUS_D, MAX_Y_DEFOCUS_D)))
+    leakage_weight: float = field(default=0.0, metadata=_key(
+        "display", "weight of each neighbouring view's content in a view, unitless "
+        "(cross-talk, lfjax.display.lenticular.ViewOptics; the neighbours are the nearest "
+        "views: adjacent strips, the edge neighbours of a grid); 0: none",
+        Range(0, 1)))
     accommodation_step_D: float = field(default=0.2, metadata=_key(
         "accommodation", "step of the absolute accommodation grid 0 ... max_D",
         Range(lo=0, lo_open=True), name="step_D"))
@@ -417,8 +462,38 @@ class SweepConfig(DepthGrid):
                              "(lfjax.sweep.compute.sweep_spectrum)")
         return inclusive_grid(*self.wavelengths_nm)
 
-    def display_optics(self):
-        """The display's :class:`~lfjax.display.lenslets.DisplayOptics`, or None (ideal display)."""
+    def display_optics(self, entry: str | None = None, layout: Layout | None = None):
+        """The display's :class:`~lfjax.display.lenslets.DisplayOptics` for the layout entry
+        ``entry`` (resolved to ``layout``, mm), or None (the ideal display).
+
+        A ``1xN`` strip entry, or any layout of several views with ``leakage_weight`` > 0,
+        gets a :class:`~lfjax.display.lenticular.ViewOptics`: strip apertures
+        (``aperture="strip"``, x-only Fresnel diffraction with a lenslet distance) and
+        ``strip_y_defocus_D`` for strips; the leakage weight with the layout's neighbours
+        (:func:`~lfjax.model.strips.neighbour_matrix`). Every other entry, and every entry
+        while those keys are at their defaults, gets the display every layout shares, as
+        before they existed. Without ``entry`` and ``layout``: that shared display (refused
+        with leakage, whose neighbours need the layout)."""
+        shared = self._shared_display_optics()
+        strips = entry is not None and strip_views(entry) is not None
+        leaks = self.leakage_weight > 0
+        if leaks and layout is None:
+            raise ValueError("display.leakage_weight > 0: the display's neighbours come from "
+                             "the layout; call display_optics(entry, layout)")
+        leaks = leaks and layout.n_subapertures > 1
+        if not (strips or leaks):
+            return shared
+        base = DisplayOptics() if shared is None else shared
+        return ViewOptics(diffraction=base.diffraction,
+                          aperture="strip" if strips else base.aperture,
+                          fresnel_distance_mm=base.fresnel_distance_mm,
+                          pixel_width_arcmin=base.pixel_width_arcmin, aberration=base.aberration,
+                          y_defocus_D=self.strip_y_defocus_D if strips else 0.0,
+                          leakage_weight=self.leakage_weight if leaks else 0.0,
+                          neighbours=neighbour_matrix(layout) if leaks else None)
+
+    def _shared_display_optics(self):
+        """The lenslets, pixels and aberration every layout of the sweep shares, or None."""
         if self.lenslet_distance_mm is not None:
             optics = display_optics_at(self.lenslet_distance_mm, self.cdp_D, self.pixel_width_arcmin)
         elif self.pixel_width_arcmin > 0:
@@ -449,8 +524,8 @@ class SweepConfig(DepthGrid):
         return -(-self.n_total_eyes // int(self.chunk_size))
 
     def layout_path(self, entry: str) -> Path | None:
-        """The JSON file a layout entry names (None for a named paper layout)."""
-        if entry in PAPER_LAYOUTS:
+        """The JSON file a layout entry names (None for a named paper or strip layout)."""
+        if entry in PAPER_LAYOUTS or strip_views(entry) is not None:
             return None
         path = Path(entry)
         return path if path.is_absolute() else Path(self.base_dir) / path
@@ -707,7 +782,7 @@ def _combination_problems(v: dict, failed: set[str], base_dir: Path = Path("."))
     # layouts are made for each pupil); refused here, before anything is planned
     if "layouts" not in failed and "pupil_diameters_mm" not in failed:
         for entry in v["layouts"]:
-            if entry in PAPER_LAYOUTS:
+            if entry in PAPER_LAYOUTS or strip_views(entry) is not None:
                 continue
             path = Path(entry) if Path(entry).is_absolute() else Path(base_dir) / entry
             layout, _ = load_layout_json(path)
@@ -759,6 +834,13 @@ def _combination_problems(v: dict, failed: set[str], base_dir: Path = Path("."))
         if not (0 < distance < limit):
             p.append(f"display.lenslet_distance_mm must be in (0, {limit:.4g}) mm (the CDP is a "
                      f"virtual image behind the display), got {distance}")
+    # the strip keys shape 1xN layouts only: set without one they would change nothing
+    if not any(strip_views(e) is not None for e in v["layouts"]):
+        for name, default in (("strip_width_ratio", 1.0), ("strip_y_defocus_D", 0.0)):
+            if name not in failed and v[name] != default:
+                p.append(f"display.{name} = {v[name]:g} shapes the 1xN strip layouts, but "
+                         f"display.layouts has none (add one, e.g. \"1x3\", or leave it at "
+                         f"{default:g})")
     if v["vsotf_tolerance"] is not None and v["freq_step_cpd"] is not None:
         p.append("sampling.vsotf_tolerance plans the frequency step: give it or "
                  "freq_step_cpd, not both")
@@ -845,6 +927,19 @@ def _toml_value(value) -> str:
 SweepConfig.__doc__ += _key_list()
 
 
+def with_new_defaults(stored: dict) -> dict:
+    """A stored :meth:`SweepConfig.as_dict` record with every key it lacks at its default.
+
+    A store written before a key existed was computed as that key's default computes (a new
+    key's default changes nothing), so it resumes under a config leaving the key there; set
+    to anything else, the key then differs from the record."""
+    out = dict(stored)
+    for key in KEYS:
+        if key.field not in out:
+            out[key.field] = _shown(key.default)
+    return out
+
+
 def config_differences(stored: dict, current: dict, prefix: str = "") -> list[str]:
     """Human-readable differences between two :meth:`SweepConfig.as_dict` records."""
     out = []
@@ -861,6 +956,8 @@ __all__ = [
     "CONFIG_FORMAT",
     "KEYS",
     "Key",
+    "MAX_STRIP_VIEWS",
+    "MAX_STRIP_WIDTH_RATIO",
     "SweepConfig",
     "SweepConfigError",
     "UNIT_SUFFIXES",
@@ -869,4 +966,6 @@ __all__ = [
     "config_template",
     "config_to_toml",
     "load_config",
+    "strip_views",
+    "with_new_defaults",
 ]

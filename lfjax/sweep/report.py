@@ -36,7 +36,7 @@ from lfjax.base.tables import printable
 from lfjax.model.layout_plots import draw_layout
 from lfjax.model.layouts import LF_LAYOUTS
 from lfjax.sweep.compute import resolve_layout
-from lfjax.sweep.config import config_from_dict
+from lfjax.sweep.config import config_from_dict, strip_views
 from lfjax.base.files import check_writable, staged_output
 from lfjax.sweep.store import is_store, open_store, store_damage
 from lfjax.sweep.ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
@@ -306,9 +306,10 @@ def fig_cutoff_frequency(table, threshold: float):
                         "Cut-off frequency at the VSOTF-predicted accommodation", False)
 
 
-def fig_layouts(layouts: dict, pupils_mm) -> object:
+def fig_layouts(layouts: dict, pupils_mm, strip_labels=()) -> object:
     """Subapertures of each layout in each pupil (rows: pupils, columns: layouts).
-    ``layouts``: {(pupil_mm, label): Layout}."""
+    ``layouts``: {(pupil_mm, label): Layout}; ``strip_labels``: the labels of 1xN strip
+    layouts (drawn as strips spanning the pupil's height)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -322,9 +323,11 @@ def fig_layouts(layouts: dict, pupils_mm) -> object:
             layout = layouts[(pupil, label)]
             ax = fig.add_subplot(len(pupils), len(labels), r * len(labels) + c + 1)
             d = np.asarray(layout.diameters_mm, float).reshape(-1)
-            title = (f"{label}, {pupil:g} mm pupil\n{d.size} view{'s' if d.size > 1 else ''}, "
-                     f"d = {d.max():.3g} mm")
-            draw_layout(ax, layout, pupil, _colour(label, c), title)
+            strips = label in strip_labels
+            title = (f"{label}, {pupil:g} mm pupil\n{d.size} {'strip' if strips else 'view'}"
+                     f"{'s' if d.size > 1 else ''}, {'w' if strips else 'd'} = {d.max():.3g} mm")
+            draw_layout(ax, layout, pupil, _colour(label, c), title,
+                        aperture="strip" if strips else "circle")
     return fig
 
 
@@ -582,7 +585,10 @@ def _write_report(store: Path, ds, out: Path, draws, sample_size, seed, dpi, pro
     figures = {
         "accommodation_error": fig_accommodation_error(table),
         "cutoff_frequency": fig_cutoff_frequency(table, float(config.cutoff_threshold)),
-        "layouts": fig_layouts(layouts, [float(p) for p in ds.pupil.values]),
+        "layouts": fig_layouts(layouts, [float(p) for p in ds.pupil.values],
+                               [str(label) for label, entry in zip(ds.layout.values,
+                                                                   ds.layout_entry.values)
+                                if strip_views(entries[str(entry)]) is not None]),
     }
     for key, fig in figures.items():
         fig.savefig(files[key], dpi=dpi)

@@ -42,7 +42,7 @@ from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import make_spectrum
 from lfjax.sweep.compute import (FREQUENCIES_CPD, Task, layout_name, spectral_plans,
                                  sweep_spectra)
-from lfjax.sweep.config import SweepConfig, config_differences, config_to_toml
+from lfjax.sweep.config import SweepConfig, config_differences, config_to_toml, with_new_defaults
 
 STORE_FORMAT = "lfjax-sweep-store/1"
 CHECKSUM_SCHEME = 2
@@ -170,6 +170,13 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
                                        config.lenslet_spherical_um, config.lenslet_coma_um,
                                        config.lenslet_astigmatism_um,
                                        config.lenslet_field_curvature_um]}),
+                               # recorded only when set: the stores before them read the same
+                               **({} if config.strip_width_ratio == 1.0 else {
+                                   "strip_width_ratio": config.strip_width_ratio}),
+                               **({} if config.strip_y_defocus_D == 0.0 else {
+                                   "strip_y_defocus_D": config.strip_y_defocus_D}),
+                               **({} if config.leakage_weight == 0.0 else {
+                                   "leakage_weight": config.leakage_weight}),
                                "spectrum": config.display_spectrum or "V(lambda) white"}),
         "n_chunks": int(config.n_chunks),
         "chunk_size": int(config.chunk_size),
@@ -607,7 +614,9 @@ def check_store_matches(path, config: SweepConfig) -> None:
                                 f"with lfjax sweep {path} --verify; write a new store to "
                                 f"another --out)")
     attrs = _open_group(path).attrs
-    stored = {"config": json.loads(attrs["config_json"]), "lfjax_version": attrs["lfjax_version"]}
+    # keys added since the store was written are at their defaults there (with_new_defaults)
+    stored = {"config": with_new_defaults(json.loads(attrs["config_json"])),
+              "lfjax_version": attrs["lfjax_version"]}
     current = json.loads(json.dumps(_stored_record(config), sort_keys=True))
     differences = config_differences(stored, current)
     if differences:

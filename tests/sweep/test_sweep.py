@@ -165,6 +165,64 @@ def test_lenslet_aberration_keys_reach_the_display_and_are_refused_out_of_range(
     assert "display.lenslet_coma_um must be in [-100, 100] um, got 150" in str(err.value)
 
 
+@pytest.mark.parametrize("display, message", [
+    ({"layouts": ["1x0"]}, "display.layouts: '1x0' must have 1 to 16 strips"),
+    ({"layouts": ["1x17"]}, "display.layouts: '1x17' must have 1 to 16 strips"),
+    ({"layouts": ["1x2"], "strip_width_ratio": 0.0}, "display.strip_width_ratio must be in (0, 2]"),
+    ({"layouts": ["1x2"], "strip_width_ratio": 2.5}, "display.strip_width_ratio must be in (0, 2]"),
+    ({"layouts": ["1x2"], "strip_y_defocus_D": -41.0},
+     "display.strip_y_defocus_D must be in [-40, 40] D, got -41"),
+    ({"leakage_weight": 1.5}, "display.leakage_weight must be in [0, 1], got 1.5"),
+    ({"leakage_weight": -0.1}, "display.leakage_weight must be in [0, 1], got -0.1"),
+    ({"strip_y_defocus_D": -0.8}, "display.strip_y_defocus_D = -0.8 shapes the 1xN strip "
+                                  "layouts, but display.layouts has none"),
+])
+def test_strip_and_leakage_keys_are_refused_out_of_range(display, message):
+    """The HPO and cross-talk keys are refused before any work, naming the key, its unit and
+    its range (or, set without a strip layout, that they would change nothing)."""
+    with pytest.raises(SweepConfigError) as err:
+        tiny_config(display=display)
+    assert message in str(err.value)
+
+
+def test_strip_and_leakage_keys_reach_each_layouts_display(tmp_path):
+    """A 1xN entry is N strips across each pupil (pitch pupil/N, width strip_width_ratio
+    times it) with strip apertures and the y defocus; the leakage weight goes to every
+    layout of several views with its neighbours; at their defaults every paper layout keeps
+    the display it had (None: the ideal display). The keys round-trip through TOML; a store
+    record from before them resumes while they are at their defaults."""
+    from lfjax.model.strips import neighbour_matrix
+    from lfjax.sweep.compute import resolve_layout
+    from lfjax.sweep.config import config_differences, with_new_defaults
+
+    plain = tiny_config()
+    for entry in plain.layouts:
+        assert plain.display_optics(entry, resolve_layout(plain, entry, 3.0)) is None
+    config = tiny_config(display={"layouts": ["natural", "2x2", "1x3"], "strip_width_ratio": 1.25,
+                                  "strip_y_defocus_D": -0.83, "leakage_weight": 0.25})
+    strips = resolve_layout(config, "1x3", 3.0)
+    np.testing.assert_allclose(np.asarray(strips.centres_mm)[:, 0], [-1.0, 0.0, 1.0])
+    np.testing.assert_allclose(np.asarray(strips.diameters_mm), 1.25)
+    optics = config.display_optics("1x3", strips)
+    assert optics.aperture == "strip" and float(optics.y_defocus_D) == pytest.approx(-0.83)
+    assert float(optics.leakage_weight) == 0.25
+    np.testing.assert_array_equal(np.asarray(optics.neighbours), neighbour_matrix(strips))
+    grid = config.display_optics("2x2", resolve_layout(config, "2x2", 3.0))
+    assert grid.aperture == "circle" and float(grid.y_defocus_D) == 0.0
+    assert float(grid.leakage_weight) == 0.25
+    assert config.display_optics("natural", resolve_layout(config, "natural", 3.0)) is None
+    with pytest.raises(ValueError, match="leakage_weight"):
+        config.display_optics()
+    again = load_config(write_toml(tmp_path / "c.toml", config))
+    assert again == config and again.as_dict() == config.as_dict()
+    old = {k: v for k, v in plain.as_dict().items()
+           if k not in ("strip_width_ratio", "strip_y_defocus_D", "leakage_weight")}
+    assert config_differences(with_new_defaults(old), plain.as_dict()) == []
+    leaky = tiny_config(display={"leakage_weight": 0.25}).as_dict()
+    assert config_differences(with_new_defaults(old), leaky) == [
+        "leakage_weight: store has 0.0, config has 0.25"]
+
+
 def test_config_round_trips_through_toml(tmp_path):
     config = tiny_config(sampling={"freq_step_cpd": 1.5}, model={"sce": "intensity"})
     again = load_config(write_toml(tmp_path / "c.toml", config))
@@ -724,6 +782,48 @@ def test_a_real_display_sweeps_as_through_focus_computes_it(tmp_path):
                           cdp_D=config.cdp_D, spectrum=spectrum, sampling=task.sampling,
                           options=config.options)
     assert np.nanmax(np.abs(np.asarray(ideal.vsotf) - np.asarray(tf.vsotf))) > 1e-3
+
+
+def test_hpo_strips_with_leakage_sweep_as_through_focus_computes_them(tmp_path):
+    """[display] 1xN strips, strip_width_ratio, strip_y_defocus_D and leakage_weight reach
+    every chunk: the store equals through_focus with the same strips built directly
+    (lfjax.model.strips.strip_layout, lfjax.display.lenticular.strip_display), records the
+    values, and differs from the same strips without leakage."""
+    from lfjax.display.lenticular import strip_display
+    from lfjax.model.strips import strip_layout
+    from lfjax.vision.focus import through_focus
+
+    config = tiny_config(population={"n_eyes": 2, "average_eye": False}, display={
+        "layouts": ["1x2"], "depth_offsets_D": [1.0], "strip_width_ratio": 1.25,
+        "strip_y_defocus_D": -0.83, "leakage_weight": 0.5}, run={"chunk_size": 2},
+        spectrum={"wavelengths_nm": [550.0, 550.0, 1.0]}, metrics={"continuous_peaks": []})
+    ds = open_store(run_sweep(config, tmp_path / "strips.zarr", progress=False).store)
+    recorded = json.loads(ds.attrs["display"])
+    assert (recorded["strip_width_ratio"], recorded["strip_y_defocus_D"],
+            recorded["leakage_weight"]) == (1.25, -0.83, 0.5)
+    eyes, _ = population(config)
+    spectrum = sweep_spectrum(config)
+    (task,) = build_tasks(config, eyes, spectrum)
+    layout = strip_layout(2, 3.0, width_mm=1.25 * 1.5)
+    np.testing.assert_array_equal(np.asarray(task.layout.diameters_mm), np.asarray(layout.diameters_mm))
+
+    def direct(**display):
+        return np.asarray(through_focus(
+            eyes, layout, task.depths_D, accommodation_D=config.accommodation_D,
+            window_D=config.window_D, pupil_diameter_mm=task.pupil_mm, cdp_D=config.cdp_D,
+            spectrum=spectrum, sampling=task.sampling, options=config.options,
+            display=strip_display(layout, **display)).vsotf)
+
+    lenticular = direct(y_defocus_D=-0.83, leakage_weight=0.5)
+    np.testing.assert_allclose(ds.vsotf.values[:, 0, 0], lenticular, rtol=1e-6, atol=1e-9)
+    assert np.nanmax(np.abs(lenticular - direct(y_defocus_D=-0.83))) > 1e-3
+    # the report draws the strips as strips (rectangles spanning the pupil), not discs
+    from matplotlib.patches import Circle, Rectangle
+
+    from lfjax.sweep.report import fig_layouts
+    (ax,) = fig_layouts({(3.0, "1x2"): task.layout}, [3.0], ["1x2"]).axes
+    assert sum(isinstance(p, Rectangle) for p in ax.patches) == 4  # area and edge of each
+    assert sum(isinstance(p, Circle) for p in ax.patches) == 1  # the pupil
 
 
 def test_a_full_disk_keeps_the_finished_chunks_and_says_how_to_resume(reference, tmp_path,
