@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -154,7 +155,9 @@ def run(args) -> int:
         display = _display(args.display)
         result = retinal_scene(eye, args.pixel_arcmin, display=display, primaries=args.primaries,
                                accommodation_D=args.accommodation, fixation_D=args.fixation,
-                               cdp_D=args.cdp, occlusion=not args.no_occlusion, **scene)
+                               cdp_D=args.cdp, occlusion=not args.no_occlusion,
+                               progress=lambda line: print(f"{prog}: {line}", file=sys.stderr,
+                                                           flush=True), **scene)
     except KeyboardInterrupt:
         return common.interrupted(prog)
     except ValueError as err:

@@ -249,7 +249,7 @@ def retinal_scene(eye: Eyes, pixel_arcmin: float, *, image=None, depth_map_D=Non
                   fixation_D: float | None = None, pupil_diameter_mm: float = 3.0,
                   cdp_D: float = 2.0, options: ModelOptions = ModelOptions(),
                   occlusion: bool = True, boundary: str = "edge",
-                  memory_limit_bytes: int | None = None) -> dict:
+                  memory_limit_bytes: int | None = None, progress=None) -> dict:
     """The retinal image of a scene with depth (module docstring), per display primary.
 
     Parameters
@@ -268,6 +268,8 @@ def retinal_scene(eye: Eyes, pixel_arcmin: float, *, image=None, depth_map_D=Non
     fixation_D : the fixated depth, D; default the depth at the image centre
     occlusion : composite with occlusion (default) or add the layers
     memory_limit_bytes : refuse scenes whose working set exceeds it (default half the RAM)
+    progress : None, or a callable taking one line: told before each stage (the predicted
+        accommodation, the layers' OTFs), which compile on a first run
 
     Returns
     -------
@@ -307,10 +309,15 @@ def retinal_scene(eye: Eyes, pixel_arcmin: float, *, image=None, depth_map_D=Non
     if fixation_D is None:
         depth_centre = d[np.argmax(a[:, h // 2, w // 2])] if np.any(a[:, h // 2, w // 2] > 0) else d[0]
         fixation_D = float(depth_centre)
+    say = progress if callable(progress) else (lambda line: None)
     if accommodation_D is None:
+        say(f"predicting the eye's accommodation for the fixated depth {fixation_D:g} D "
+            f"(through focus; the first run compiles)")
         accommodation_D = predicted_accommodation(eye, layout, fixation_D, primaries,
                                                   pupil_diameter_mm=pupil, cdp_D=cdp,
                                                   options=options, display=optics)
+    say(f"the {len(d)} layers' OTFs at {float(accommodation_D):.3f} D, per primary, and the "
+        f"compositing")
     otf, df = scene_otfs(eye, layout, accommodation_D, d, primaries, pupil_diameter_mm=pupil,
                          cdp_D=cdp, options=options, display=optics)
     colour = jnp.asarray(lay if lay.shape[1] == 3 else np.repeat(lay, 3, axis=1))
