@@ -29,6 +29,7 @@ from _common import header  # noqa: E402
 from lfjax.model.eyes import append_average_eye, average_eye, sample_eyes  # noqa: E402
 from lfjax.model.layouts import grid_layout  # noqa: E402
 from lfjax.studies.scene_blur import (  # noqa: E402
+    MEASURES,
     SceneBlurConfig,
     cue_agreement,
     run_scene_blur,
@@ -97,12 +98,34 @@ def scene_figure(out: Path, n: int = 192) -> str:
     return str(path)
 
 
+def _replace_rows(out: Path, part: dict, seconds: float, n_eyes: int) -> tuple[dict, float]:
+    """The results in ``out`` with the displays of ``part`` computed again (same eyes)."""
+    meta = json.loads((out / "scene_blur.json").read_text())
+    if meta["n_eyes"] != n_eyes:
+        raise SystemExit(f"{out} holds {meta['n_eyes']} eyes; rerun rows with --eyes {meta['n_eyes']}")
+    whole = dict(np.load(out / "scene_blur.npz"))
+    names = list(meta["config"]["displays"])
+    labels = list(meta["labels"])
+    for j, name in enumerate(part["config"]["displays"]):
+        i = names.index(name)
+        for key in MEASURES + ("true_defocus_D", "accommodation_D", "cdp_D"):
+            whole[key][i] = part[key][j]
+        labels[i] = part["labels"][j]
+    config = dict(meta["config"], accommodation_offsets_D=part["config"]["accommodation_offsets_D"])
+    print(f"replaced the rows of {', '.join(part['config']['displays'])} ({seconds:.0f} s); "
+          f"the other displays as computed before ({meta['seconds']:.0f} s)")
+    return {**whole, "labels": labels, "config": config}, meta["seconds"]
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--eyes", type=int, default=100)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default=str(Path(__file__).resolve().parent / "scene_blur"))
     p.add_argument("--skip-figures", action="store_true")
+    p.add_argument("--displays", nargs="+", default=None, metavar="NAME",
+                   help="compute only these displays and replace their rows in OUT's results "
+                        "(the same eyes: --eyes and --seed as the run that wrote them)")
     args = p.parse_args()
     header("blur of the rest of the scene")
     out = Path(args.out)
@@ -111,8 +134,12 @@ def main() -> None:
     if args.eyes > 1:
         eyes = append_average_eye(sample_eyes(args.seed, args.eyes - 1, 3.0))
     t0 = time.perf_counter()
-    result = run_scene_blur(eyes, SceneBlurConfig())
+    config = SceneBlurConfig() if args.displays is None else SceneBlurConfig(
+        displays=tuple(args.displays))
+    result = run_scene_blur(eyes, config)
     seconds = time.perf_counter() - t0
+    if args.displays is not None:
+        result, seconds = _replace_rows(out, result, seconds, eyes.n_eyes)
     arrays = {k: v for k, v in result.items() if isinstance(v, np.ndarray)}
     np.savez(out / "scene_blur.npz", **arrays)
     (out / "scene_blur.json").write_text(json.dumps(
@@ -127,8 +154,9 @@ def main() -> None:
           f"depths in {seconds:.0f} s")
     if not args.skip_figures:
         paths = save_scene_blur_figures(result, out)
-        paths.append(psf_figure(out))
-        paths.append(scene_figure(out))
+        if args.displays is None:  # neither figure reads the population's rows
+            paths.append(psf_figure(out))
+            paths.append(scene_figure(out))
         print("figures:", *paths)
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS {rss:.0f} MiB")

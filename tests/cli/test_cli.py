@@ -341,7 +341,7 @@ def _library_inputs():
         "sweep-report": ([sweep_report], {"sample_size", "dpi", "progress"}),
         "retina": ([retinal_scene, check_output_folder],
                    {"pupil_diameter_mm", "options", "boundary", "memory_limit_bytes",
-                    "need_bytes", "parameter"}),
+                    "need_bytes", "parameter", "progress"}),
         "design": ([check_output_folder, design.design_cdp_D, design.design_panel,
                     design.DesignConstraints, Sampling, design.check_design],
                    {"min_gap_fraction", "panel", "n_fft", "transform", "mft_pupil_samples",

@@ -82,7 +82,7 @@ def test_every_key_is_declared_once_and_its_declared_range_is_enforced():
         assert getattr(default, key.field) == key.default, key.where
         assert key.unit == ("" if "_" not in key.name else
                             {"D": "D", "mm": "mm", "nm": "nm", "cpd": "cpd",
-                             "arcmin": "arcmin"}.get(key.name.rsplit("_", 1)[1], "")), key.where
+                             "arcmin": "arcmin", "um": "um"}.get(key.name.rsplit("_", 1)[1], "")), key.where
         assert f"[{key.section}] {key.name}``" in doc, key.where
         for check in key.checks:
             if isinstance(check, Range):
