@@ -67,7 +67,7 @@ def evaluation_size(problem, n_views: int, states: int | None = None) -> tuple[f
     n_states = int(grid.states_D.shape[0]) if states is None else int(states)
     n_depth, n_k = (int(s) for s in grid.pair_index.shape)
     per_state = sum((b - a) * n_views * size * size * math.log2(max(size, 2))
-                    for a, b, size in config.bands)
+                    for a, b, size, *_ in config.bands)
     n_fft = config.n_fft
     plane = n_fft * (n_fft // 2 + 1) * (16 if jax.config.jax_enable_x64 else 8)
     units = n_states * per_state + n_views * n_depth * n_k * n_fft * (n_fft // 2 + 1)

@@ -42,23 +42,24 @@ from lfjax.base.zernike import monomial_coefficients, nm_from_ansi, powers_of, w
 # ----------------------------------------------------------------------------- core
 
 
-def _window_coordinates(centre_mm, n_samples: int, dx_mm):
-    """Pupil coordinates (mm) of an n_samples² window centred on ``centre_mm``, [y, x]."""
-    k = jnp.arange(n_samples, dtype=dx_mm.dtype) - (n_samples // 2)
-    x = centre_mm[0] + k * dx_mm
-    y = centre_mm[1] + k * dx_mm
+def _window_coordinates(centre_mm, n_samples: int, dx_mm, n_samples_x: int | None = None):
+    """Pupil coordinates (mm) of an n_samples (y) × ``n_samples_x`` (x, default n_samples)
+    window centred on ``centre_mm``, [y, x]."""
+    n_x = n_samples if n_samples_x is None else n_samples_x
+    x = centre_mm[0] + (jnp.arange(n_x, dtype=dx_mm.dtype) - (n_x // 2)) * dx_mm
+    y = centre_mm[1] + (jnp.arange(n_samples, dtype=dx_mm.dtype) - (n_samples // 2)) * dx_mm
     return jnp.meshgrid(x, y)  # [y, x]
 
 
 def _pupil_parts(
     pupil_diameter_mm, centre_mm, diameter_mm, dx_mm, sce_rho, n_pupil: int,
-    edge_width_samples: float, wavelength_mm=None, display=None,
+    edge_width_samples: float, wavelength_mm=None, display=None, n_pupil_x: int | None = None,
 ):
     """Amplitude (real, or complex with lenslet diffraction) and transmitted energy (mm²)
-    of one subaperture window."""
+    of one subaperture window (n_pupil × ``n_pupil_x`` samples, [y, x])."""
     shape = "circle" if display is None else display.aperture
     diffracts = display is not None and display.diffracts
-    xx, yy = _window_coordinates(_window_centres_mm(centre_mm, display), n_pupil, dx_mm)
+    xx, yy = _window_coordinates(_window_centres_mm(centre_mm, display), n_pupil, dx_mm, n_pupil_x)
     r2 = xx * xx + yy * yy
     edge = edge_width_samples * dx_mm
     r_pupil = 0.5 * pupil_diameter_mm
@@ -147,12 +148,13 @@ def _shift_matrices(centre_mm, size: int):
 
 
 def _state_wavefronts_um(eye_um, c20_um, c40_um, window_centres_mm, offsets_mm, pupil_diameter_mm,
-                         sa_radius_mm, measured_pupil_mm):
+                         sa_radius_mm, measured_pupil_mm, offsets_x_mm=None):
     """Total wavefront (µm) of every (state, view): eye + defocus c20·Z(2,0) on the
     calculation pupil + SA c40·Z(4,0) on its own radius, (n_acc, n_sub, n, n).
 
     ``eye_um`` is the eye's coefficient vector (n_modes,); the views' windows are sampled at
-    ``window_centres_mm`` (n_sub, 2) + ``offsets_mm`` (n,) along x and y. Every term is a
+    ``window_centres_mm`` (n_sub, 2) + ``offsets_mm`` (n,) along y and ``offsets_x_mm``
+    (n_x,) along x (default ``offsets_mm``): (n_acc, n_sub, n, n_x). Every term is a
     polynomial in x and y, so one monomial matrix per state, moved to each window's centre
     (a binomial shift of the small matrix), and two thin matrix products with the
     offsets' powers give the wavefront (:func:`lfjax.base.zernike.wavefront_on_grid`). The
@@ -160,6 +162,7 @@ def _state_wavefronts_um(eye_um, c20_um, c40_um, window_centres_mm, offsets_mm, 
     sample, and the centres' derivatives flow through the small matrices only, so the
     sample-sized cotangent has one consumer (RESULTS §8)."""
     real = offsets_mm.dtype
+    offsets_x_mm = offsets_mm if offsets_x_mm is None else offsets_x_mm
     n_modes = eye_um.shape[-1]
     eye_order = nm_from_ansi(n_modes - 1)[0]
     r_pupil = 0.5 * pupil_diameter_mm
@@ -176,20 +179,21 @@ def _state_wavefronts_um(eye_um, c20_um, c40_um, window_centres_mm, offsets_mm, 
     shift_y = _shift_matrices(window_centres_mm[:, 1], size)
     # (n_acc, n_sub, N+1, N+1)
     local = jnp.einsum("nip,aij,njq->anpq", shift_x, per_state, shift_y, precision=FULL)
-    w = wavefront_on_grid(local, offsets_mm, offsets_mm)
+    w = wavefront_on_grid(local, offsets_x_mm, offsets_mm)
     if not separable_eye:  # high orders: the polynomials themselves (no cancellation)
         r_meas = 0.5 * measured_pupil_mm
         w_eye = jax.vmap(lambda c: wavefront_um(
-            eye_um, (c[0] + offsets_mm)[None, :] / r_meas, (c[1] + offsets_mm)[:, None] / r_meas
+            eye_um, (c[0] + offsets_x_mm)[None, :] / r_meas, (c[1] + offsets_mm)[:, None] / r_meas
         ))(window_centres_mm)
         w = w + w_eye[None]
     return w.astype(real)
 
 
-def _lenslet_wavefronts_um(display, diameters_mm, offsets_mm):
-    """Each view's lenslet wavefront (µm) on its own window (n_sub, n, n), [y, x]."""
+def _lenslet_wavefronts_um(display, diameters_mm, offsets_mm, offsets_x_mm=None):
+    """Each view's lenslet wavefront (µm) on its own window (n_sub, n, n_x), [y, x]."""
+    offsets_x_mm = offsets_mm if offsets_x_mm is None else offsets_x_mm
     return jax.vmap(lambda d: display.aberration.wavefront_um(
-        offsets_mm[None, :], offsets_mm[:, None], 0.5 * d, display.aperture))(diameters_mm)
+        offsets_x_mm[None, :], offsets_mm[:, None], 0.5 * d, display.aperture))(diameters_mm)
 
 
 def pupil_window_size(n_fft: int, sampling: Sampling) -> int:
@@ -204,9 +208,9 @@ def pupil_window_size(n_fft: int, sampling: Sampling) -> int:
 
 
 def _embed_half_plane(otf_half, n_fft: int):
-    """Zero-pad a band-limited half-plane OTF (…, Lg, Lg//2+1) onto a larger (…, L, L//2+1)."""
+    """Zero-pad a band-limited half-plane OTF (…, Lg, Lgx//2+1) onto a larger (…, L, L//2+1)."""
     n_small = otf_half.shape[-2]
-    if n_small == n_fft:
+    if n_small == n_fft and otf_half.shape[-1] == n_fft // 2 + 1:
         return otf_half
     h = n_small // 2
     top, bottom = otf_half[..., :h, :], otf_half[..., h:, :]
@@ -225,7 +229,9 @@ def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum:
     pupil, the CDP and the display's optics come from ``scene``, the states and their
     spherical aberration from ``accommodation``. ``bands`` = ((start, stop, n_fft), …) from
     :func:`lfjax.base.sampling.wavelength_bands`: each band of wavelengths is transformed on its
-    own window and embedded in the largest. Returns complex (n_states, n_sub, L, L//2+1),
+    own window and embedded in the largest. A band (start, stop, n_fft, n_fft_x) transforms
+    windows narrower along x (strips: :meth:`lfjax.kernel.pipeline.PipelineConfig.build`):
+    n_fft rows × n_fft_x columns, the same angular field, so the same OTF on fewer samples. Returns complex (n_states, n_sub, L, L//2+1),
     the half plane f_x ≥ 0 of Σ_λ w_λ OTF_{λ,n,a}, each OTF carrying the energy its pupil
     transmits (OTF(0) = ∫|P|² dA in mm²) or, with ``spectrum.unit_sum`` = 1, that energy
     divided by the energy all subapertures transmit at λ (each wavelength's PSF summed over
@@ -236,9 +242,11 @@ def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum:
     if beam_wavefront is not None:  # the views' common astigmatism (lfjax.display.lenticular)
         zernike_um = beam_wavefront(zernike_um, measured_pupil_mm)
     total = None
-    for start, stop, band_fft in bands:
+    for band in bands:
+        start, stop, band_fft = band[:3]
         part = _elemental_otfs_band(zernike_um, measured_pupil_mm, scene, spectrum.band(start, stop),
-                                    accommodation, band_fft, sampling)
+                                    accommodation, band_fft, sampling,
+                                    band[3] if len(band) > 3 else None)
         part = _embed_half_plane(part, n_fft)
         total = part if total is None else total + part
     return total
@@ -271,16 +279,17 @@ def state_chunk(n_states: int, n_views: int, n_fft: int,
 
 
 def _elemental_otfs_band(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
-                         accommodation: Accommodation, n_fft: int, sampling: Sampling):
+                         accommodation: Accommodation, n_fft: int, sampling: Sampling,
+                         n_fft_x: int | None = None):
     """One band of :func:`elemental_otfs`, the states in chunks of :func:`state_chunk`
     (``lax.map``) when they do not fit the kernel's working memory together."""
     states_D = accommodation.states_D
     n_states, n_views = states_D.shape[0], scene.centres_mm.shape[0]
-    chunk = state_chunk(n_states, n_views, n_fft)
+    chunk = state_chunk(n_states, n_views, math.isqrt(n_fft * (n_fft if n_fft_x is None else n_fft_x)))
 
     def states_band(states):
         return _elemental_otfs_states(zernike_um, measured_pupil_mm, scene, spectrum, accommodation,
-                                      states, n_fft, sampling)
+                                      states, n_fft, sampling, n_fft_x)
 
     if chunk >= n_states:
         return states_band(states_D)
@@ -293,12 +302,19 @@ def _elemental_otfs_band(zernike_um, measured_pupil_mm: float, scene: Scene, spe
 
 def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
                            accommodation: Accommodation, accommodation_D, n_fft: int,
-                           sampling: Sampling):
+                           sampling: Sampling, n_fft_x: int | None = None):
     """One band of :func:`elemental_otfs` for the accommodation states ``accommodation_D``
     (n_states,) D: every wavelength's PSFs lie on the same angular grid (the pupil step is
     λ·Δf), so the band's weighted PSFs are summed first and transformed once (the transform
     is linear); the zero-frequency term is set from the summed analytic energies (a finite
-    pupil sum under-counts the soft edge)."""
+    pupil sum under-counts the soft edge).
+
+    ``n_fft_x`` (FFT transform only; default ``n_fft``): columns of a window narrower along
+    x. The pupil step λ·Δf and so the angular field are those of the square window; the PSF
+    is sampled more coarsely along x, which loses nothing while the columns hold twice the
+    aperture (the OTF's support), and the half-plane OTF (n_fft, n_fft_x//2+1) is embedded
+    in the square one by zeros beyond its support. Returns (n_states, n_sub, n_fft,
+    n_fft_x//2+1)."""
     pupil_diameter_mm, cdp_D = scene.pupil_diameter_mm, scene.cdp_D
     centres_mm, diameters_mm, display = scene.centres_mm, scene.diameters_mm, scene.display
     df_rad = sampling.freq_step_cpd * DEGREES_PER_RADIAN
@@ -317,6 +333,8 @@ def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, s
         local = (jnp.arange(n_pupil, dtype=real) - n_pupil // 2) * dx_mft
     else:
         n_pupil = pupil_window_size(n_fft, sampling)
+    n_fft_x = n_fft if (n_fft_x is None or use_mft) else int(n_fft_x)
+    n_pupil_x = n_pupil if n_fft_x == n_fft else pupil_window_size(n_fft_x, sampling)
     c40 = (accommodation.sa_c40_um_per_D * accommodation_D).astype(real)
 
     def one_wavelength(carry, xs):
@@ -327,21 +345,23 @@ def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, s
         parts = jax.vmap(
             lambda c, d: _pupil_parts(
                 pupil_diameter_mm, c, d, dx, rho, n_pupil, sampling.edge_width_samples,
-                wl_mm, display,
+                wl_mm, display, n_pupil_x,
             )
         )(centres_mm, diameters_mm)
-        amp, energy = parts  # (n_sub, n_pupil, n_pupil) and (n_sub,)
+        amp, energy = parts  # (n_sub, n_pupil, n_pupil_x) and (n_sub,)
         # ModelOptions.wavelength_normalisation as data: unit_sum = 1 divides by the energy
         # all views transmit at this wavelength, 0 leaves the weight as it is
         weight = weight * jnp.power(jnp.sum(energy), -spectrum.unit_sum)
         c20 = dioptres_to_c20_um(accommodation_D - cdp_D + lca_D, pupil_diameter_mm)
         offsets = (jnp.arange(n_pupil, dtype=real) - n_pupil // 2) * dx
+        offsets_x = offsets if n_pupil_x == n_pupil else (jnp.arange(n_pupil_x, dtype=real) - n_pupil_x // 2) * dx
         w = _state_wavefronts_um(zernike_um, c20, c40, _window_centres_mm(centres_mm, display),
-                                 offsets, pupil_diameter_mm, accommodation.sa_radius_mm, measured_pupil_mm)
+                                 offsets, pupil_diameter_mm, accommodation.sa_radius_mm, measured_pupil_mm,
+                                 offsets_x)
         if display is not None and display.aberration is not None and not display.diffracts:
             # geometric views: each window is centred on its view, so the lenslet's wavefront
             # (lfjax.display.aberrations) is a function of the offsets and the view's size
-            w = w + _lenslet_wavefronts_um(display, diameters_mm, offsets)[None]
+            w = w + _lenslet_wavefronts_um(display, diameters_mm, offsets, offsets_x)[None]
         phase = (-2.0 * jnp.pi / (wl_nm * 1e-3)) * w
         if jnp.iscomplexobj(amp):  # lenslet diffraction: a complex beam in the pupil
             field = amp[None] * jax.lax.complex(jnp.cos(phase), jnp.sin(phase))
@@ -357,10 +377,9 @@ def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, s
         else:
             # The aperture fills only the central n_pupil samples; an explicit pad then one
             # fft2 is faster on CPU than two padded 1-D passes (measured).
-            pad = n_fft - n_pupil
-            field = jnp.pad(field, ((0, 0), (0, 0), (0, pad), (0, pad)))
+            field = jnp.pad(field, ((0, 0), (0, 0), (0, n_fft - n_pupil), (0, n_fft_x - n_pupil_x)))
             spectrum_2d = jnp.fft.fft2(field)
-            scale = dx * dx / (n_fft * n_fft)
+            scale = dx * dx / (n_fft * n_fft_x)
         # Named so that the reverse pass keeps the transform (saved, 2 floats a sample)
         # instead of recomputing it; checkpoint_name takes real arrays only.
         re = checkpoint_name(jnp.real(spectrum_2d), "pupil_spectrum")
@@ -369,7 +388,7 @@ def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, s
         return (psf_total + (weight * scale) * psf, energy_total + weight * energy), None
 
     n_acc, n_sub = accommodation_D.shape[0], centres_mm.shape[0]
-    init = (jnp.zeros((n_acc, n_sub, n_fft, n_fft), real), jnp.zeros((n_sub,), real))
+    init = (jnp.zeros((n_acc, n_sub, n_fft, n_fft_x), real), jnp.zeros((n_sub,), real))
     xs = (spectrum.wavelengths_nm, spectrum.weights, spectrum.lca_D, spectrum.sce_rho_per_mm2)
     # Reverse mode keeps each wavelength's pupil spectrum and recomputes the cheap pupil
     # fields instead of stacking every intermediate over the scan (jax.checkpoint): 1.6x

@@ -54,7 +54,8 @@ class PipelineConfig:
     Attributes
     ----------
     sampling : frequency step, transform and aperture edge
-    bands : ((start, stop, n_fft), …) wavelength bands of the scene's layout
+    bands : ((start, stop, n_fft), …) wavelength bands of the scene's layout; a band
+        (start, stop, n_fft, n_fft_x) has windows n_fft_x < n_fft columns wide (strips)
     reference_bands : the same for the VSOTF/Strehl reference aperture
     ncsf : NCSF model name (:mod:`lfjax.kernel.metrics`)
     vsotf_reference : "paper" (same layout, aberration-free) or "open_pupil"
@@ -89,26 +90,56 @@ class PipelineConfig:
         cls, wavelengths_nm, window_diameter_mm: float, pupil_diameter_mm: float,
         sampling: Sampling, options: ModelOptions = ModelOptions(), eye_chunk: int | None = None,
         traced_checks: bool = True, display: DisplayOptics | None = None,
+        window_x_diameter_mm: float | None = None,
     ) -> PipelineConfig:
         """Bands for a spectrum (nm) and a layout whose largest window is
         ``window_diameter_mm`` (mm), on a calculation pupil of ``pupil_diameter_mm`` (mm);
         everything here is concrete host data. With lenslet diffraction (``display``) every
-        view's window is the pupil; the reference (an ideal display) keeps the layout's."""
+        view's window is the pupil; the reference (an ideal display) keeps the layout's.
+
+        ``window_x_diameter_mm`` (mm): the views' largest extent along x where it is less
+        than their window along y — strips (``display.aperture == "strip"``), as wide as the
+        strip and as tall as the pupil. Their bands then carry a narrower FFT along x
+        (``(start, stop, n_fft, n_fft_x)``): the same OTF on the columns its support needs,
+        a third of the transforms for 1×3 strips. Not with the MFT, a user-fixed ``n_fft``
+        or diffracting beams (they fill the pupil both ways)."""
         wl = np.asarray(wavelengths_nm, float)
         pupil = float(pupil_diameter_mm)
         reference_window = window_diameter_mm if options.vsotf_reference == "paper" else pupil
         if display is not None and display.diffracts:
             window_diameter_mm = pupil
+            window_x_diameter_mm = None
+        bands = wavelength_bands(wl, float(window_diameter_mm), pupil, sampling)
+        reference_bands = wavelength_bands(wl, float(reference_window), pupil, sampling)
+        if (window_x_diameter_mm is not None and sampling.transform == "fft" and sampling.n_fft is None
+                and display is not None and display.aperture == "strip"):
+            bands = _narrow_bands(bands, wl, float(window_x_diameter_mm), pupil, sampling)
+            if options.vsotf_reference == "paper":  # the reference keeps the strips' shape
+                reference_bands = _narrow_bands(reference_bands, wl, float(window_x_diameter_mm),
+                                                pupil, sampling)
         return cls(
             sampling,
-            wavelength_bands(wl, float(window_diameter_mm), pupil, sampling),
-            wavelength_bands(wl, float(reference_window), pupil, sampling),
+            bands,
+            reference_bands,
             options.ncsf, options.vsotf_reference, options.zero_piston_tilt,
             None if eye_chunk is None else int(eye_chunk), bool(traced_checks),
         )
 
     def replace(self, **changes) -> PipelineConfig:
         return dataclasses.replace(self, **changes)
+
+
+def _narrow_bands(bands, wavelengths_nm, window_x_mm: float, pupil_diameter_mm: float,
+                  sampling: Sampling) -> tuple:
+    """``bands`` with each band's FFT columns sized for a window ``window_x_mm`` wide along x
+    (its shortest wavelength's, as :meth:`Sampling.window_size` sizes any window); bands it
+    would not narrow stay (start, stop, n_fft)."""
+    out = []
+    for start, stop, n_fft, *_ in bands:
+        n_x = sampling.window_size(min(window_x_mm, pupil_diameter_mm), float(wavelengths_nm[start]),
+                                   pupil_diameter_mm)
+        out.append((start, stop, n_fft, n_x) if n_x < n_fft else (start, stop, n_fft))
+    return tuple(out)
 
 
 class RetinalMetrics(eqx.Module):

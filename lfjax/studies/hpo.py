@@ -35,7 +35,7 @@ from lfjax.base.sampling import AliasingError, Sampling, finer_step
 from lfjax.display.lenticular import lenticular_phone, strip_display
 from lfjax.model.eyes import sample_eyes
 from lfjax.model.layouts import grid_layout, make_layout
-from lfjax.model.spectral import make_spectrum
+from lfjax.model.spectral import GAUSS_MAX_NODES, gauss_spectrum, make_spectrum
 from lfjax.model.strips import strip_layout
 from lfjax.vision.orientation import BANDS, orientation_through_focus
 
@@ -51,7 +51,13 @@ class HpoConfig:
     depths_D : rendered depths, D (the paper's CDP − 2 … CDP + 2)
     accommodation_D : the shared accommodation grid, D (peaks refined by a parabola)
     views : n of the 1×n strips and n×n grids compared
-    wavelengths_nm : the spectrum's samples (V(λ) weights)
+    spectral_nodes : None (default): the uniform samples ``wavelengths_nm`` with V(λ)
+        weights; an integer: the Gauss rule for V(λ) on 400–700 nm with that many nodes
+        (:func:`lfjax.model.spectral.gauss_spectrum`). Against 31 wavelengths (4 eyes, 1×3
+        strips) the default's 9 samples read peaks within 0.002 D and cut-offs within
+        0.4 cpd; 5 Gauss nodes miss the y cut-off by 3 cpd
+        (``benchmarks/validation/hpo_settings.py``)
+    wavelengths_nm : the uniform samples, nm
     freq_step_cpd : first frequency step tried; refined while the field guard refuses it
     widths : view width / pitch of the overlap scan (< 1 gaps, > 1 overlap)
     leakage_weights : the leakage scan, unitless in [0, 1]
@@ -68,6 +74,7 @@ class HpoConfig:
     depths_D: tuple = (0.0, 1.0, 2.0, 3.0, 4.0)
     accommodation_D: tuple = tuple(np.round(np.arange(0.0, 4.51, 0.25), 6))
     views: tuple = (2, 3, 4)
+    spectral_nodes: int | None = None
     wavelengths_nm: tuple = tuple(np.arange(450.0, 651.0, 25.0))
     freq_step_cpd: float = 0.75
     widths: tuple = (0.5, 0.75, 1.0, 1.25, 1.5)
@@ -93,6 +100,19 @@ class HpoConfig:
         if len(self.crosstalk_depths_D) < 2:
             raise ParameterError("crosstalk_depths_D", "{crosstalk_depths_D} needs >= 2 depths "
                                  "(D) for a gain", owner="HpoConfig")
+        if self.spectral_nodes is not None and (
+                isinstance(self.spectral_nodes, bool) or int(self.spectral_nodes) != self.spectral_nodes
+                or not 1 <= self.spectral_nodes <= GAUSS_MAX_NODES):
+            raise ParameterError("spectral_nodes", "{spectral_nodes} must be None or an integer in "
+                                 "1–%d (Gauss nodes in V(λ)), got {got!r}" % GAUSS_MAX_NODES,
+                                 owner="HpoConfig", got=self.spectral_nodes)
+        grid = np.asarray(self.accommodation_D, float)
+        depths = tuple(self.depths_D) + tuple(self.crosstalk_depths_D) + (self.cdp_D,)
+        if (grid.ndim != 1 or grid.size < 3 or np.any(np.diff(grid) <= 0)
+                or grid[0] > min(depths) or grid[-1] < max(depths)):
+            raise ParameterError("accommodation_D", "{accommodation_D} must be >= 3 increasing "
+                                 "states (D) spanning the depths and the CDP (%g–%g D), got {got}"
+                                 % (min(depths), max(depths)), owner="HpoConfig", got=grid.tolist())
         if not (0 < self.gain_threshold < 1):
             raise ParameterError("gain_threshold", "{gain_threshold} must be in (0, 1) "
                                  "(unitless), got {got}", owner="HpoConfig", got=self.gain_threshold)
@@ -101,17 +121,31 @@ class HpoConfig:
     def tiny(cls) -> HpoConfig:
         """A small version for tests and notebooks (2 eyes, 2 views, coarse grids)."""
         return cls(n_eyes=2, depths_D=(1.0, 2.0, 3.0), accommodation_D=tuple(np.arange(1.0, 3.01, 0.5)),
-                   views=(2,), wavelengths_nm=(550.0,), freq_step_cpd=1.5, widths=(0.75, 1.0, 1.25),
+                   views=(2,), spectral_nodes=None, wavelengths_nm=(550.0,), freq_step_cpd=1.5, widths=(0.75, 1.0, 1.25),
                    leakage_weights=(0.0, 0.5), crosstalk_views=2, eye_chunk=None)
+
+    def spectrum(self):
+        """The studies' spectrum (:class:`lfjax.model.spectral.Spectrum`) and its record
+        (rule, wavelengths nm, weights) for the output."""
+        if self.spectral_nodes is None:
+            spectrum = make_spectrum(list(self.wavelengths_nm))
+            rule = "uniform"
+        else:
+            spectrum = gauss_spectrum(int(self.spectral_nodes))
+            rule = f"Gauss rule for V(λ) on 400–700 nm, {int(self.spectral_nodes)} nodes"
+        return spectrum, {"rule": rule,
+                          "wavelengths_nm": np.asarray(spectrum.wavelengths_nm, float).tolist(),
+                          "weights": np.asarray(spectrum.weights, float).tolist()}
 
 
 def _run(eyes, layout, display, depths, config: HpoConfig, spectrum):
     """Orientation through-focus with the frequency step refined until the field holds."""
     step = float(config.freq_step_cpd)
+    grid = config.accommodation_D
     for _ in range(8):
         try:
             return orientation_through_focus(
-                eyes, layout, list(depths), list(config.accommodation_D),
+                eyes, layout, list(depths), list(grid),
                 pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
                 spectrum=spectrum, sampling=Sampling(step), display=display,
                 eye_chunk=config.eye_chunk), step
@@ -147,7 +181,7 @@ def run_hpo_study(config: HpoConfig = HpoConfig(), progress=print) -> dict:
     """HPO strips (Δ = 0 and the lenticular phone's Δ) against n×n grids and the natural
     view, for ``config.n_eyes`` eyes (module docstring). Returns a JSON-ready dict."""
     eyes = sample_eyes(jax.random.PRNGKey(config.seed), config.n_eyes, config.pupil_diameter_mm)
-    spectrum = make_spectrum(list(config.wavelengths_nm))
+    spectrum, spectrum_record = config.spectrum()
     phone = lenticular_phone(cdp_D=config.cdp_D)
     delta = float(phone.y_defocus_D)
     cases = [("natural", None, None, (config.cdp_D,))]
@@ -171,18 +205,18 @@ def run_hpo_study(config: HpoConfig = HpoConfig(), progress=print) -> dict:
             for band in ("x", "y"):
                 rows[name][f"gain_{band}"] = gain(result.peak_D(band), depths).tolist()
         progress(f"{name}: {rows[name]['seconds']:.1f} s, step {step:g} cpd")
-    return {"config": asdict(config), "y_defocus_phone_D": delta, "rows": rows,
+    return {"config": asdict(config), "spectrum": spectrum_record, "y_defocus_phone_D": delta, "rows": rows,
             "seconds": time.perf_counter() - start}
 
 
 def run_crosstalk_study(config: HpoConfig = HpoConfig(), progress=print) -> dict:
     """Overlap/gap and leakage scans for an n×n grid and 1×n strips (module docstring)."""
     eyes = sample_eyes(jax.random.PRNGKey(config.seed), config.n_eyes, config.pupil_diameter_mm)
-    spectrum = make_spectrum(list(config.wavelengths_nm))
+    spectrum, spectrum_record = config.spectrum()
     n, pupil = int(config.crosstalk_views), config.pupil_diameter_mm
     pitch = pupil / n
     depths = config.crosstalk_depths_D
-    out = {"config": asdict(config), "scans": {}}
+    out = {"config": asdict(config), "spectrum": spectrum_record, "scans": {}}
     start = time.perf_counter()
 
     def layouts(ratio):

@@ -206,7 +206,7 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
         rendered = n_depth * n_k * plane
         device = DEVICE_ALLOWANCE * (elemental + 2 * rendered)
         per_state = sum((b - a) * n_sub * size * size * math.log2(max(size, 2))
-                        for a, b, size in pc.bands)
+                        for a, b, size, *_ in pc.bands)
         refined = n_depth * refinement_states(config)
         ffts = (n_states + refined) * per_state
         render = n_sub * (n_depth * n_k + refined) * n_fft * (n_fft // 2 + 1)

@@ -34,11 +34,23 @@ def test_threshold_crossing_interpolates_or_says_none():
     ({"n_eyes": 1}, "n_eyes"), ({"widths": (0.0, 1.0)}, "widths"),
     ({"leakage_weights": (0.0, 1.5)}, "leakage_weights"),
     ({"crosstalk_depths_D": (2.0,)}, "crosstalk_depths_D"), ({"gain_threshold": 1.0}, "gain_threshold"),
+    ({"spectral_nodes": 0}, "spectral_nodes"), ({"spectral_nodes": 2.5}, "spectral_nodes"),
+    ({"accommodation_D": (1.5, 2.0, 2.5, 3.0)}, "accommodation_D"),
+    ({"accommodation_D": (0.0, 2.0, 1.0, 4.0)}, "accommodation_D"),
 ])
 def test_config_refuses_what_it_cannot_model(kwargs, parameter):
     with pytest.raises(ParameterError) as info:
         HpoConfig(**kwargs)
     assert info.value.parameter == parameter
+
+
+def test_spectrum_is_the_gauss_rule_unless_uniform_samples_are_asked():
+    spectrum, record = HpoConfig(spectral_nodes=5).spectrum()
+    assert len(record["wavelengths_nm"]) == 5 and record["rule"].startswith("Gauss")
+    assert abs(sum(record["weights"]) - 1.0) < 1e-6
+    assert 400.0 < min(record["wavelengths_nm"]) < max(record["wavelengths_nm"]) < 700.0
+    _, record = HpoConfig(spectral_nodes=None, wavelengths_nm=(500.0, 550.0, 600.0)).spectrum()
+    assert record["rule"] == "uniform" and record["wavelengths_nm"] == [500.0, 550.0, 600.0]
 
 
 def test_notebook_matches_its_script_twin():
