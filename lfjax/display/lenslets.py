@@ -133,6 +133,13 @@ class DisplayOptics(eqx.Module):
     def pixel_width_rad(self):
         return self.pixel_width_arcmin / ARCMIN_PER_RADIAN
 
+    @property
+    def pixel_height_rad(self):
+        """The emitter's angular height (rad): its width, a square pixel imaged by a lenslet
+        with power along both axes (a lenticular view's differs: its lenticule has none
+        along y, :class:`lfjax.display.lenticular.ViewOptics`)."""
+        return self.pixel_width_rad
+
     def fresnel_number(self, diameter_mm, wavelength_nm):
         """N = (d/2)²/(λ z_eff) of a subaperture of ``diameter_mm`` (mm) at ``wavelength_nm``."""
         return (0.5 * diameter_mm) ** 2 / (wavelength_nm * 1e-6 * self.fresnel_distance_mm)
@@ -359,12 +366,13 @@ def display_optics_at(distance_mm: float, cdp_D: float, pixel_width_arcmin: floa
 
 
 def pixel_transfer(fx_cpr, fy_cpr, display: DisplayOptics | None):
-    """OTF of one emitter (square, width ``display.pixel_width_arcmin``) at frequencies in
-    cycles/radian, broadcast (…, L) × (…, Lx); 1 without a display."""
+    """OTF of one emitter (a rectangle ``display.pixel_width_rad`` wide along x and
+    ``display.pixel_height_rad`` high along y: a square for a spherical lenslet) at
+    frequencies in cycles/radian, broadcast (…, L) × (…, Lx); 1 without a display."""
     if display is None:
         return 1.0
-    a = display.pixel_width_rad
-    return jnp.sinc(a * fy_cpr)[:, None] * jnp.sinc(a * fx_cpr)[None, :]
+    return (jnp.sinc(display.pixel_height_rad * fy_cpr)[:, None]
+            * jnp.sinc(display.pixel_width_rad * fx_cpr)[None, :])
 
 
 __all__ = [

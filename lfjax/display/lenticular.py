@@ -78,17 +78,26 @@ class ViewOptics(DisplayOptics):
     leakage_weight : () weight of each neighbour's content in a view, in [0, 1] (unitless).
     neighbours : (n_views, n_views) 0/1 matrix of which views leak into which
         (:func:`lfjax.model.strips.neighbour_matrix`), or None (no leakage path at all).
+    pixel_height_arcmin : () the emitter's angular height along y, arcmin (≥ 0), or None
+        (default: its width, a square pixel). A lenticule has no power along y, so there the
+        eye sees the pixel itself, p/(z_m + z_0), not its image on the CDP, p/(z_0·M)
+        (:meth:`LenticularPanel.pixel_height_arcmin`).
     """
 
     y_defocus_D: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
     leakage_weight: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
     neighbours: jnp.ndarray | None = None
+    pixel_height_arcmin: jnp.ndarray | None = eqx.field(
+        converter=lambda v: None if v is None else as_real_array(v), default=None)
 
     def __check_init__(self):
         _check_scalar("y_defocus_D", self.y_defocus_D, -MAX_Y_DEFOCUS_D, MAX_Y_DEFOCUS_D, "D",
                       "the views' extra defocus along y")
         _check_scalar("leakage_weight", self.leakage_weight, 0.0, 1.0, "unitless",
                       "each neighbour's weight in a view; 0 = no leakage")
+        if self.pixel_height_arcmin is not None:
+            _check_scalar("pixel_height_arcmin", self.pixel_height_arcmin, 0.0, math.inf, "arcmin",
+                          "the emitter's angular height along y")
         if self.neighbours is not None and _concrete(self.neighbours):
             a = np.asarray(self.neighbours, float)
             if a.ndim != 2 or a.shape[0] != a.shape[1] or not np.all((a == 0) | (a == 1)):
@@ -106,6 +115,13 @@ class ViewOptics(DisplayOptics):
         delta = self.y_defocus_D.astype(zernike_um.dtype)
         return (zernike_um.at[..., 4].add(delta * (r2 / (8.0 * math.sqrt(3.0))))
                 .at[..., 5].add(delta * (-r2 / (4.0 * math.sqrt(6.0)))))
+
+    @property
+    def pixel_height_rad(self):
+        """The emitter's angular height (rad): ``pixel_height_arcmin``, or its width."""
+        if self.pixel_height_arcmin is None:
+            return self.pixel_width_rad
+        return self.pixel_height_arcmin / ARCMIN_PER_RADIAN
 
     @property
     def view_mixing(self):
@@ -128,19 +144,21 @@ class ViewOptics(DisplayOptics):
                          "leakage_weight must be in [0, 1]")
         return ViewOptics(base.diffraction, base.aperture, base.fresnel_distance_mm,
                           base.pixel_width_arcmin, aberration=base.aberration, y_defocus_D=y,
-                          leakage_weight=w, neighbours=self.neighbours)
+                          leakage_weight=w, neighbours=self.neighbours,
+                          pixel_height_arcmin=self.pixel_height_arcmin)
 
 
 def strip_display(layout: Layout | None = None, *, y_defocus_D=0.0, leakage_weight=0.0,
                   aperture: str = "strip", diffraction: str = "off", fresnel_distance_mm=1.0,
-                  pixel_width_arcmin=0.0) -> ViewOptics:
+                  pixel_width_arcmin=0.0, pixel_height_arcmin=None) -> ViewOptics:
     """The :class:`ViewOptics` of a layout: strips (``aperture="strip"``, the default) or
     circles, with the views' y defocus (D) and leakage weight; the neighbours are the
-    layout's (:func:`~lfjax.model.strips.neighbour_matrix`), or none without a layout."""
+    layout's (:func:`~lfjax.model.strips.neighbour_matrix`), or none without a layout;
+    ``pixel_height_arcmin``: the emitter's height along y (None: its width)."""
     neighbours = None if layout is None else jnp.asarray(neighbour_matrix(layout))
     return ViewOptics(diffraction, aperture, fresnel_distance_mm, pixel_width_arcmin,
                       y_defocus_D=y_defocus_D, leakage_weight=leakage_weight,
-                      neighbours=neighbours)
+                      neighbours=neighbours, pixel_height_arcmin=pixel_height_arcmin)
 
 
 def check_display_for_layout(display: DisplayOptics | None, layout: Layout) -> None:
@@ -253,6 +271,11 @@ class LenticularPanel(eqx.Module):
         """One pixel's image on the CDP along x, arcmin: p/(z_0·M)."""
         return self.pixel_pitch_mm / (self.gap_mm * self.magnification) * ARCMIN_PER_RADIAN
 
+    def pixel_height_arcmin(self):
+        """One pixel along y, arcmin: the lenticule has no power there, so the eye sees the
+        pixel itself, p/(z_m + z_0) (about 1/45 of :meth:`pixel_arcmin` for the phone)."""
+        return self.pixel_pitch_mm / (self.distance_mm + self.gap_mm) * ARCMIN_PER_RADIAN
+
     def views_across(self, pupil_diameter_mm: float) -> int:
         """Whole strips across the pupil (host), ⌊D/(M·Δu)⌋, at least 1 required."""
         n = int(math.floor(float(pupil_diameter_mm) / float(self.view_pitch_mm) + 1e-9))
@@ -274,7 +297,8 @@ class LenticularPanel(eqx.Module):
         return strip_display(layout, y_defocus_D=self.y_defocus_D,
                              leakage_weight=self.leakage_weight, diffraction=diffraction,
                              fresnel_distance_mm=self.fresnel_distance_mm,
-                             pixel_width_arcmin=self.pixel_arcmin())
+                             pixel_width_arcmin=self.pixel_arcmin(),
+                             pixel_height_arcmin=self.pixel_height_arcmin())
 
 
 def lenticular_phone(distance_mm: float = 350.0, cdp_D: float = 2.0,
