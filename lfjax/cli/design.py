@@ -8,6 +8,7 @@ import sys
 import shutil
 import time
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.files import check_output_folder
 from lfjax.base.sampling import Sampling
 from lfjax.cli import common
@@ -19,6 +20,13 @@ from lfjax.design import (
     design_panel,
     fit_design,
     save_design,
+)
+from lfjax.design.lenticular import (
+    accommodation_grid_D,
+    check_lenticular_design,
+    fit_lenticular_design,
+    report_wavelengths_nm,
+    save_lenticular_design,
 )
 from lfjax.design.resume import counts_folder
 from lfjax.display.aberrations import LENS_FORMS
@@ -187,15 +195,6 @@ STEPS_DEFAULT = 10
 
 def _run_lenticular(args, prog: str) -> int:
     """``lfjax design --lenticular``: :func:`lfjax.design.lenticular.fit_lenticular_design`."""
-    from lfjax.base.errors import ParameterError
-    from lfjax.design.lenticular import (
-        accommodation_grid_D,
-        check_lenticular_design,
-        fit_lenticular_design,
-        report_wavelengths_nm,
-        save_lenticular_design,
-    )
-
     try:
         if args.steps != STEPS_DEFAULT:
             raise ParameterError("steps", "{steps} sets the gradient fit of NxN designs; a "

@@ -68,6 +68,7 @@ from lfjax.display.lenticular import LenticularPanel
 from lfjax.display.panel import Panel, sampling_limit_cpd
 from lfjax.model.eyes import Eyes
 from lfjax.model.layout_files import jsonable
+from lfjax.model.layout_plots import draw_layout
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import make_spectrum
 from lfjax.vision.orientation import BANDS, orientation_through_focus
@@ -497,8 +498,6 @@ def save_lenticular_design(result: LenticularDesign, out_dir, command: str | Non
 
             matplotlib.use("Agg")
             import matplotlib.pyplot as plt
-
-            from lfjax.model.layout_plots import draw_layout
 
             p = panel_record(chosen.panel)
             pupil = float(result.provenance.get("pupil_diameter_mm", 3.0))
