@@ -189,15 +189,15 @@ def blur_radius_arcmin(
     beam = diam
     extra = 0.0
     if display is not None:
-        if display.diffracts or display.aperture == "strip":  # strips span the pupil along y
+        if display.fills_pupil:  # diffracted beams, or strips spanning the pupil along y
             beam = np.full_like(diam, pupil_diameter_mm)
         extra = float(display.pixel_width_arcmin) / math.sqrt(2.0) / ARCMIN_PER_RADIAN
         # a lenticular beam's own defocus along y (lfjax.display.lenticular) adds to the eye's
-        y_defocus = float(getattr(display, "y_defocus_D", 0.0))
+        y_defocus = 0.0 if display.y_defocus_D is None else float(display.y_defocus_D)
         if y_defocus:
             d = max(d, np.abs(np.asarray(relative_defocus_D, float) + y_defocus).max(initial=0.0))
         # the lenslets' own aberration (lfjax.display.aberrations): its largest ray angle
-        extra += float(getattr(display, "aberration_slope_rad", lambda d: 0.0)(diam))
+        extra += float(display.aberration_slope_rad(diam))
     geometric = (mism * dist + d * 0.5 * beam).max() * 1e-3  # rad (D in 1/m, mm → m)
     airy = 3.0 * 1.22 * max_wavelength_nm * 1e-6 / diam.min()
     return (geometric + airy + aberration_slope_rad + extra) * ARCMIN_PER_RADIAN

@@ -66,7 +66,7 @@ FLAGS: dict[str, dict[str, str]] = {
         "min_eye_box_mm": "--min-eye-box", "min_fill": "--min-fill",
         "min_f_number": "--f-number", "max_f_number": "--f-number",
         "lens_form": "--lens-form", "refractive_index": "--refractive-index",
-        "distance_range_mm": "--distance-range",
+        "distance_range_mm": "--distance-range", "lenticular": "--lenticular",
         # lfjax.design.check_design (fit_design's checks) and Sampling
         "n_depths": "--n-depths", "views_per_side": "--views", "wavelengths_nm": "--wavelengths",
         "steps": "--steps", "report_accuracy": "--report-accuracy", "freq_step_cpd": "--freq-step",

@@ -8,6 +8,7 @@ import sys
 import shutil
 import time
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.files import check_output_folder
 from lfjax.base.sampling import Sampling
 from lfjax.cli import common
@@ -19,6 +20,13 @@ from lfjax.design import (
     design_panel,
     fit_design,
     save_design,
+)
+from lfjax.design.lenticular import (
+    accommodation_grid_D,
+    check_lenticular_design,
+    fit_lenticular_design,
+    report_wavelengths_nm,
+    save_lenticular_design,
 )
 from lfjax.design.resume import counts_folder
 from lfjax.display.aberrations import LENS_FORMS
@@ -62,11 +70,27 @@ def add_parser(sub) -> None:
             "0.25 D); only an ok count is chosen, and the command exits with status 1 when none\n"
             "is. Each finished count is kept in .DIR.design-counts beside DIR until the outputs\n"
             "are written: the same command after a failure or Ctrl-C resumes from them.\n"
-            "Units: mm, dioptres (D), arcmin, cycles per degree (cpd), nm."
+            "Units: mm, dioptres (D), arcmin, cycles per degree (cpd), nm.\n\n"
+            "--lenticular: design a horizontal-parallax-only (lenticular) panel instead\n"
+            "(lfjax.design.lenticular; default panel phone). Its views are 1xN vertical strips\n"
+            "(--views gives N) behind cylindrical lenticules, each an astigmatic beam: along x\n"
+            "it focuses on the CDP, along y on the pixel plane (the y defocus). There is no\n"
+            "gradient fit: per N the strips tile the pupil, fill 1, and the gap is the longest\n"
+            "the eye box and the f-number range allow (it only shrinks the pixel's angle and\n"
+            "the y defocus); each N is scored by orientation (whole VSOTF, vertical structure\n"
+            "along x, horizontal structure along y): the predicted accommodation and its gain,\n"
+            "the VSOTF at each eye's peak, the display's accommodation RMSE and the perceivable\n"
+            "resolution along x and y. --steps, --distance-range and --lens-form are refused\n"
+            "with it; --train-eyes is used only with --test-eyes 0."
         ),
     )
-    des.add_argument("--panel", choices=tuple(PRESETS), default="near-eye",
-                     help="starting panel preset (default near-eye)")
+    des.add_argument("--lenticular", action="store_true",
+                     help="design a horizontal-parallax-only lenticular panel (1xN strips; "
+                          "lfjax.design.lenticular) instead of NxN lenslets")
+    des.add_argument("--panel", choices=tuple(PRESETS), default=None,
+                     help="starting panel preset (default near-eye; phone with --lenticular: a "
+                          "near-eye lenticular's y focus, at the panel 3 cm away, is beyond any "
+                          "accommodation)")
     des.add_argument("--pixel-pitch", metavar="MM", type=common.finite_float, default=None,
                      help="override the preset's pixel pitch, mm")
     des.add_argument("--pixel-count", metavar=("W", "H"), nargs=2, type=common.positive_int,
@@ -112,6 +136,10 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
+    if args.panel is None:
+        args.panel = "phone" if args.lenticular else "near-eye"
+    if args.lenticular:
+        return _run_lenticular(args, prog)
     try:
         # writable, with room for design.json, design.png and the kept counts: now, not
         # after the work
@@ -161,6 +189,70 @@ def run(args) -> int:
     return 0
 
 
+STEPS_DEFAULT = 10
+"""--steps' default (a lenticular design refuses any other value: it has no fit)."""
+
+
+def _run_lenticular(args, prog: str) -> int:
+    """``lfjax design --lenticular``: :func:`lfjax.design.lenticular.fit_lenticular_design`."""
+    try:
+        if args.steps != STEPS_DEFAULT:
+            raise ParameterError("steps", "{steps} sets the gradient fit of NxN designs; a "
+                                 "{lenticular} design is set in closed form and has no steps: leave "
+                                 "{steps} out")
+        out = check_output_folder(args.out, args.force, need_bytes=DESIGN_OUTPUT_BYTES)
+        cdp = design_cdp_D(args.depths, args.cdp)
+        panel = design_panel(args.panel, cdp, distance_mm=args.distance,
+                             pixel_pitch_mm=args.pixel_pitch, pixel_count=args.pixel_count,
+                             diffraction=args.diffraction)
+        constraints = DesignConstraints(
+            min_eye_box_mm=args.min_eye_box, min_fill=args.min_fill,
+            min_f_number=args.f_number[0], max_f_number=args.f_number[1],
+            distance_range_mm=None if args.distance_range is None else tuple(args.distance_range),
+            lens_form=args.lens_form, refractive_index=args.refractive_index)
+        sampling = None if args.freq_step is None else Sampling(args.freq_step)
+        fit = dict(depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
+                   views=tuple(args.views), constraints=constraints,
+                   wavelengths_nm=tuple(args.wavelengths), report_accuracy=args.report_accuracy)
+        depths, _, counts = check_lenticular_design(panel, **fit)
+    except ValueError as err:
+        return common.refuse(prog, err, COMMAND)
+    common.enable_compilation_cache()
+    held_out = args.test_eyes > 0
+    eyes = sample_eyes(args.seed + 1, args.test_eyes) if held_out else sample_eyes(args.seed, args.train_eyes)
+    grid = accommodation_grid_D(depths)
+    print(f"plan: lenticular (horizontal parallax only) 1xN, N in {counts}, on the "
+          f"{panel.name}'s pixels at {float(panel.distance_mm):g} mm; no fit (closed form); "
+          f"scored on {eyes.n_eyes} {'held-out' if held_out else 'training'} eyes at "
+          f"{len(report_wavelengths_nm(args.report_accuracy, args.wavelengths))} wavelength(s), "
+          f"{len(depths)} depths, accommodation {grid[0]:g}-{grid[-1]:g} D ({grid.size} states); "
+          f"each count about a minute per 10 eyes on 2 CPU cores", flush=True)
+    kept = counts_folder(out)
+    try:
+        result = fit_lenticular_design(panel, eyes=eyes, sampling=sampling, counts_dir=kept,
+                                       progress=None if args.no_progress else
+                                       (lambda line: print(line, flush=True)), **fit)
+        result.provenance.update(seed=args.seed, panel_preset=args.panel,
+                                 scored_on="held-out" if held_out else "training")
+        files = save_lenticular_design(result, out, command=common.command_line(args.argv),
+                                       force=args.force)
+        shutil.rmtree(kept, ignore_errors=True)
+    except KeyboardInterrupt:
+        return common.interrupted(prog, _kept_note(kept))
+    except ValueError as err:
+        return common.refuse(prog, err, COMMAND, fold=True)
+    except Exception as err:  # one line, no traceback
+        return common.unexpected_error(prog, err, _kept_note(kept))
+    print(result.summary())
+    print(f"{prog}: wrote {len(files)} files to {out} in "
+          f"{time.perf_counter() - args.t_start:.1f} s")
+    if result.best is None:
+        reasons = "; ".join(f"1x{f.n_views} {f.status}" for f in result.fits)
+        print(f"{prog}: error: no view count qualifies: {reasons}", file=sys.stderr)
+        return 1
+    return 0
+
+
 DESIGN_OUTPUT_BYTES = 16 * 2**20
 """Room ``lfjax design`` asks of its output folder's disk before any work, bytes: design.png
 (about 0.1 MB), design.json and the kept counts (tens of kB each), with a wide margin."""
@@ -168,7 +260,7 @@ DESIGN_OUTPUT_BYTES = 16 * 2**20
 
 def _kept_note(kept) -> str:
     """What an interrupted or failed run says of the counts it finished."""
-    if not kept.is_dir() or not any(kept.glob("count-*.json")):
+    if not kept.is_dir() or not any(kept.glob("*.json")):  # count-N or lenticular-N
         return "; nothing written"
     return (f"; nothing written to --out, the finished counts are kept in {kept}: the same "
             f"command resumes from them")

@@ -65,6 +65,29 @@ from lfjax.model.layouts import Layout
 from lfjax.base.units import ARCMIN_PER_RADIAN
 from lfjax.display.aberrations import LensletAberration
 
+MAX_Y_DEFOCUS_D = 40.0
+"""Largest |y_defocus_D| accepted, D (a near-eye lenticular's is about 28.5 D)."""
+
+
+def _optional_real(value):
+    """A float leaf, or None (the field's "nothing")."""
+    return None if value is None else as_real_array(value)
+
+
+def _check_optional(name: str, value, lo: float, hi: float, unit: str, why: str,
+                    owner: str = "DisplayOptics") -> None:
+    """Host check of an optional scalar field (skipped for None and traced values)."""
+    if value is None or not _concrete(value):
+        return
+    v = np.asarray(value, float)
+    if v.shape != ():
+        raise ParameterError(name, "{%s} must be a scalar (%s), got shape {shape}" % (name, unit),
+                             owner=owner, shape=v.shape)
+    x = float(v)
+    if not (math.isfinite(x) and lo <= x <= hi):
+        raise ParameterError(name, "{%s} must be in [{lo:g}, {hi:g}] %s (%s), got {got}" % (name, unit, why),
+                             owner=owner, lo=lo, hi=hi, got=x)
+
 DIFFRACTION_MODES = ("off", "fresnel", "modulus")
 APERTURE_SHAPES = ("circle", "square")
 _CHOICES = {"aperture": APERTURE_SHAPES, "diffraction": DIFFRACTION_MODES}
@@ -98,6 +121,17 @@ class DisplayOptics(eqx.Module):
     aberration : :class:`lfjax.display.aberrations.LensletAberration` or None: the
         lenslets' wavefront error every view carries (None, or all zero: aberration-free
         lenslets, the numbers without it bit for bit).
+
+    What a lenticular or leaky display does to its views (:mod:`lfjax.display.lenticular`;
+    each None by default: nothing, the numbers without it bit for bit; 0 in
+    :class:`lfjax.display.lenticular.ViewOptics`, whose leaves are then differentiable):
+
+    y_defocus_D : () the views' extra defocus along y relative to x, D, in
+        [−:data:`MAX_Y_DEFOCUS_D`, +:data:`MAX_Y_DEFOCUS_D`] (a lenticular beam), or None.
+    leakage_weight : () weight of each neighbour's content in a view, in [0, 1], or None (0).
+    neighbours : (n_views, n_views) 0/1 matrix of which views leak into which, or None.
+    pixel_height_arcmin : () the emitter's angular height along y, arcmin (≥ 0), or None
+        (its width: a square pixel).
     """
 
     diffraction: str = eqx.field(static=True, default="off")
@@ -105,6 +139,10 @@ class DisplayOptics(eqx.Module):
     fresnel_distance_mm: jnp.ndarray = eqx.field(converter=as_real_array, default=1.0)
     pixel_width_arcmin: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
     aberration: LensletAberration | None = None
+    y_defocus_D: jnp.ndarray | None = eqx.field(converter=_optional_real, default=None)
+    leakage_weight: jnp.ndarray | None = eqx.field(converter=_optional_real, default=None)
+    neighbours: jnp.ndarray | None = None
+    pixel_height_arcmin: jnp.ndarray | None = eqx.field(converter=_optional_real, default=None)
 
     def __check_init__(self):
         # "strip": a lenticular view (lfjax.display.lenticular), for DisplayOptics only
@@ -124,6 +162,18 @@ class DisplayOptics(eqx.Module):
                 raise ParameterError("pixel_width_arcmin",
                                      "{pixel_width_arcmin} must be finite and >= 0 arcmin, got {got}",
                                      got=float(w))
+        _check_optional("y_defocus_D", self.y_defocus_D, -MAX_Y_DEFOCUS_D, MAX_Y_DEFOCUS_D, "D",
+                        "the views' extra defocus along y", type(self).__name__)
+        _check_optional("leakage_weight", self.leakage_weight, 0.0, 1.0, "unitless",
+                        "each neighbour's weight in a view; 0 = no leakage", type(self).__name__)
+        _check_optional("pixel_height_arcmin", self.pixel_height_arcmin, 0.0, math.inf, "arcmin",
+                        "the emitter's angular height along y", type(self).__name__)
+        if self.neighbours is not None and _concrete(self.neighbours):
+            a = np.asarray(self.neighbours, float)
+            if a.ndim != 2 or a.shape[0] != a.shape[1] or not np.all((a == 0) | (a == 1)):
+                raise ParameterError("neighbours", "{neighbours} must be a square 0/1 matrix "
+                                     "(n_views, n_views), got shape {shape}", owner=type(self).__name__,
+                                     shape=a.shape)
 
     @property
     def diffracts(self) -> bool:
@@ -132,6 +182,52 @@ class DisplayOptics(eqx.Module):
     @property
     def pixel_width_rad(self):
         return self.pixel_width_arcmin / ARCMIN_PER_RADIAN
+
+    @property
+    def pixel_height_rad(self):
+        """The emitter's angular height (rad): ``pixel_height_arcmin``, or its width (a
+        square pixel imaged by a lenslet with power along both axes; a lenticular view's
+        differs: its lenticule has none along y)."""
+        if self.pixel_height_arcmin is None:
+            return self.pixel_width_rad
+        return self.pixel_height_arcmin / ARCMIN_PER_RADIAN
+
+    @property
+    def strips(self) -> bool:
+        """The views are strips spanning the pupil's height (a lenticular display): lenslet
+        diffraction acts along x only."""
+        return self.aperture == "strip"
+
+    @property
+    def fills_pupil(self) -> bool:
+        """A view's light may reach any point of the pupil (diffracted beams, or strips
+        along y): each view is computed on a window the pupil's size."""
+        return self.diffracts or self.strips
+
+    def beam_wavefront_um(self, zernike_um, measured_pupil_mm: float):
+        """The eye's coefficients (…, n_modes) µm plus the views' common astigmatism
+        W = Δ·y²/2 (µm, y in mm; Zernike c(2,0) += Δ R²/(8√3), c(2,2) −= Δ R²/(4√6) on the
+        measured radius R; at least 6 modes returned); unchanged without ``y_defocus_D``."""
+        if self.y_defocus_D is None:
+            return zernike_um
+        if zernike_um.shape[-1] < 6:
+            zernike_um = jnp.pad(zernike_um, [(0, 0)] * (zernike_um.ndim - 1)
+                                 + [(0, 6 - zernike_um.shape[-1])])
+        r2 = (0.5 * measured_pupil_mm) ** 2
+        delta = self.y_defocus_D.astype(zernike_um.dtype)
+        return (zernike_um.at[..., 4].add(delta * (r2 / (8.0 * math.sqrt(3.0))))
+                .at[..., 5].add(delta * (-r2 / (4.0 * math.sqrt(6.0)))))
+
+    @property
+    def view_mixing(self):
+        """K (n, n): view n carries Σ_m K[n, m]·(view m's content), rows summing to 1
+        (K = (I + w·A)/(1 + w·Σ_m A[n, m]), A the neighbours); None without ``neighbours``."""
+        if self.neighbours is None:
+            return None
+        w = jnp.asarray(0.0) if self.leakage_weight is None else self.leakage_weight
+        a = jnp.asarray(self.neighbours, w.dtype)
+        k = jnp.eye(a.shape[0], dtype=a.dtype) + w * a
+        return k / (1.0 + w * jnp.sum(a, axis=1))[:, None]
 
     def fresnel_number(self, diameter_mm, wavelength_nm):
         """N = (d/2)²/(λ z_eff) of a subaperture of ``diameter_mm`` (mm) at ``wavelength_nm``."""
@@ -146,7 +242,18 @@ class DisplayOptics(eqx.Module):
                          ~(jnp.isfinite(self.pixel_width_arcmin) & (self.pixel_width_arcmin >= 0)),
                          "pixel_width_arcmin must be finite and >= 0 arcmin")
         aberration = None if self.aberration is None else self.aberration.checked()
-        return DisplayOptics(self.diffraction, self.aperture, z, w, aberration)
+        y, leak, height = self.y_defocus_D, self.leakage_weight, self.pixel_height_arcmin
+        if y is not None:
+            y = eqx.error_if(y, ~(jnp.abs(y) <= MAX_Y_DEFOCUS_D),
+                             f"y_defocus_D must be in [-{MAX_Y_DEFOCUS_D:g}, {MAX_Y_DEFOCUS_D:g}] D")
+        if leak is not None:
+            leak = eqx.error_if(leak, ~((leak >= 0) & (leak <= 1)), "leakage_weight must be in [0, 1]")
+        if height is not None:
+            height = eqx.error_if(height, ~(jnp.isfinite(height) & (height >= 0)),
+                                  "pixel_height_arcmin must be finite and >= 0 arcmin")
+        return dataclasses.replace(self, fresnel_distance_mm=z, pixel_width_arcmin=w,
+                                   aberration=aberration, y_defocus_D=y, leakage_weight=leak,
+                                   pixel_height_arcmin=height)
 
     def aberration_slope_rad(self, diameters_mm) -> float:
         """Host bound on the lenslet aberration's ray angle (rad) over views of
@@ -359,12 +466,13 @@ def display_optics_at(distance_mm: float, cdp_D: float, pixel_width_arcmin: floa
 
 
 def pixel_transfer(fx_cpr, fy_cpr, display: DisplayOptics | None):
-    """OTF of one emitter (square, width ``display.pixel_width_arcmin``) at frequencies in
-    cycles/radian, broadcast (…, L) × (…, Lx); 1 without a display."""
+    """OTF of one emitter (a rectangle ``display.pixel_width_rad`` wide along x and
+    ``display.pixel_height_rad`` high along y: a square for a spherical lenslet) at
+    frequencies in cycles/radian, broadcast (…, L) × (…, Lx); 1 without a display."""
     if display is None:
         return 1.0
-    a = display.pixel_width_rad
-    return jnp.sinc(a * fy_cpr)[:, None] * jnp.sinc(a * fx_cpr)[None, :]
+    return (jnp.sinc(display.pixel_height_rad * fy_cpr)[:, None]
+            * jnp.sinc(display.pixel_width_rad * fx_cpr)[None, :])
 
 
 __all__ = [

@@ -44,33 +44,20 @@ import numpy as np
 from lfjax.base.errors import ParameterError
 from lfjax.base.types import as_real_array
 from lfjax.base.types import is_concrete as _concrete
-from lfjax.display.lenslets import DisplayOptics
+from lfjax.display.lenslets import MAX_Y_DEFOCUS_D, DisplayOptics
 from lfjax.model.layouts import Layout
 from lfjax.model.strips import neighbour_matrix, strip_layout
 from lfjax.base.units import ARCMIN_PER_RADIAN
 
-MAX_Y_DEFOCUS_D = 40.0
-"""Largest |y_defocus_D| accepted, D (a near-eye lenticular's is about 28.5 D)."""
-
-
-def _check_scalar(name: str, value, lo: float, hi: float, unit: str, why: str) -> None:
-    if not _concrete(value):
-        return
-    v = np.asarray(value, float)
-    if v.shape != ():
-        raise ParameterError(name, "{%s} must be a scalar (%s), got shape {shape}" % (name, unit),
-                             owner="ViewOptics", shape=v.shape)
-    x = float(v)
-    if not (math.isfinite(x) and lo <= x <= hi):
-        raise ParameterError(name, "{%s} must be in [{lo:g}, {hi:g}] %s (%s), got {got}" % (name, unit, why),
-                             owner="ViewOptics", lo=lo, hi=hi, got=x)
-
 
 class ViewOptics(DisplayOptics):
-    """:class:`~lfjax.display.lenslets.DisplayOptics` plus what a lenticular or leaky display does
-    to its views (every new float a differentiable leaf; the defaults change nothing).
+    """:class:`~lfjax.display.lenslets.DisplayOptics` whose lenticular and leakage fields
+    (declared there: ``y_defocus_D``, ``leakage_weight``, ``neighbours``,
+    ``pixel_height_arcmin``) default to 0 instead of None, so that the y defocus and the
+    leakage weight are differentiable leaves (0 changes nothing: the numbers of the display
+    without them, bit for bit).
 
-    Attributes (beyond DisplayOptics')
+    Attributes (as DisplayOptics')
     ----------
     y_defocus_D : () the views' extra defocus along y relative to x, D, in
         [−:data:`MAX_Y_DEFOCUS_D`, +:data:`MAX_Y_DEFOCUS_D`] (a lenticular beam:
@@ -78,74 +65,32 @@ class ViewOptics(DisplayOptics):
     leakage_weight : () weight of each neighbour's content in a view, in [0, 1] (unitless).
     neighbours : (n_views, n_views) 0/1 matrix of which views leak into which
         (:func:`lfjax.model.strips.neighbour_matrix`), or None (no leakage path at all).
+    pixel_height_arcmin : () the emitter's angular height along y, arcmin (≥ 0), or None
+        (default: its width, a square pixel). A lenticule has no power along y, so there the
+        eye sees the pixel itself, p/(z_m + z_0), not its image on the CDP, p/(z_0·M)
+        (:meth:`LenticularPanel.pixel_height_arcmin`).
     """
 
     y_defocus_D: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
     leakage_weight: jnp.ndarray = eqx.field(converter=as_real_array, default=0.0)
-    neighbours: jnp.ndarray | None = None
-
-    def __check_init__(self):
-        _check_scalar("y_defocus_D", self.y_defocus_D, -MAX_Y_DEFOCUS_D, MAX_Y_DEFOCUS_D, "D",
-                      "the views' extra defocus along y")
-        _check_scalar("leakage_weight", self.leakage_weight, 0.0, 1.0, "unitless",
-                      "each neighbour's weight in a view; 0 = no leakage")
-        if self.neighbours is not None and _concrete(self.neighbours):
-            a = np.asarray(self.neighbours, float)
-            if a.ndim != 2 or a.shape[0] != a.shape[1] or not np.all((a == 0) | (a == 1)):
-                raise ParameterError("neighbours", "{neighbours} must be a square 0/1 matrix "
-                                     "(n_views, n_views), got shape {shape}", owner="ViewOptics",
-                                     shape=a.shape)
-
-    def beam_wavefront_um(self, zernike_um, measured_pupil_mm: float):
-        """The eye's coefficients (n_modes,) µm plus the views' astigmatism W = Δ·y²/2 on the
-        measured radius (module docstring); at least 6 modes are returned."""
-        if zernike_um.shape[-1] < 6:
-            zernike_um = jnp.pad(zernike_um, [(0, 0)] * (zernike_um.ndim - 1)
-                                 + [(0, 6 - zernike_um.shape[-1])])
-        r2 = (0.5 * measured_pupil_mm) ** 2
-        delta = self.y_defocus_D.astype(zernike_um.dtype)
-        return (zernike_um.at[..., 4].add(delta * (r2 / (8.0 * math.sqrt(3.0))))
-                .at[..., 5].add(delta * (-r2 / (4.0 * math.sqrt(6.0)))))
-
-    @property
-    def view_mixing(self):
-        """K (n, n): view n carries Σ_m K[n, m]·(view m's content); rows sum to 1. None
-        without ``neighbours``."""
-        if self.neighbours is None:
-            return None
-        a = jnp.asarray(self.neighbours, self.leakage_weight.dtype)
-        w = self.leakage_weight
-        k = jnp.eye(a.shape[0], dtype=a.dtype) + w * a
-        return k / (1.0 + w * jnp.sum(a, axis=1))[:, None]
-
-    def checked(self) -> ViewOptics:
-        """Traced-value checks (``eqx.error_if``) for use inside the pipeline."""
-        base = DisplayOptics.checked(self)
-        y = eqx.error_if(self.y_defocus_D, ~(jnp.abs(self.y_defocus_D) <= MAX_Y_DEFOCUS_D),
-                         f"y_defocus_D must be in [-{MAX_Y_DEFOCUS_D:g}, {MAX_Y_DEFOCUS_D:g}] D")
-        w = eqx.error_if(self.leakage_weight,
-                         ~((self.leakage_weight >= 0) & (self.leakage_weight <= 1)),
-                         "leakage_weight must be in [0, 1]")
-        return ViewOptics(base.diffraction, base.aperture, base.fresnel_distance_mm,
-                          base.pixel_width_arcmin, aberration=base.aberration, y_defocus_D=y,
-                          leakage_weight=w, neighbours=self.neighbours)
 
 
 def strip_display(layout: Layout | None = None, *, y_defocus_D=0.0, leakage_weight=0.0,
                   aperture: str = "strip", diffraction: str = "off", fresnel_distance_mm=1.0,
-                  pixel_width_arcmin=0.0) -> ViewOptics:
+                  pixel_width_arcmin=0.0, pixel_height_arcmin=None) -> ViewOptics:
     """The :class:`ViewOptics` of a layout: strips (``aperture="strip"``, the default) or
     circles, with the views' y defocus (D) and leakage weight; the neighbours are the
-    layout's (:func:`~lfjax.model.strips.neighbour_matrix`), or none without a layout."""
+    layout's (:func:`~lfjax.model.strips.neighbour_matrix`), or none without a layout;
+    ``pixel_height_arcmin``: the emitter's height along y (None: its width)."""
     neighbours = None if layout is None else jnp.asarray(neighbour_matrix(layout))
     return ViewOptics(diffraction, aperture, fresnel_distance_mm, pixel_width_arcmin,
                       y_defocus_D=y_defocus_D, leakage_weight=leakage_weight,
-                      neighbours=neighbours)
+                      neighbours=neighbours, pixel_height_arcmin=pixel_height_arcmin)
 
 
 def check_display_for_layout(display: DisplayOptics | None, layout: Layout) -> None:
     """A :class:`ViewOptics`' neighbour matrix must have one row per view of ``layout``."""
-    a = getattr(display, "neighbours", None)
+    a = None if display is None else display.neighbours
     if a is not None and np.shape(a)[0] != layout.n_subapertures:
         raise ParameterError("neighbours", "{neighbours} has {rows} rows but layout {name!r} has "
                              "{n} views: build it with strip_display(layout, ...)",
@@ -253,6 +198,11 @@ class LenticularPanel(eqx.Module):
         """One pixel's image on the CDP along x, arcmin: p/(z_0·M)."""
         return self.pixel_pitch_mm / (self.gap_mm * self.magnification) * ARCMIN_PER_RADIAN
 
+    def pixel_height_arcmin(self):
+        """One pixel along y, arcmin: the lenticule has no power there, so the eye sees the
+        pixel itself, p/(z_m + z_0) (about 1/45 of :meth:`pixel_arcmin` for the phone)."""
+        return self.pixel_pitch_mm / (self.distance_mm + self.gap_mm) * ARCMIN_PER_RADIAN
+
     def views_across(self, pupil_diameter_mm: float) -> int:
         """Whole strips across the pupil (host), ⌊D/(M·Δu)⌋, at least 1 required."""
         n = int(math.floor(float(pupil_diameter_mm) / float(self.view_pitch_mm) + 1e-9))
@@ -274,7 +224,8 @@ class LenticularPanel(eqx.Module):
         return strip_display(layout, y_defocus_D=self.y_defocus_D,
                              leakage_weight=self.leakage_weight, diffraction=diffraction,
                              fresnel_distance_mm=self.fresnel_distance_mm,
-                             pixel_width_arcmin=self.pixel_arcmin())
+                             pixel_width_arcmin=self.pixel_arcmin(),
+                             pixel_height_arcmin=self.pixel_height_arcmin())
 
 
 def lenticular_phone(distance_mm: float = 350.0, cdp_D: float = 2.0,

@@ -80,7 +80,7 @@ def _pupil_parts(
             aperture_field = aperture_field * jax.lax.complex(jnp.cos(lens_phase), jnp.sin(lens_phase))
         beam = fresnel_propagate(
             aperture_field, dx_mm, wavelength_mm,
-            display.fresnel_distance_mm, pupil_diameter_mm, along_y=shape != "strip",
+            display.fresnel_distance_mm, pupil_diameter_mm, along_y=not display.strips,
         )
         intensity = jnp.real(beam) ** 2 + jnp.imag(beam) ** 2
         if display.diffraction == "modulus":  # the paper's Eq. 2: |Fr[...]| only
@@ -238,9 +238,8 @@ def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum:
     the views then has unit volume, as ISETBio normalises; the views keep their ratios).
     """
     n_fft = max(b[2] for b in bands)
-    beam_wavefront = getattr(scene.display, "beam_wavefront_um", None)
-    if beam_wavefront is not None:  # the views' common astigmatism (lfjax.display.lenticular)
-        zernike_um = beam_wavefront(zernike_um, measured_pupil_mm)
+    if scene.display is not None:  # the views' common astigmatism (lfjax.display.lenticular)
+        zernike_um = scene.display.beam_wavefront_um(zernike_um, measured_pupil_mm)
     total = None
     for band in bands:
         start, stop, band_fft = band[:3]
@@ -325,7 +324,7 @@ def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, s
         # one λ-independent pupil grid holding the largest subaperture and its edge (the
         # pupil when diffracted beams fill it)
         span = jnp.max(jnp.minimum(diameters_mm, pupil_diameter_mm))
-        if display is not None and (display.diffracts or display.aperture == "strip"):
+        if display is not None and display.fills_pupil:
             span = pupil_diameter_mm
         dx_mft = (span / (n_pupil - 2.0 * EDGE_EXTENT_SCALES * sampling.edge_width_samples - 2.0)).astype(real)
         k_theta = np.fft.fftfreq(n_fft, 1.0 / n_fft)

@@ -220,7 +220,7 @@ def render(elemental, scene: Scene, pair_index, n_fft: int, freq_step_cpd: float
     # A scan over views keeps memory at one (n_depth, n_k, L, Lx) block; an einsum over the
     # view axis lowers to tiny per-pixel matmuls, slow on CPU.
     init = jnp.zeros(pair_index.shape + elemental.shape[2:], elemental.dtype)
-    mixing = getattr(scene.display, "view_mixing", None)
+    mixing = None if scene.display is None else scene.display.view_mixing
     if mixing is not None:
         # Leakage (lfjax.display.lenticular): view n carries K[n, m] of view m's content,
         # displaced by view m's shift (the neighbour's parallax at the rendered depth).

@@ -218,8 +218,9 @@ class Proxy:
             fx = np.fft.rfftfreq(n_fft, 1.0 / n_fft) * step * DEGREES_PER_RADIAN
             pixel = 1.0
             if scene.display is not None:  # one emitter's transfer function (display.pixel_transfer)
-                a = float(scene.display.pixel_width_arcmin) / ARCMIN_PER_RADIAN
-                pixel = (np.sinc(a * fy)[:, None] * np.sinc(a * fx)[None, :]).astype(np.complex64)
+                a = float(scene.display.pixel_width_rad)
+                b = float(scene.display.pixel_height_rad)  # a lenticular view's differs
+                pixel = (np.sinc(b * fy)[:, None] * np.sinc(a * fx)[None, :]).astype(np.complex64)
             # state 0: the paper's reference, the same views focused and rendered at the CDP
             all_acc = np.concatenate([[scene.cdp_D], states])
             for g, ((centre, d_mm), maps) in enumerate(self.groups):

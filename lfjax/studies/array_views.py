@@ -156,7 +156,16 @@ def array_views(panel: Panel, depth_D: float, *, wavelength_nm: float = 550.0,
     # q = u/(1 − z_m·D/1000): the ideal chief ray through the point (D = 0: parallel rays)
     scale = 1.0 / (1.0 - zm * depth / 1000.0)
     spread = diffraction_widths * wavelength_nm * 1e-6 * float(panel.fresnel_distance_mm) / d
-    reach = 0.5 * pupil + 0.5 * d + spread
+    # the lit pixel lies within half a pixel (plus half an emitter with emitter_samples > 1)
+    # of the ideal ray's x_k on each axis, which moves the footprint by up to that times
+    # z_m/z_0 from q_k: a lenslet whose ideal footprint is that far outside the pupil can
+    # still send its lit beam into it (6.5 mm for the phone's 3x3 against a 3 mm pupil).
+    # The search must hold them, or the count depends on the search radius (it counted 21
+    # geometric beams for the phone's 3x3 at 1 D with diffraction_widths = 0, 33 with 2,
+    # of the 65 there are)
+    quantisation = p * (0.5 + (0.5 * math.sqrt(float(panel.pixel_fill)) if emitter_samples > 1
+                               else 0.0)) * zm / z0
+    reach = 0.5 * pupil + 0.5 * d + spread + quantisation
     k_max = int(math.ceil(reach / (du * scale))) + 2
     if (2 * k_max + 1) ** 2 * max(int(emitter_samples), 1) ** 2 > 4_000_000:
         raise ValueError(f"the beams' reach ({reach:.4g} mm around the pupil) spans {2 * k_max + 1} "

@@ -798,6 +798,15 @@ def _combination_problems(v: dict, failed: set[str], base_dir: Path = Path("."))
         if too_big:
             p.append(f"population.pupil_diameters_mm {too_big} exceed the measured pupil "
                      f"({limit:g} mm): allowed range (0, {limit:g}] mm")
+    aberrated = [k for k in ("lenslet_spherical_um", "lenslet_coma_um", "lenslet_astigmatism_um",
+                             "lenslet_field_curvature_um") if v[k] != 0.0]
+    strips = [e for e in v["layouts"] if isinstance(e, str) and strip_views(e) is not None]
+    if aberrated and strips:
+        p.append(f"display.{aberrated[0]} (and every lenslet_*_um key) must be 0 with 1xN strip "
+                 f"layouts ({', '.join(strips)}): the lenslet aberrations "
+                 f"(lfjax.display.aberrations) are of spherical lenslets over a view's disc or "
+                 f"square, not of cylindrical lenticules over a strip; sweep the strips without "
+                 f"them, or the aberrations with NxN layouts")
     cdp, offsets = v["cdp_D"], v["depth_offsets_D"]
     if offsets and any(cdp + d < -1e-9 for d in offsets):
         p.append(f"display.depth_offsets_D: every rendered depth cdp_D + offset must be >= 0 D; "

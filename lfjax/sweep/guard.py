@@ -28,7 +28,7 @@ from lfjax.vision.peaks import METRICS, STATE_COST, TYPICAL_REFINED_FRACTION, re
 from lfjax.base.grids import grid_size
 from lfjax.base.sampling import EYE_BLOCK
 from lfjax.sweep.compute import sweep_spectra
-from lfjax.sweep.config import SweepConfig
+from lfjax.sweep.config import KEYS, SweepConfig
 from lfjax.base.units import format_bytes as _bytes
 from lfjax.base.units import format_duration as _duration
 
@@ -108,6 +108,7 @@ class SweepEstimate:
     tasks: list[TaskSize] = field(default_factory=list)
     n_devices: int = 1
     complex_bytes: int = 16
+    display_effects: tuple = ()  # display_effects(config): the display keys set
 
     @property
     def device_chunk_bytes(self) -> float:
@@ -137,6 +138,8 @@ class SweepEstimate:
             f"states      {self.n_accommodation} accommodation states on the grid",
             f"wavelengths {self.n_wavelengths}" + (" (the most of any layout)" if self.tasks else ""),
         ]
+        if self.display_effects:
+            lines.append(f"display     {'; '.join(self.display_effects)}")
         for t in self.tasks:
             lines.append(f"sampling    {t.pupil_mm:g} mm {t.layout}: df {t.freq_step_cpd:.4g} cpd, "
                          f"FFT {t.n_fft}, {t.bands[-1][1]} wavelengths, {t.n_states} states x "
@@ -220,7 +223,33 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
         depths_D=tuple(float(d) for d in config.depths_D), n_accommodation=int(min(n_acc, 2**62)),
         n_wavelengths=int(min(n_wl, 2**62)), store_bytes=float(store),
         host_setup_bytes=float(setup), host_chunk_bytes=float(chunk), tasks=sizes,
-        n_devices=int(n_devices), complex_bytes=complex_bytes)
+        n_devices=int(n_devices), complex_bytes=complex_bytes,
+        display_effects=display_effects(config))
+
+
+DISPLAY_UNITS = {"D": "D", "mm": "mm", "um": "µm", "arcmin": "arcmin"}
+"""How :func:`display_effects` writes a key's unit (the suffix of its name)."""
+
+_SHOWN_ELSEWHERE = {"layouts", "cdp_D", "depth_offsets_D"}  # the plan's and report's own lines
+
+
+def display_effects(config: SweepConfig) -> tuple[str, ...]:
+    """Each ``[display]`` key of ``config`` that differs from its default (besides the
+    layouts, the CDP and the depths, stated on their own), as ``"name = value unit
+    (default d)"``: the lenticular strips' width ratio and y defocus, the leakage weight,
+    the lenslets' distance, emitters and aberrations — what the sweep modelled beyond the
+    paper's ideal display. Empty for the ideal display."""
+    out = []
+    for key in KEYS:
+        if key.section != "display" or key.name in _SHOWN_ELSEWHERE:
+            continue
+        value = getattr(config, key.field)
+        if value == key.default:
+            continue
+        unit = DISPLAY_UNITS.get(key.unit, key.unit) or "unitless"
+        default = "not set" if key.default is None else f"{key.default:g}"
+        out.append(f"{key.name} = {value:g} {unit} (default {default})")
+    return tuple(out)
 
 
 def refinement_states(config: SweepConfig) -> int:
@@ -310,6 +339,7 @@ def check_fits(est: SweepEstimate, store=None, host_bytes: float | None = None,
 
 
 __all__ = [
+    "display_effects",
     "SweepEstimate",
     "SweepTooLargeError",
     "TaskSize",

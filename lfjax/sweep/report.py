@@ -37,6 +37,7 @@ from lfjax.model.layout_plots import draw_layout
 from lfjax.model.layouts import LF_LAYOUTS
 from lfjax.sweep.compute import resolve_layout
 from lfjax.sweep.config import config_from_dict, strip_views
+from lfjax.sweep.guard import display_effects
 from lfjax.base.files import check_writable, staged_output
 from lfjax.sweep.store import is_store, open_store, store_damage
 from lfjax.sweep.ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
@@ -425,6 +426,11 @@ def _summary(path: Path, store: Path, ds, config, table, samplings: dict, files:
            "met the targets with fewer wavelengths)")
         + (f" (planned for peaks to {config.peak_tolerance_D:g} D and cut-offs to "
            f"{config.cutoff_tolerance_cpd:g} cpd)." if config.wavelength_step_planned else "."))
+    effects = display_effects(config)
+    add("- Display: " + ("; ".join(effects) + " (lenticular strips, cross-talk, lenslets, "
+                         "emitters: `[display]` keys set away from their defaults)." if effects
+                         else "the paper's ideal display (every `[display]` key beyond the "
+                              "layouts, CDP and depths at its default)."))
     add(f"- Peaks: grid peak of each metric; continuous peaks ({config.peak_method!r}) for "
         f"{', '.join(config.continuous_peaks) or 'no metric'}. Cut-off frequency: where the "
         f"radial MTF at the predicted accommodation falls to {config.cutoff_threshold:g}.")

@@ -56,6 +56,28 @@ def test_the_beam_wavefront_is_the_y_defocus():
     assert optics.beam_wavefront_um(jnp.zeros(3), measured).shape == (6,)
 
 
+def test_the_view_fields_are_declared_on_every_display_and_mean_nothing_when_unset():
+    """DisplayOptics declares the lenticular and leakage fields (None: nothing; the kernel
+    reads them, no hooks): unset, the eye's coefficients pass through untouched and no view
+    mixes; set, a plain DisplayOptics does what a ViewOptics does."""
+    from lfjax.display.lenslets import DisplayOptics
+
+    eye = jnp.asarray(np.random.default_rng(2).normal(0, 0.1, 10))
+    plain = DisplayOptics()
+    assert plain.beam_wavefront_um(eye, 6.0) is eye and plain.view_mixing is None
+    assert not plain.strips and not plain.fills_pupil
+    a = jnp.asarray([[0.0, 1.0], [1.0, 0.0]])
+    declared = DisplayOptics(aperture="strip", y_defocus_D=-0.8, leakage_weight=0.3, neighbours=a)
+    view = ViewOptics(aperture="strip", y_defocus_D=-0.8, leakage_weight=0.3, neighbours=a)
+    assert declared.strips and declared.fills_pupil
+    np.testing.assert_array_equal(declared.beam_wavefront_um(eye, 6.0), view.beam_wavefront_um(eye, 6.0))
+    np.testing.assert_array_equal(declared.view_mixing, view.view_mixing)
+    np.testing.assert_allclose(np.asarray(view.view_mixing), [[1 / 1.3, 0.3 / 1.3], [0.3 / 1.3, 1 / 1.3]])
+    assert type(view.checked()) is ViewOptics and type(declared.checked()) is DisplayOptics
+    with pytest.raises(ParameterError, match=r"DisplayOptics.leakage_weight must be in \[0, 1\]"):
+        DisplayOptics(leakage_weight=2.0)
+
+
 @pytest.mark.parametrize("build, parameter", [
     (lambda: ViewOptics(y_defocus_D=50.0), "y_defocus_D"),
     (lambda: ViewOptics(y_defocus_D=float("nan")), "y_defocus_D"),

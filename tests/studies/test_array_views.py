@@ -151,6 +151,44 @@ def test_where_the_pixels_fall_decides_what_a_phone_panel_shows():
     assert array_views(panel, 2.0, emitter_samples=4).n_geometric > 0
 
 
+def test_every_lit_beam_is_counted_however_far_its_lenslet():
+    """A point at infinity (D = 0, ideal rays parallel: q_k = u_k, x_k = u_k) on lenslets
+    (10 + 1/3) pixels apart, pixel centres on multiples of p: lenslet k's lit pixel is
+    u_k's nearest, δ_k = 0, −p/3, +p/3 for k ≡ 0, 1, 2 (mod 3) on each axis, so its beam
+    lands at u_k + S·(0, 1, −1) with S = (p/3)·z_m/z_0 = 3 mm — nine sub-lattices of
+    pitch 3Δu, counted here in closed form. Lenslets up to (pupil + footprint)/2 + S from
+    the axis send beams into the pupil; the search once stopped short of S and the count
+    depended on diffraction_widths (21 against 33 geometric beams for the phone's 3x3 at
+    1 D; 65 there are)."""
+    p = 0.03
+    panel = Panel.with_cdp(cdp_D=2.0, pixel_pitch_mm=p, lenslet_pitch_mm=(10 + 1 / 3) * p,
+                           focal_length_mm=1.0, distance_mm=300.0, fill=1.0, diffraction="off")
+    du, d, pupil = float(panel.lenslet_pitch_mm), float(panel.view_diameter_mm), 3.0
+    shift = p / 3 * float(panel.distance_mm) / float(panel.gap_mm)
+    assert shift > 3.0 and float(panel.pupil_diameter_mm) == pupil
+    k = np.arange(-40, 41)
+    q1 = k * du + shift * np.array([0.0, 1.0, -1.0])[k % 3]  # where each beam lands, one axis
+    qx, qy = np.meshgrid(q1, q1)
+    expected = int(np.sum(np.hypot(qx, qy) < 0.5 * (pupil + d)))
+    ideal = int(np.sum(np.hypot(*np.meshgrid(k * du, k * du)) < 0.5 * (pupil + d)))
+    for widths in (0.0, 2.0, 20.0):
+        views = array_views(panel, 0.0, lattice_offset=(0.0, 0.0), pixel_offset_mm=(-p / 2, -p / 2),
+                            diffraction_widths=widths)
+        assert views.n_geometric == expected, (widths, views.n_geometric, expected)
+    assert expected != ideal  # the pixel grid, not the ideal rays, decides which beams enter
+    far = np.max(np.abs(views.lenslet_centres_mm[views.geometric]))
+    assert far > 0.5 * (pupil + d)  # some come from lenslets whose ideal footprint misses
+    # the phone's 3x3 at 1 D (RESULTS §28): the same count whatever the diffraction search
+    from lfjax.studies.tradeoff import panel_for_views
+
+    phone = panel_for_views(phone_panel(), 3)
+    half = 0.5 * float(phone.pixel_pitch_mm)
+    counts = {array_views(phone, 1.0, pixel_offset_mm=(half, half), diffraction_widths=w).n_geometric
+              for w in (0.0, 2.0, 20.0)}
+    gap, = idealisation_gap(phone, [1.0], pixel_offset_mm=(half, half))
+    assert counts == {gap["n_array"]}
+
+
 def test_idealisation_gap():
     """Vanishing pixels, fill 0.9, on the CDP: no gap at all; off the CDP the footprints
     move by the Eq. 1 scaling, |q|·|ratio − 1| for the idealised centre |q| = 0.75·√2 mm;

@@ -213,6 +213,35 @@ def test_dry_run_prints_the_plan_and_writes_nothing(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == [toml]
 
 
+def test_dry_run_lists_the_display_keys_set_with_their_units(tmp_path, capsys):
+    """The plan names the lenticular strips, cross-talk and lenslet keys a config sets (with
+    units and defaults), and says nothing of them for the ideal display."""
+    from lfjax.cli import main
+    from lfjax.sweep.guard import display_effects
+
+    toml = tmp_path / "strips.toml"
+    toml.write_text(toml_text(one_eye(display={
+        "layouts": ["1x2"], "strip_width_ratio": 1.25, "strip_y_defocus_D": -0.83,
+        "leakage_weight": 0.1}, sampling={"freq_step_cpd": 1.0})))
+    assert main(["sweep", str(toml), "--out", str(tmp_path / "plan.zarr"), "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert ("display     strip_width_ratio = 1.25 unitless (default 1); strip_y_defocus_D = "
+            "-0.83 D (default 0); leakage_weight = 0.1 unitless (default 0)\n") in out, out
+    assert display_effects(config_from_dict(one_eye())) == ()
+    aberrated = config_from_dict(one_eye(display={"lenslet_spherical_um": 0.5,
+                                                  "lenslet_distance_mm": 300.0}))
+    assert display_effects(aberrated) == ("lenslet_distance_mm = 300 mm (default not set)",
+                                          "lenslet_spherical_um = 0.5 µm (default 0)")
+    assert "display  " not in estimate(config_from_dict(one_eye())).summary()
+
+
+def test_lenslet_aberrations_with_strips_are_refused_by_the_config():
+    """A 1xN layout with a lenslet_*_um key crashed inside the pipeline (no strip shape in
+    the spherical lenslets' aberration model): the config refuses it, naming the key."""
+    with pytest.raises(SweepConfigError, match=r"display.lenslet_coma_um .* must be 0 with 1xN"):
+        config_from_dict(one_eye(display={"layouts": ["1x2", "2x2"], "lenslet_coma_um": 0.1}))
+
+
 def test_template_writes_every_key_with_its_default(tmp_path, capsys):
     from lfjax.cli import main
     from lfjax.sweep.config import _SCHEMA

@@ -130,6 +130,23 @@ def test_report_writes_every_file(report):
     assert "| 1 |" in files["ten_eyes_md"].read_text()
 
 
+def test_summary_lists_the_display_keys_set(report, store, tmp_path, monkeypatch):
+    """SUMMARY.md names the display keys a sweep set away from their defaults, with units
+    (here the tiny store's config with two of them changed: the text is the config's), and
+    the ideal display when none is."""
+    assert "- Display: the paper's ideal display" in report[1]["summary"].read_text()
+    stored = sr.stored_config
+
+    def with_display_keys(ds, folder):
+        config, entries = stored(ds, folder)
+        return config.replace(leakage_weight=0.25, pixel_width_arcmin=1.5), entries
+
+    monkeypatch.setattr(sr, "stored_config", with_display_keys)
+    files = sr.sweep_report(store, tmp_path / "out", draws=5)
+    assert ("- Display: pixel_width_arcmin = 1.5 arcmin (default 0); leakage_weight = 0.25 "
+            "unitless (default 0) (lenticular strips") in files["summary"].read_text()
+
+
 def test_incomplete_store_reports_complete_chunks_only(store, tmp_path):
     from lfjax.sweep.store import unmark_chunks
 
