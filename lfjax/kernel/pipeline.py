@@ -98,7 +98,7 @@ class PipelineConfig:
         view's window is the pupil; the reference (an ideal display) keeps the layout's.
 
         ``window_x_diameter_mm`` (mm): the views' largest extent along x where it is less
-        than their window along y — strips (``display.aperture == "strip"``), as wide as the
+        than their window along y — strips (``display.strips``), as wide as the
         strip and as tall as the pupil. Their bands then carry a narrower FFT along x
         (``(start, stop, n_fft, n_fft_x)``): the same OTF on the columns its support needs,
         a third of the transforms for 1×3 strips. Not with the MFT, a user-fixed ``n_fft``
@@ -112,7 +112,7 @@ class PipelineConfig:
         bands = wavelength_bands(wl, float(window_diameter_mm), pupil, sampling)
         reference_bands = wavelength_bands(wl, float(reference_window), pupil, sampling)
         if (window_x_diameter_mm is not None and sampling.transform == "fft" and sampling.n_fft is None
-                and display is not None and display.aperture == "strip"):
+                and display is not None and display.strips):
             bands = _narrow_bands(bands, wl, float(window_x_diameter_mm), pupil, sampling)
             if options.vsotf_reference == "paper":  # the reference keeps the strips' shape
                 reference_bands = _narrow_bands(reference_bands, wl, float(window_x_diameter_mm),

@@ -457,7 +457,7 @@ def prepare(
         _check_layout(layout)
     # strips are narrower along x than their window (the pupil's height): a narrower FFT
     window_x = (min(float(np.max(np.asarray(layout.diameters_mm))), pupil_static)
-                if display is not None and display.aperture == "strip"
+                if display is not None and display.strips
                 and is_concrete(layout.diameters_mm) else None)
     config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
                                   pupil_static, sampling, options, eye_chunk,
