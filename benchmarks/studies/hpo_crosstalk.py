@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import sys
 import time
@@ -120,6 +121,7 @@ def main(argv=None) -> int:
                         help="n of the cross-talk scans' n×n grid and 1×n strips")
     args = parser.parse_args(argv)
     enable_compilation_cache()
+    load_start = os.getloadavg()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -135,12 +137,16 @@ def main(argv=None) -> int:
     figure(study, crosstalk, out / "hpo_crosstalk.png")
     command = "python benchmarks/studies/hpo_crosstalk.py " + " ".join(
         argv if argv is not None else sys.argv[1:])
-    peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    peak_mib = usage.ru_maxrss / 1024
+    cpu_s = usage.ru_utime + usage.ru_stime
+    load = f"load average (1 min) {load_start[0]:.1f} at the start, {os.getloadavg()[0]:.1f} at the end"
     text = (f"# HPO strips and cross-talk\n\n`{command.strip()}` — HPO study "
             f"{study['config']['n_eyes']} eyes {study['seconds']:.0f} s, cross-talk "
             f"{crosstalk['config']['n_eyes']} eyes {crosstalk['seconds']:.0f} s; "
             + ("tables and figure rebuilt from the json files" if args.report_only else
-               f"this run {time.perf_counter() - t0:.0f} s, peak memory {peak_mib:.0f} MiB") + ".\n\n"
+               f"this run {time.perf_counter() - t0:.0f} s wall, {cpu_s:.0f} s of CPU (user + "
+               f"system), peak memory {peak_mib:.0f} MiB; {load}; {os.cpu_count()} cores") + ".\n\n"
             f"Lenticular phone Δ = {study['y_defocus_phone_D']:.3f} D.\n\n" + tables(study, crosstalk) + "\n")
     (out / "REPORT.md").write_text(text)
     print(text)
