@@ -141,12 +141,12 @@ def fig_phone(curves, rows, path):
         ax.set_xlabel("accommodation (D); grey: the old ±1.5 D window around the CDP")
         ax.set_ylabel("VSOTF (550 nm)")
         ax.legend(fontsize=7)
-    fig.suptitle("The phone class on a 0–6 D window: idealised views (thin) and the whole array "
-                 "(dashed, eye centred on a pixel zone)", fontsize=10)
+    fig.suptitle("The phone class on a 0–6 D window: idealised views (solid: each eye, or a population's "
+                 "median and 5–95 %) and the whole array (dashed, eye 0 centred on a pixel zone)", fontsize=10)
     fig.text(0.5, 0.01, "What the n×n idealisation carries: the resolution (the pixel's angle: 1.55 and 1.03 cpd "
              "on the CDP). Not the accommodation: each lit pixel's viewing zone at the eye (6.6, 9.9 mm) is wider "
              "than the pupil,\nso the pupil holds no n×n views; every curve, either model, is flat "
-             "(VSOTF ≤ 0.024) and peaks beyond the lenslet plane, not at the point; a point at 3 D lies in front "
+             "(VSOTF ≤ 0.024) and peaks away from the point, mostly beyond the lenslet plane; a point at 3 D lies in front "
              "of the lenslets (2.86 D) and is not rendered.", ha="center", va="bottom", fontsize=7.5)
     fig.tight_layout(rect=(0, 0.08, 1, 1))
     fig.savefig(path, dpi=110)
