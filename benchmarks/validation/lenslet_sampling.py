@@ -26,10 +26,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 HERE = Path(__file__).resolve().parent
-sys.path.insert(1, str(HERE.parent))  # benchmarks/: _common
+sys.path.insert(1, str(HERE.parent))  # benchmarks/: _common, which the study imports
 sys.path.insert(1, str(HERE.parent / "studies"))  # the study's script
 
 from lenslet_aberrations import _read_csv, run_aberrations, summarise, thresholds  # noqa: E402
