@@ -82,6 +82,10 @@ WINDOW_MARGIN_D = 1.0
 """The grid spans the depth range widened by this much on each side, D (from 0 D at least)."""
 
 FIRST_FREQ_STEP_CPD = 0.75
+EYE_CHUNK = 2
+"""Eyes evaluated together: each holds the kernel's workspace
+(:data:`lfjax.kernel.optics.KERNEL_WORKSPACE_BYTES`), so the peak memory grows with the
+chunk; at 4 the command's defaults peaked at 4.15 GB."""
 """First frequency step tried without ``--freq-step``, cpd; refined while the field guard
 refuses it (as :mod:`lfjax.studies.hpo` does)."""
 
@@ -150,7 +154,7 @@ def _through_focus(eyes, layout, display, depths, grid, pupil, cdp, spectrum, sa
         return orientation_through_focus(eyes, layout, list(depths), list(grid), pupil_diameter_mm=pupil,
                                          cdp_D=cdp, spectrum=spectrum, sampling=sampling,
                                          options=ModelOptions(vsotf_reference="open_pupil"),
-                                         display=display, eye_chunk=4), float(sampling.freq_step_cpd)
+                                         display=display, eye_chunk=EYE_CHUNK), float(sampling.freq_step_cpd)
     step = FIRST_FREQ_STEP_CPD
     for _ in range(8):
         try:
