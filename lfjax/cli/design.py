@@ -134,6 +134,25 @@ def add_parser(sub) -> None:
     common.add_no_progress(des, "print the plan only, no progress per step and per count")
 
 
+def _inputs(args):
+    """The checked inputs both kinds of design share: (output folder, CDP D, panel,
+    constraints, sampling or None). Raises ValueError naming the flag."""
+    # writable, with room for design.json, design.png and the kept counts: now, not after
+    # the work
+    out = check_output_folder(args.out, args.force, need_bytes=DESIGN_OUTPUT_BYTES)
+    cdp = design_cdp_D(args.depths, args.cdp)
+    panel = design_panel(args.panel, cdp, distance_mm=args.distance,
+                         pixel_pitch_mm=args.pixel_pitch, pixel_count=args.pixel_count,
+                         diffraction=args.diffraction)
+    constraints = DesignConstraints(
+        min_eye_box_mm=args.min_eye_box, min_fill=args.min_fill,
+        min_f_number=args.f_number[0], max_f_number=args.f_number[1],
+        distance_range_mm=None if args.distance_range is None else tuple(args.distance_range),
+        lens_form=args.lens_form, refractive_index=args.refractive_index)
+    sampling = None if args.freq_step is None else Sampling(args.freq_step)
+    return out, cdp, panel, constraints, sampling
+
+
 def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
     if args.panel is None:
@@ -141,19 +160,7 @@ def run(args) -> int:
     if args.lenticular:
         return _run_lenticular(args, prog)
     try:
-        # writable, with room for design.json, design.png and the kept counts: now, not
-        # after the work
-        out = check_output_folder(args.out, args.force, need_bytes=DESIGN_OUTPUT_BYTES)
-        cdp = design_cdp_D(args.depths, args.cdp)
-        panel = design_panel(args.panel, cdp, distance_mm=args.distance,
-                             pixel_pitch_mm=args.pixel_pitch, pixel_count=args.pixel_count,
-                             diffraction=args.diffraction)
-        constraints = DesignConstraints(
-            min_eye_box_mm=args.min_eye_box, min_fill=args.min_fill,
-            min_f_number=args.f_number[0], max_f_number=args.f_number[1],
-            distance_range_mm=None if args.distance_range is None else tuple(args.distance_range),
-            lens_form=args.lens_form, refractive_index=args.refractive_index)
-        sampling = None if args.freq_step is None else Sampling(args.freq_step)
+        out, cdp, panel, constraints, sampling = _inputs(args)
         fit = dict(depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
                    views_per_side=tuple(args.views), wavelengths_nm=tuple(args.wavelengths),
                    steps=args.steps, report_accuracy=args.report_accuracy)
@@ -200,17 +207,7 @@ def _run_lenticular(args, prog: str) -> int:
             raise ParameterError("steps", "{steps} sets the gradient fit of NxN designs; a "
                                  "{lenticular} design is set in closed form and has no steps: leave "
                                  "{steps} out")
-        out = check_output_folder(args.out, args.force, need_bytes=DESIGN_OUTPUT_BYTES)
-        cdp = design_cdp_D(args.depths, args.cdp)
-        panel = design_panel(args.panel, cdp, distance_mm=args.distance,
-                             pixel_pitch_mm=args.pixel_pitch, pixel_count=args.pixel_count,
-                             diffraction=args.diffraction)
-        constraints = DesignConstraints(
-            min_eye_box_mm=args.min_eye_box, min_fill=args.min_fill,
-            min_f_number=args.f_number[0], max_f_number=args.f_number[1],
-            distance_range_mm=None if args.distance_range is None else tuple(args.distance_range),
-            lens_form=args.lens_form, refractive_index=args.refractive_index)
-        sampling = None if args.freq_step is None else Sampling(args.freq_step)
+        out, cdp, panel, constraints, sampling = _inputs(args)
         fit = dict(depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
                    views=tuple(args.views), constraints=constraints,
                    wavelengths_nm=tuple(args.wavelengths), report_accuracy=args.report_accuracy)

@@ -416,8 +416,32 @@ def _summary_numbers(evaluation: dict, resolution: np.ndarray) -> dict:
     return out
 
 
+class CountVerdict:
+    """The verdict of one count's design, from its ``refused``, ``failed`` and ``score``
+    fields (shared by :class:`DesignFit` and the lenticular design's count)."""
+
+    refused: str | None
+    failed: str | None
+    score: dict | None
+
+    @property
+    def ok(self) -> bool:
+        """Buildable, a light field, scored, and within every requirement: a count that
+        may be chosen."""
+        return self.refused is None and self.failed is None and self.score is not None
+
+    @property
+    def status(self) -> str:
+        """``"ok"``, ``"refused: <why>"`` or ``"fails: <which requirement, by how much>"``."""
+        if self.refused is not None:
+            return f"refused: {self.refused}"
+        if self.failed is not None:
+            return f"fails: {self.failed}"
+        return "ok" if self.score is not None else "not scored"
+
+
 @dataclass
-class DesignFit:
+class DesignFit(CountVerdict):
     """One views-per-pupil count's design.
 
     Attributes
@@ -454,20 +478,6 @@ class DesignFit:
     def score(self) -> dict | None:
         return self.test if self.test is not None else self.train
 
-    @property
-    def ok(self) -> bool:
-        """Buildable, a light field, scored, and within every requirement: a count that
-        may be chosen."""
-        return self.refused is None and self.failed is None and self.score is not None
-
-    @property
-    def status(self) -> str:
-        """``"ok"``, ``"refused: <why>"`` or ``"fails: <which requirement, by how much>"``."""
-        if self.refused is not None:
-            return f"refused: {self.refused}"
-        if self.failed is not None:
-            return f"fails: {self.failed}"
-        return "ok" if self.score is not None else "not scored"
 
 
 def design_failure(score: dict, objective: Objective, eyes: str = "held-out") -> str | None:

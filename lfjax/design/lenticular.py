@@ -58,6 +58,7 @@ from lfjax.base.files import atomic_write_text, staged_output
 from lfjax.base.sampling import AliasingError, Sampling, finer_step
 from lfjax.design.fit import (
     FAST_REPORT_WAVELENGTHS_NM,
+    CountVerdict,
     REPORT_ACCURACIES,
     DesignConstraints,
     check_design,
@@ -268,7 +269,7 @@ def panel_record(panel: LenticularPanel, wavelength_nm: float = 550.0) -> dict:
 
 
 @dataclass
-class LenticularFit:
+class LenticularFit(CountVerdict):
     """One count's lenticular design: ``panel`` (None when refused), ``score`` (the report
     eyes' numbers, :func:`score_lenticular`), ``refused`` / ``failed`` (why not, or None)."""
 
@@ -278,18 +279,6 @@ class LenticularFit:
     failed: str | None = None
     score: dict | None = None
     time_s: float = 0.0
-
-    @property
-    def ok(self) -> bool:
-        return self.refused is None and self.failed is None and self.score is not None
-
-    @property
-    def status(self) -> str:
-        if self.refused is not None:
-            return f"refused: {self.refused}"
-        if self.failed is not None:
-            return f"fails: {self.failed}"
-        return "ok" if self.score is not None else "not scored"
 
 
 @dataclass
