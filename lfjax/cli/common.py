@@ -16,7 +16,9 @@ import os
 import signal
 import sys
 import threading
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import jax
 
@@ -26,6 +28,8 @@ from lfjax.base.programs import enable_program_cache
 from lfjax.planner.cache import enable_plan_cache
 
 PROG = "lfjax"
+
+T = TypeVar("T")
 
 FLAGS: dict[str, dict[str, str]] = {
     "reproduce": {
@@ -70,6 +74,7 @@ FLAGS: dict[str, dict[str, str]] = {
         # lfjax.design.check_design (fit_design's checks) and Sampling
         "n_depths": "--n-depths", "views_per_side": "--views", "wavelengths_nm": "--wavelengths",
         "steps": "--steps", "report_accuracy": "--report-accuracy", "freq_step_cpd": "--freq-step",
+        "report_counts": "--report-counts",
         # lfjax.base.files.check_output_folder
         "out_dir": "--out", "force": "--force",
     },
@@ -199,6 +204,29 @@ def unexpected_error(prog: str, err: Exception, suffix: str = "") -> int:
     if os.environ.get("LFJAX_DEBUG"):
         raise err
     return 1
+
+
+def guarded(prog: str, command: str | None, work: Callable[[], T], *,
+            note: str | Callable[[], str] = "", refused: tuple[type[Exception], ...] = (ValueError,),
+            fold: bool = False) -> tuple[T | None, int | None]:
+    """Run a subcommand's work under the command line's conventions: ``(work(), None)``, or
+    ``(None, status)`` after saying what stopped it in one line on stderr.
+
+    Ctrl-C → :func:`interrupted` (130); an exception of a ``refused`` type → :func:`refuse`
+    (2: a value found wrong once the work had begun, such as an output folder taken meanwhile);
+    any other exception → :func:`unexpected_error` (1, no traceback). ``note`` (or a function
+    giving it, read when the work stops) says what was kept, e.g. "; nothing written"; it
+    follows the interrupted and unexpected-error lines."""
+    def said() -> str:
+        return note() if callable(note) else note
+    try:
+        return work(), None
+    except KeyboardInterrupt:
+        return None, interrupted(prog, said())
+    except refused as err:
+        return None, refuse(prog, err, command, fold=fold)
+    except Exception as err:  # one line, no traceback
+        return None, unexpected_error(prog, err, said())
 
 
 class OneLineParser(argparse.ArgumentParser):

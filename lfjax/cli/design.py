@@ -14,6 +14,8 @@ from lfjax.base.sampling import Sampling
 from lfjax.cli import common
 from lfjax.design import (
     REPORT_ACCURACIES,
+    REPORT_COUNTS,
+    SCREEN_MARGIN,
     DesignConstraints,
     check_design,
     design_cdp_D,
@@ -128,6 +130,11 @@ def add_parser(sub) -> None:
                     "peaks; several times slower) or fit (the fit's own wavelengths)",
         freq_step_help="frequency step, cpd (default: the planner's aliasing guard)",
         report_choices=REPORT_ACCURACIES, report_default="fast")
+    des.add_argument("--report-counts", choices=REPORT_COUNTS, default="chosen",
+                     help="which fitted counts the held-out report scores: chosen (default: in "
+                          "order of training loss until one passes, and any within "
+                          f"{SCREEN_MARGIN:.0%} of it; the rest are listed as not reported) or "
+                          "all (every count; several times slower)")
     common.add_out(des, "lfjax-design", "output folder; must be new or empty unless --force "
                                         "(default ./lfjax-design)")
     common.add_force(des, "write into a non-empty DIR")
@@ -164,28 +171,29 @@ def run(args) -> int:
         fit = dict(depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
                    views_per_side=tuple(args.views), wavelengths_nm=tuple(args.wavelengths),
                    steps=args.steps, report_accuracy=args.report_accuracy)
-        check_design(panel, **fit)
+        check_design(panel, report_counts=args.report_counts, **fit)
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
     common.enable_compilation_cache()
     kept = counts_folder(out)
-    try:
+
+    def work():
         result = fit_design(
             panel, train_eyes=sample_eyes(args.seed, args.train_eyes),
             test_eyes=sample_eyes(args.seed + 1, args.test_eyes) if args.test_eyes > 0 else None,
             constraints=constraints, sampling=sampling, progress=_printer(args.no_progress),
-            counts_dir=kept, **fit)
+            counts_dir=kept, report_counts=args.report_counts, **fit)
         result.provenance["seed_train"] = args.seed
         result.provenance["panel_preset"] = args.panel
         files = save_design(result, out, command=common.command_line(args.argv),
                             force=args.force)
         shutil.rmtree(kept, ignore_errors=True)  # written: the kept counts are not needed
-    except KeyboardInterrupt:
-        return common.interrupted(prog, _kept_note(kept))
-    except ValueError as err:
-        return common.refuse(prog, err, COMMAND, fold=True)
-    except Exception as err:  # one line, no traceback
-        return common.unexpected_error(prog, err, _kept_note(kept))
+        return result, files
+
+    done, status = common.guarded(prog, COMMAND, work, note=lambda: _kept_note(kept), fold=True)
+    if status is not None:
+        return status
+    result, files = done
     print(result.summary())
     print(f"{prog}: wrote {len(files)} files to {out} in "
           f"{time.perf_counter() - args.t_start:.1f} s")
@@ -203,6 +211,10 @@ STEPS_DEFAULT = 10
 def _run_lenticular(args, prog: str) -> int:
     """``lfjax design --lenticular``: :func:`lfjax.design.lenticular.fit_lenticular_design`."""
     try:
+        if args.report_counts != "chosen":
+            raise ParameterError("report_counts", "{report_counts} ranks fitted NxN counts by "
+                                 "their training loss; a {lenticular} design has no fit and "
+                                 "scores every count: leave {report_counts} out")
         if args.steps != STEPS_DEFAULT:
             raise ParameterError("steps", "{steps} sets the gradient fit of NxN designs; a "
                                  "{lenticular} design is set in closed form and has no steps: leave "
@@ -225,7 +237,8 @@ def _run_lenticular(args, prog: str) -> int:
           f"{len(depths)} depths, accommodation {grid[0]:g}-{grid[-1]:g} D ({grid.size} states); "
           f"each count about a minute per 10 eyes on 2 CPU cores", flush=True)
     kept = counts_folder(out)
-    try:
+
+    def work():
         result = fit_lenticular_design(panel, eyes=eyes, sampling=sampling, counts_dir=kept,
                                        progress=None if args.no_progress else
                                        (lambda line: print(line, flush=True)), **fit)
@@ -234,12 +247,12 @@ def _run_lenticular(args, prog: str) -> int:
         files = save_lenticular_design(result, out, command=common.command_line(args.argv),
                                        force=args.force)
         shutil.rmtree(kept, ignore_errors=True)
-    except KeyboardInterrupt:
-        return common.interrupted(prog, _kept_note(kept))
-    except ValueError as err:
-        return common.refuse(prog, err, COMMAND, fold=True)
-    except Exception as err:  # one line, no traceback
-        return common.unexpected_error(prog, err, _kept_note(kept))
+        return result, files
+
+    done, status = common.guarded(prog, COMMAND, work, note=lambda: _kept_note(kept), fold=True)
+    if status is not None:
+        return status
+    result, files = done
     print(result.summary())
     print(f"{prog}: wrote {len(files)} files to {out} in "
           f"{time.perf_counter() - args.t_start:.1f} s")

@@ -153,14 +153,13 @@ def run(args) -> int:
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
     common.enable_compilation_cache()
-    try:
-        result = lo.optimise_and_save(chosen, args.out, force=args.force,
-                                      progress=not args.no_progress,
-                                      command=common.command_line(args.argv))
-    except KeyboardInterrupt:
-        return common.interrupted(prog)
-    except Exception as err:  # one line, no traceback
-        return common.unexpected_error(prog, err)
+    result, status = common.guarded(
+        prog, COMMAND, lambda: lo.optimise_and_save(chosen, args.out, force=args.force,
+                                                    progress=not args.no_progress,
+                                                    command=common.command_line(args.argv)),
+        refused=())
+    if status is not None:
+        return status
     print(result.summary)
     print(f"{prog}: wrote {len(result.files)} files to {args.out} in "
           f"{time.perf_counter() - args.t_start:.1f} s")

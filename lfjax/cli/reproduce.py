@@ -97,15 +97,14 @@ def run(args) -> int:
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
     common.enable_compilation_cache()
-    try:
-        result = reproduce(args.out, config, force=args.force, progress=not args.no_progress,
-                           population_store=args.population, display_effects_eyes=display_eyes)
-    except KeyboardInterrupt:
-        return common.interrupted(prog, "; nothing written")
-    except OutputError as err:  # the folder, checked again as the run starts
-        return common.refuse(prog, err, COMMAND)
-    except Exception as err:  # one line, no traceback; nothing half-written
-        return common.unexpected_error(prog, err, "; nothing written")
+    result, status = common.guarded(
+        prog, COMMAND,
+        lambda: reproduce(args.out, config, force=args.force, progress=not args.no_progress,
+                          population_store=args.population, display_effects_eyes=display_eyes),
+        note="; nothing written",  # outputs are staged: whole or not at all
+        refused=(OutputError,))  # the folder, checked again as the run starts
+    if status is not None:
+        return status
     verdicts = ", ".join(f"{c.id} {c.verdict}" for c in result["claims"])
     print(f"{prog}: claims: {verdicts}")
     print(f"{prog}: wrote {len(result['files'])} files to {result['out']} in "

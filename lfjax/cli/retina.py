@@ -148,22 +148,23 @@ def _figure(path: Path, scene, retina, title: str) -> None:
 
 def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
-    try:
+    def work():
         out = check_output_folder(args.out, args.force, parameter="out_dir")
         eye = _eye(args.eye)
         scene = _scene(args)
         display = _display(args.display)
-        result = retinal_scene(eye, args.pixel_arcmin, display=display, primaries=args.primaries,
-                               accommodation_D=args.accommodation, fixation_D=args.fixation,
-                               cdp_D=args.cdp, occlusion=not args.no_occlusion,
+        result = retinal_scene(eye, args.pixel_arcmin, display=display,
+                               primaries=args.primaries, accommodation_D=args.accommodation,
+                               fixation_D=args.fixation, cdp_D=args.cdp,
+                               occlusion=not args.no_occlusion,
                                progress=lambda line: print(f"{prog}: {line}", file=sys.stderr,
                                                            flush=True), **scene)
-    except KeyboardInterrupt:
-        return common.interrupted(prog)
-    except ValueError as err:
-        return common.refuse(prog, err, COMMAND)
-    except Exception as err:  # one line, no traceback
-        return common.unexpected_error(prog, err)
+        return out, scene, result
+
+    done, status = common.guarded(prog, COMMAND, work)
+    if status is not None:
+        return status
+    out, scene, result = done
     retina = np.asarray(result["retina"])
     shown = scene.get("image")
     if shown is None:  # the layers seen through a pinhole: front to back, no blur
@@ -177,17 +178,17 @@ def run(args) -> int:
                    freq_step_cpd=result["freq_step_cpd"], display=args.display,
                    primaries=args.primaries, eye=args.eye, pixel_arcmin=args.pixel_arcmin,
                    occlusion=not args.no_occlusion, command=common.command_line(args.argv))
-    try:
+    def write() -> None:
         with staged_output(out, args.force) as tmp:
             np.save(tmp / "retina.npy", retina)
             (tmp / "retina.json").write_text(json.dumps(summary, indent=1) + "\n")
             _figure(tmp / "retina.png", shown, retina,
                     f"{args.display}, eye {args.eye} at {result['accommodation_D']:.2f} D "
                     f"(fixating {result['fixation_D']:.2f} D), {args.primaries} primaries")
-    except KeyboardInterrupt:
-        return common.interrupted(prog)
-    except Exception as err:
-        return common.unexpected_error(prog, err)
+
+    _, status = common.guarded(prog, COMMAND, write, refused=())
+    if status is not None:
+        return status
     print(f"{prog}: eye {args.eye} at {result['accommodation_D']:.3f} D (fixating "
           f"{result['fixation_D']:.2f} D), {len(result['depths_D'])} layers; wrote retina.png, "
           f"retina.npy, retina.json to {out}")

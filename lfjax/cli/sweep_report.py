@@ -44,7 +44,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
     out = Path(args.out) if args.out else default_out_dir(args.store)
-    try:
+    def work():
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", FlatCurveWarning)
             files = sweep_report(args.store, out, draws=args.draws, seed=args.seed,
@@ -55,12 +55,11 @@ def run(args) -> int:
             else:
                 warnings.showwarning(warning.message, warning.category, warning.filename,
                                      warning.lineno)
-    except KeyboardInterrupt:
-        return common.interrupted(prog)
-    except ValueError as err:
-        return common.refuse(prog, err, COMMAND)
-    except Exception as err:  # one line, no traceback
-        return common.unexpected_error(prog, err)
+        return files
+
+    files, status = common.guarded(prog, COMMAND, work)
+    if status is not None:
+        return status
     print(f"{prog}: wrote {len(files)} files to {out}: "
           + ", ".join(sorted(p.name for p in files.values())))
     return 0

@@ -78,7 +78,7 @@ from lfjax.layout_opt import (
 from lfjax.model.options import ModelOptions
 from lfjax.model.layout_files import jsonable
 from lfjax.base.files import atomic_write_text, staged_output
-from lfjax.design.plan import CountPlan, DesignPlan, count_plan
+from lfjax.design.plan import SCREEN_MARGIN, CountPlan, DesignPlan, count_plan
 from lfjax.design.resume import count_key, load_count, save_count
 from lfjax.sweep.guard import REFINEMENT_STATES
 from lfjax.model.layout_plots import draw_layout
@@ -356,6 +356,12 @@ wavelengths, 550 nm by default). RESULTS §21 compares "fast" with "full" on the
 FAST_REPORT_WAVELENGTHS_NM = tuple(float(w) for w in np.arange(400.0, 701.0, 30.0))
 """The fast report's spectrum: 400–700 nm in 30 nm steps (11 wavelengths), V(λ)-weighted."""
 
+REPORT_COUNTS = ("chosen", "all")
+"""Which counts the held-out report scores: ``"chosen"`` (default) — the count with the lowest
+training loss among those that pass the report, and any count whose training loss lies within
+:data:`SCREEN_MARGIN` of it; ``"all"`` — every fitted count."""
+
+
 
 def report_problem(problem, eyes: Eyes, report_accuracy: str = "fast", sampling=None):
     """The problem the held-out report evaluates: ``problem``'s scene (its display, the
@@ -459,7 +465,10 @@ class DesignFit(CountVerdict):
     start_test : the same scores of the starting panel (held-out eyes, or the training
         eyes without them)
     notes : where the fitted panel leaves what the model assumes (:func:`design_notes`)
-    time_s : seconds the fit took
+    time_s : seconds the fit and its report took
+    unreported : why the held-out report did not score this fitted count (None when it did,
+        or when the count is refused): its training loss ranks it behind a count that
+        passes the report by more than :data:`SCREEN_MARGIN` (``report_counts="chosen"``)
     """
 
     n_per_side: int
@@ -473,10 +482,22 @@ class DesignFit(CountVerdict):
     start_test: dict | None = None
     time_s: float = 0.0
     notes: list = field(default_factory=list)
+    unreported: str | None = None
 
     @property
     def score(self) -> dict | None:
         return self.test if self.test is not None else self.train
+
+    @property
+    def training_loss(self) -> float | None:
+        """The fit's last loss on the training eyes (objective units; None without steps)."""
+        return float(self.history[-1]) if self.history else None
+
+    @property
+    def status(self) -> str:
+        if self.refused is None and self.failed is None and self.unreported is not None:
+            return f"not reported: {self.unreported}"
+        return CountVerdict.status.fget(self)
 
 
 
@@ -525,7 +546,7 @@ class DesignResult:
         for f in self.fits:
             s = f.score
             if s is None:
-                lines.append(f"  {f.n_per_side}x{f.n_per_side}    refused: {f.refused}")
+                lines.append(f"  {f.n_per_side}x{f.n_per_side}    {f.status}")
                 continue
             st = f.start_test or {}
             status = f.status
@@ -613,6 +634,37 @@ def _solve(x0, problem, template, n, constraints, steps: int, tol: float,
     return jnp.asarray(result.x, dtype), history
 
 
+def report_counts_in_order(fits: list, report, report_counts: str = "chosen",
+                           margin: float = SCREEN_MARGIN) -> None:
+    """Score the fitted counts of ``fits`` (:class:`DesignFit`, neither refused nor scored
+    yet) by calling ``report(fit)``, which fills its scores and verdict.
+
+    ``report_counts="all"``: every one. ``"chosen"``: in order of training loss (a count
+    without one first), until one passes (:attr:`DesignFit.ok`), then every later one whose
+    training loss exceeds that count's by at most ``margin`` of its magnitude; the others
+    are marked :attr:`DesignFit.unreported`. A count that fails its report does not stop
+    the search: the next in order is reported."""
+    fitted = [f for f in fits if f.panel is not None and f.refused is None]
+    if report_counts == "all":
+        order = fitted
+    else:
+        order = sorted(fitted, key=lambda f: -math.inf if f.training_loss is None else f.training_loss)
+    leader = None  # the first count in that order to pass its report
+    for fit in order:
+        if fit.score is None:  # a count kept by an earlier call may be scored already
+            loss, lead = fit.training_loss, None if leader is None else leader.training_loss
+            if (report_counts == "chosen" and loss is not None and lead is not None
+                    and loss > lead + margin * abs(lead)):
+                fit.unreported = (
+                    f"its training loss {loss:.4g} trails the {leader.n_per_side}x"
+                    f"{leader.n_per_side}'s {lead:.4g} by more than {margin:.0%} "
+                    f"(report_counts='all' scores it)")
+                continue
+            report(fit)
+        if leader is None and fit.ok:
+            leader = fit
+
+
 def design_cdp_D(depth_range_D, cdp_D: float | None = None) -> float:
     """The CDP (D) of a design rendering depths in ``depth_range_D`` (low, high), D: ``cdp_D``
     when given, else the range's dioptric middle. A
@@ -659,7 +711,7 @@ def design_panel(preset: str, cdp_D: float, *, distance_mm: float | None = None,
 
 def check_design(panel: Panel, depth_range_D, n_depths: int = 3, cdp_D: float | None = None,
                  views_per_side=(1, 2, 3, 4), wavelengths_nm=(550.0,), steps: int = 10,
-                 report_accuracy: str = "fast"):
+                 report_accuracy: str = "fast", report_counts: str = "chosen"):
     """:func:`fit_design`'s checks of its arguments (of the same names), on the host and
     before anything is traced; :func:`fit_design` makes them first. Returns (depths_D,
     cdp_D, counts). A refused value is a :class:`~lfjax.base.errors.ParameterError` naming
@@ -670,6 +722,9 @@ def check_design(panel: Panel, depth_range_D, n_depths: int = 3, cdp_D: float | 
     if report_accuracy not in REPORT_ACCURACIES:
         raise ParameterError("report_accuracy", "{report_accuracy} must be one of {allowed}, got {got!r}",
                              allowed=", ".join(REPORT_ACCURACIES), got=report_accuracy)
+    if report_counts not in REPORT_COUNTS:
+        raise ParameterError("report_counts", "{report_counts} must be one of {allowed}, got {got!r}",
+                             allowed=", ".join(REPORT_COUNTS), got=report_counts)
     lo, hi = check_depth_range(depth_range_D, allow_empty=True)
     depths = depth_grid(lo, hi, n_depths)
     cdp = _cdp_within(float(panel.cdp_D) if cdp_D is None else finite_scalar("cdp_D", cdp_D, 0.0),
@@ -689,8 +744,8 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
                n_depths: int = 3, cdp_D: float | None = None, views_per_side=(1, 2, 3, 4),
                constraints: DesignConstraints = DesignConstraints(), objective=None,  # noqa: B008
                wavelengths_nm=(550.0,), steps: int = 10, tol: float = 1e-4,
-               report_accuracy: str = "fast", sampling=None, progress=False,
-               eye_chunk: int | None = 1, counts_dir=None) -> DesignResult:
+               report_accuracy: str = "fast", report_counts: str = "chosen", sampling=None,
+               progress=False, eye_chunk: int | None = 1, counts_dir=None) -> DesignResult:
     """Fit ``panel``'s lenslet array to ``train_eyes`` for each views-per-pupil count.
 
     Parameters
@@ -710,6 +765,13 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
     report_accuracy : the held-out report's setting, one of :data:`REPORT_ACCURACIES`:
         ``"fast"`` (default; 11 wavelengths, peaks at the grid vertex), ``"full"`` (31
         wavelengths, refined peaks) or ``"fit"`` (:func:`report_problem`)
+    report_counts : which fitted counts the report scores, one of :data:`REPORT_COUNTS`:
+        ``"chosen"`` (default) — in order of training loss until one passes (neither
+        refused nor failing a requirement), and those within :data:`SCREEN_MARGIN` of that
+        one; the rest are kept fitted, marked :attr:`DesignFit.unreported`. ``"all"`` —
+        every count. The chosen count is the same either way unless two counts' training
+        losses lie within the margin and their held-out losses in the other order — and
+        then both are reported, so it is the same.
     sampling : a :class:`~lfjax.base.sampling.Sampling` for both settings (default: planned by
         the layout optimiser's aliasing guard for the widest pixel blur of each count's box)
     progress : False, True (print) or a callable taking one line: the plan
@@ -730,7 +792,7 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
     box falls short.
     """
     depths, cdp, counts = check_design(panel, depth_range_D, n_depths, cdp_D, views_per_side,
-                                       wavelengths_nm, steps, report_accuracy)
+                                       wavelengths_nm, steps, report_accuracy, report_counts)
     chunk = eye_chunk_size(train_eyes.n_eyes, eye_chunk)
     solver_chunk = None if eye_chunk is None else chunk
     say = progress if callable(progress) else (
@@ -745,8 +807,17 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
     # The plan first: every count's problems (their sampling) and what they will cost,
     # before the first fit, so that a run too long or too large is seen at once.
     prepared, plan = {}, DesignPlan(train_eyes=train_eyes.n_eyes, report_eyes=report_eyes.n_eyes,
-                                    eye_chunk=chunk, steps=steps, report_accuracy=report_accuracy)
+                                    eye_chunk=chunk, steps=steps, report_accuracy=report_accuracy,
+                                    report_counts=report_counts)
     t_plan = time.perf_counter()
+
+    def prepare_count(n: int):
+        """A count's fit problem and its report's (their sampling planned)."""
+        problem = design_problem(panel, n, train_eyes, depths, cdp, constraints, objective,
+                                 wavelengths_nm, "fit", planning, sampling)
+        return problem, (problem if report_accuracy == "fit" and test_eyes is None else
+                         report_problem(problem, report_eyes, report_accuracy, sampling))
+
     keys, kept = {}, {}
     if counts_dir is not None:
         for n in counts:
@@ -775,25 +846,23 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
             prepared[n] = why
             plan.counts.append(CountPlan(n, refused=why))
             continue
-        problem = design_problem(panel, n, train_eyes, depths, cdp, constraints, objective,
-                                 wavelengths_nm, "fit", planning, sampling)
-        report = problem if report_accuracy == "fit" and test_eyes is None else report_problem(
-            problem, report_eyes, report_accuracy, sampling)
-        prepared[n] = (problem, report)
+        problem, report = prepared[n] = prepare_count(n)
         plan.counts.append(count_plan(n, problem, report, train_eyes.n_eyes, report_eyes.n_eyes,
                                       steps, chunk, REFINEMENT_STATES.get(report.peak_method, 0)))
     if say is not None:
         say(plan.summary() + f"\n  (planned in {time.perf_counter() - t_plan:.0f} s)")
-    fits = []
+    # First every count's fit (its panel and training loss), then the held-out report of
+    # the counts the question reads: the report's transforms are most of a design's cost.
+    fits = {}
     for n in counts:
-        t0 = time.perf_counter()
         if n in kept:
-            fits.append(kept[n])
+            fits[n] = kept[n]
             continue
         if isinstance(prepared[n], str):
-            fits.append(DesignFit(n, refused=prepared[n]))
+            fits[n] = DesignFit(n, refused=prepared[n])
             continue
-        problem, report = prepared[n]
+        problem, _ = prepared[n]
+        t0 = time.perf_counter()
         tell = None if say is None else (lambda line, n=n: say(f"design {n}x{n}: {line}"))
         x0 = jnp.asarray(start_box(panel, n, cdp, constraints), jnp.result_type(float))
         x, history = _solve(x0, problem, panel, n, constraints, steps, tol, solver_chunk, tell)
@@ -801,38 +870,58 @@ def fit_design(panel: Panel, *, depth_range_D, train_eyes: Eyes, test_eyes: Eyes
         start = panel_from_box(np.asarray(x0), panel, n, cdp, constraints)
         fit = DesignFit(n, Panel(*_host_leaves(fitted), **_statics(fitted)),
                         Panel(*_host_leaves(start), **_statics(start)), history=history)
+        fit.refused = parallax_warning(fit.panel.layout(n))  # the views' geometry alone
+        if fit.refused is None and float(fit.panel.eye_box_mm()) < constraints.min_eye_box_mm * (1 - 1e-3):
+            fit.refused = (f"the eye box {float(fit.panel.eye_box_mm()):.3g} mm is below min_eye_box_mm = "
+                           f"{constraints.min_eye_box_mm:g} mm even at the fastest lenslets")
+        fit.notes = design_notes(fit.panel, (lo, hi))
+        fit.time_s = time.perf_counter() - t0
+        if tell is not None:
+            tell(f"fitted in {fit.time_s:.1f} s" + ("" if fit.training_loss is None else
+                                                    f", training loss {fit.training_loss:.5f}"))
+        if counts_dir is not None:  # kept at once: a later failure or Ctrl-C loses no count
+            save_count(counts_dir, keys[n], fit)
+        fits[n] = fit
+
+    def report(fit: DesignFit) -> None:
+        """The held-out report of a fitted count: its fitted and starting panels scored."""
+        n = fit.n_per_side
+        # a count kept by an earlier call before its report has no problems yet
+        _, problem = prepared[n] if isinstance(prepared[n], tuple) else prepare_count(n)
+        t0 = time.perf_counter()
+        tell = None if say is None else (lambda line: say(f"design {n}x{n}: {line}"))
         scores = {}
         for key, candidate in (("fit", fit.panel), ("start", fit.start)):
             t1 = time.perf_counter()
-            evaluation = evaluate_layout(candidate.layout(n), _with_display(report, candidate, constraints))
-            res = perceivable_resolution(candidate, n, report, evaluation["values"]["peak_D"], constraints)
+            evaluation = evaluate_layout(candidate.layout(n), _with_display(problem, candidate, constraints))
+            res = perceivable_resolution(candidate, n, problem, evaluation["values"]["peak_D"], constraints)
             scores[key] = (_summary_numbers(evaluation, res), evaluation)
             if tell is not None:
                 tell(f"report of the {'fitted' if key == 'fit' else 'starting'} panel on "
-                     f"{report.eyes.n_eyes} eyes: {time.perf_counter() - t1:.0f} s")
+                     f"{problem.eyes.n_eyes} eyes: {time.perf_counter() - t1:.0f} s")
         if test_eyes is not None:
             fit.test = scores["fit"][0]
         else:
             fit.train = scores["fit"][0]
         fit.start_test = scores["start"][0]
         fit.refused = parallax_warning(fit.panel.layout(n), scores["fit"][1])
-        if fit.refused is None and float(fit.panel.eye_box_mm()) < constraints.min_eye_box_mm * (1 - 1e-3):
-            fit.refused = (f"the eye box {float(fit.panel.eye_box_mm()):.3g} mm is below min_eye_box_mm = "
-                           f"{constraints.min_eye_box_mm:g} mm even at the fastest lenslets")
         if fit.refused is None:
             fit.failed = design_failure(fit.score, objective,
                                         "held-out" if test_eyes is not None else "training")
-        fit.notes = design_notes(fit.panel, (lo, hi))
-        fit.time_s = time.perf_counter() - t0
+        fit.unreported = None
+        fit.time_s += time.perf_counter() - t0
         if tell is not None:
             tell(f"done in {fit.time_s:.1f} s")
-        if counts_dir is not None:  # kept at once: a later failure or Ctrl-C loses no count
+        if counts_dir is not None:
             save_count(counts_dir, keys[n], fit)
-        fits.append(fit)
+
+    report_counts_in_order(list(fits.values()), report, report_counts)
+    fits = [fits[n] for n in counts]
     provenance = {"train_eyes": train_eyes.n_eyes,
                   "test_eyes": None if test_eyes is None else test_eyes.n_eyes,
                   "wavelengths_nm": [float(w) for w in wavelengths_nm], "steps": steps,
-                  "report_accuracy": report_accuracy, "eye_chunk": chunk,
+                  "report_accuracy": report_accuracy, "report_counts": report_counts,
+                  "eye_chunk": chunk,
                   "freq_step_cpd": None if sampling is None else float(sampling.freq_step_cpd)}
     return DesignResult(fits, cdp, depths.tolist(), constraints, objective, provenance)
 
@@ -904,6 +993,7 @@ def save_design(result: DesignResult, out_dir, command: str | None = None,
 
     out = Path(out_dir)
     best = result.best
+    held_out = result.provenance.get("test_eyes") is not None or any(f.test is not None for f in result.fits)
     designs = []
     for f in result.fits:
         designs.append({
@@ -911,9 +1001,10 @@ def save_design(result: DesignResult, out_dir, command: str | None = None,
             "status": f.status, "refused": f.refused, "failed": f.failed,
             "specification": None if f.panel is None else panel_specification(f.panel),
             "start_specification": None if f.start is None else panel_specification(f.start),
-            "held_out" if f.test is not None else "training": _score_units(f.score),
-            "start_held_out" if f.test is not None else "start_training": _score_units(f.start_test),
+            "held_out" if held_out else "training": _score_units(f.score),
+            "start_held_out" if held_out else "start_training": _score_units(f.start_test),
             "notes": f.notes, "loss_history": f.history, "fit_time_s": round(f.time_s, 2),
+            "unreported": f.unreported,
         })
     record = {
         "format": DESIGN_FORMAT,
@@ -1004,6 +1095,9 @@ __all__ = [
     "design_loss_chunked",
     "eye_chunk_size",
     "report_problem",
+    "report_counts_in_order",
+    "REPORT_COUNTS",
+    "SCREEN_MARGIN",
     "REPORT_ACCURACIES",
     "FAST_REPORT_WAVELENGTHS_NM",
     "perceivable_resolution",

@@ -52,6 +52,16 @@ reverse) over the same arrays of one eye: the phone preset's 3x3 fit, one eye pe
 peaked at 3.93 GB with 0.46 GB of them (RESULTS §21; all at once it kept 2.1 GB per
 training eye, §15)."""
 
+SCREEN_MARGIN = 0.25
+"""With ``report_counts="chosen"`` (:func:`lfjax.design.fit_design`), a count is reported
+beside the first count to pass when its training loss (the fit's last, on the fit's setting)
+exceeds that count's by at most this fraction of its magnitude. Why a quarter: the fit's
+setting (550 nm, vertex peaks) reads the image lower than the report does by a factor that
+hardly moves between counts — held-out over training loss was 1.15, 1.18 and 1.19 for the
+near-eye preset's 2x2, 3x3 and 4x4 at the defaults (RESULTS §21) — so a count 25 % behind
+in training loss would need that factor to move about seven times as far between two counts
+to overtake."""
+
 BASE_BYTES = 0.8e9
 """Resident memory of the process before any transform: the interpreter, JAX, XLA's
 compiled programs and the host arrays (measured 0.5–0.8 GB)."""
@@ -114,10 +124,22 @@ class DesignPlan:
     eye_chunk: int = 1
     steps: int = 0
     report_accuracy: str = ""
+    report_counts: str = "all"  # lfjax.design.fit.REPORT_COUNTS
     available_bytes: float | None = None  # memory this process may use (None: MemAvailable)
 
     @property
     def seconds(self) -> float:
+        """Estimated seconds: every count's fit, and the reports the run will make — every
+        count's, or (``report_counts="chosen"``) the dearest count's, standing for the one
+        count reported when the first ranked passes and no other lies within the margin."""
+        fits = sum(c.fit_seconds for c in self.counts)
+        reports = [c.report_seconds for c in self.counts]
+        if self.report_counts == "chosen":
+            return fits + max(reports, default=0.0)
+        return fits + sum(reports)
+
+    @property
+    def seconds_all_reported(self) -> float:
         return sum(c.seconds for c in self.counts)
 
     @property
@@ -125,9 +147,12 @@ class DesignPlan:
         return max([c.peak_bytes for c in self.counts if c.refused is None] or [BASE_BYTES])
 
     def summary(self) -> str:
+        which = ("every count" if self.report_counts == "all" else
+                 "the count first by training loss that passes, and any within "
+                 f"{SCREEN_MARGIN:.0%} of it")
         lines = [f"plan: {self.train_eyes} training eyes in chunks of {self.eye_chunk}, "
                  f"{self.steps} L-BFGS-B steps per count; report ({self.report_accuracy}) on "
-                 f"{self.report_eyes} eyes, fitted and starting panels"]
+                 f"{self.report_eyes} eyes, fitted and starting panels, of {which}"]
         for c in self.counts:
             if c.resumed is not None:
                 lines.append(f"  {c.n_per_side}x{c.n_per_side}  resumed: {c.resumed}")
@@ -141,7 +166,14 @@ class DesignPlan:
                 f"report FFT {c.report_fft} (df {c.report_df_cpd:.3g} cpd, {c.report_states} states, "
                 f"{c.report_wavelengths} wavelengths) ~{_duration(c.report_seconds)}; "
                 f"memory ~{_bytes(c.peak_bytes)}")
-        lines.append(f"  total ~{_duration(self.seconds)} on 2 CPU cores (estimated), peak memory "
+        reports = [c.report_seconds for c in self.counts if c.refused is None and c.resumed is None]
+        fits = sum(c.fit_seconds for c in self.counts)
+        if self.report_counts == "all" or len(reports) < 2:
+            total = f"~{_duration(self.seconds)}"
+        else:  # which count leads is known only after the fits
+            total = (f"~{_duration(fits + min(reports))} to ~{_duration(self.seconds)} with one "
+                     f"count reported (~{_duration(self.seconds_all_reported)} if every count is)")
+        lines.append(f"  total on 2 CPU cores (estimated): {total}; peak memory "
                      f"~{_bytes(self.peak_bytes)}")
         available = host_memory_bytes() if self.available_bytes is None else self.available_bytes
         if self.peak_bytes > available:
@@ -178,4 +210,4 @@ def count_plan(n_per_side: int, fit_problem, report_problem, train_eyes: int, re
         report_bytes=FORWARD_ALLOWANCE * report_arrays)
 
 
-__all__ = ["CountPlan", "DesignPlan", "count_plan", "evaluation_size"]
+__all__ = ["SCREEN_MARGIN", "CountPlan", "DesignPlan", "count_plan", "evaluation_size"]

@@ -267,8 +267,9 @@ def test_fit_design_says_its_plan_before_its_progress():
     assert said[0].startswith("plan:") and "1x1  refused" in said[0] and "2x2  fit FFT" in said[0]
     rest = said[1:]
     assert rest[0].startswith("design 2x2: start: loss") and rest[1].startswith("design 2x2: step 1/1")
-    assert "report of the fitted panel on 1 eyes" in rest[2]
-    assert "report of the starting panel" in rest[3] and rest[4].startswith("design 2x2: done in")
+    assert rest[2].startswith("design 2x2: fitted in") and "training loss" in rest[2]
+    assert "report of the fitted panel on 1 eyes" in rest[3]
+    assert "report of the starting panel" in rest[4] and rest[5].startswith("design 2x2: done in")
     assert result.provenance["eye_chunk"] == 1 and result.best.n_per_side == 2
 
 
@@ -337,6 +338,73 @@ def test_a_design_that_breaks_its_tolerance_is_never_ok_nor_chosen():
 
     resumed = DesignFit(**fit_fields(fit_record(failing)))
     assert resumed.failed == failing.failed and not resumed.ok
+
+
+def test_counts_are_reported_in_order_of_training_loss_until_one_passes():
+    """``report_counts="chosen"`` reports the counts by training loss until one passes, then
+    only those within the margin of it; a count failing its report does not end the search;
+    the choice is the one reporting every count makes whenever the held-out order agrees
+    with the training order outside the margin."""
+    from lfjax.design.fit import SCREEN_MARGIN, DesignFit, DesignResult, report_counts_in_order
+
+    panel = near_eye_microdisplay()
+    held_out = {2: -0.20, 3: -0.30, 4: -0.05, 5: -0.26}  # loss of each count's report
+    failing = {3}  # 3x3 breaks a requirement on the held-out eyes
+
+    def make():
+        # 5x5 trails 2x2 by 11 %, inside the margin; 4x4 by 78 %, outside it
+        training = {2: -0.18, 3: -0.24, 4: -0.04, 5: -0.16}
+        fits = [DesignFit(n, panel, panel, history=[0.0, training[n]]) for n in (2, 3, 4, 5)]
+        return fits + [DesignFit(1, refused="one view")]
+
+    reported = []
+
+    def report(fit):
+        reported.append(fit.n_per_side)
+        fit.test = {"loss": held_out[fit.n_per_side]}
+        fit.failed = "too blurred" if fit.n_per_side in failing else None
+
+    chosen = make()
+    report_counts_in_order(chosen, report)
+    # by training loss: 3x3 (fails), 2x2 (passes: the leader), 5x5 (within the margin)
+    assert SCREEN_MARGIN == 0.25 and reported == [3, 2, 5]
+    by_n = {f.n_per_side: f for f in chosen}
+    assert by_n[4].score is None and by_n[4].unreported.startswith("its training loss -0.04 trails "
+                                                                   "the 2x2's -0.18 by more than 25%")
+    assert by_n[4].status.startswith("not reported: ") and not by_n[4].ok
+    assert by_n[1].unreported is None and by_n[1].status.startswith("refused: ")
+    best = DesignResult(chosen, 1.5, [1.0, 2.0], DesignConstraints(), Objective(), {}).best
+    assert best.n_per_side == 5  # reported within the margin, and better held-out than 2x2
+
+    reported.clear()
+    every = make()
+    report_counts_in_order(every, report, "all")
+    assert sorted(reported) == [2, 3, 4, 5] and all(f.unreported is None for f in every)
+    assert DesignResult(every, 1.5, [1.0, 2.0], DesignConstraints(), Objective(), {}).best.n_per_side == 5
+    # a count scored by an earlier call (kept for resuming) is not reported again
+    reported.clear()
+    again = make()
+    again[1].test, again[1].failed = {"loss": -0.30}, "too blurred"
+    report_counts_in_order(again, report)
+    assert reported == [2, 5]
+
+
+def test_cli_design_report_counts_flag():
+    """--report-counts all|chosen reaches fit_design; a lenticular design (no fit, no training
+    loss) refuses it naming the flag, before any work."""
+    parser = cli.build_parser()
+    args = parser.parse_args(["design", "--depths", "1", "2"])
+    assert args.report_counts == "chosen"
+    assert parser.parse_args(["design", "--depths", "1", "2", "--report-counts", "all"]).report_counts == "all"
+    with pytest.raises(SystemExit):
+        parser.parse_args(["design", "--depths", "1", "2", "--report-counts", "some"])
+
+
+def test_cli_lenticular_design_refuses_report_counts(capsys, tmp_path):
+    code = cli.main(["design", "--lenticular", "--depths", "1", "3", "--report-counts", "all",
+                     "--out", str(tmp_path / "d")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--report-counts" in err and "--lenticular" in err
 
 
 def test_cli_design_exits_non_zero_when_no_count_qualifies(capsys, tmp_path, monkeypatch):
