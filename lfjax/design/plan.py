@@ -13,11 +13,11 @@ give the measured time as it goes.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import jax
 
+from lfjax.kernel.pipeline import transform_units
 from lfjax.sweep.guard import SECONDS_PER_UNIT, host_memory_bytes
 from lfjax.base.units import format_bytes as _bytes
 from lfjax.base.units import format_duration as _duration
@@ -76,8 +76,7 @@ def evaluation_size(problem, n_views: int, states: int | None = None) -> tuple[f
     grid = problem.peak_grid
     n_states = int(grid.states_D.shape[0]) if states is None else int(states)
     n_depth, n_k = (int(s) for s in grid.pair_index.shape)
-    per_state = sum((b - a) * n_views * size * size * math.log2(max(size, 2))
-                    for a, b, size, *_ in config.bands)
+    per_state = n_views * transform_units(config.bands)
     n_fft = config.n_fft
     plane = n_fft * (n_fft // 2 + 1) * (16 if jax.config.jax_enable_x64 else 8)
     units = n_states * per_state + n_views * n_depth * n_k * n_fft * (n_fft // 2 + 1)

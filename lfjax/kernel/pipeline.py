@@ -28,6 +28,7 @@ pipeline, so a NaN never leaves it silently.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import equinox as eqx
@@ -140,6 +141,19 @@ def _narrow_bands(bands, wavelengths_nm, window_x_mm: float, pupil_diameter_mm: 
                                    pupil_diameter_mm)
         out.append((start, stop, n_fft, n_x) if n_x < n_fft else (start, stop, n_fft))
     return tuple(out)
+
+
+def transform_units(bands) -> float:
+    """Cost of one view's transforms at one accommodation state over ``bands`` ((start, stop,
+    n_fft[, n_fft_x]) of :class:`PipelineConfig`): Σ (stop − start)·n_fft·n_fft_x·log2 n_fft
+    (n_fft_x = n_fft for a square window), the unit the sweep's and the design's estimates
+    time. A strip's band on a narrow window (n_fft_x < n_fft) costs n_fft_x/n_fft of a square
+    one's."""
+    total = 0.0
+    for start, stop, size, *narrow in bands:
+        size_x = narrow[0] if narrow else size
+        total += (stop - start) * size * size_x * math.log2(max(size, 2))
+    return float(total)
 
 
 class RetinalMetrics(eqx.Module):
@@ -375,6 +389,7 @@ def vsotf_and_strehl(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation
 
 
 __all__ = [
+    "transform_units",
     "Scene",
     "Accommodation",
     "PipelineConfig",

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import jax
 
+from lfjax.kernel.pipeline import transform_units
 from lfjax.vision.peaks import METRICS, STATE_COST, TYPICAL_REFINED_FRACTION, resolved_method
 from lfjax.base.grids import grid_size
 from lfjax.base.sampling import EYE_BLOCK
@@ -208,8 +209,7 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
         elemental = n_states * n_sub * plane
         rendered = n_depth * n_k * plane
         device = DEVICE_ALLOWANCE * (elemental + 2 * rendered)
-        per_state = sum((b - a) * n_sub * size * size * math.log2(max(size, 2))
-                        for a, b, size, *_ in pc.bands)
+        per_state = n_sub * transform_units(pc.bands)  # a strip's narrow window counted
         refined = n_depth * refinement_states(config)
         ffts = (n_states + refined) * per_state
         render = n_sub * (n_depth * n_k + refined) * n_fft * (n_fft // 2 + 1)

@@ -340,3 +340,19 @@ def test_host_guards_hold_a_block_of_eyes_not_the_population(monkeypatch):
         assert value == pytest.approx(max(planner._order_rms_um(z[i:i + 1], 6.0, 3.0)[order]
                                           for i in range(20)), rel=1e-12)
     assert slope > 0 and set(rms) == set(small)
+
+
+def test_transform_units_count_a_strips_narrow_window():
+    """The estimates' unit (lfjax.kernel.pipeline.transform_units): a square band costs
+    wavelengths·n²·log2 n, a strip's narrow band (n_fft_x columns) n_fft_x/n of it; the sweep
+    guard and the design plan time transforms with it."""
+    import math
+
+    from lfjax.kernel.pipeline import transform_units
+
+    square = transform_units(((0, 3, 256),))
+    assert square == pytest.approx(3 * 256 * 256 * 8)
+    narrow = transform_units(((0, 3, 256, 64),))
+    assert narrow == pytest.approx(square * 64 / 256)
+    both = transform_units(((0, 3, 256), (3, 5, 200, 80)))
+    assert both == pytest.approx(square + 2 * 200 * 80 * math.log2(200))
