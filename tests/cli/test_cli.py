@@ -44,10 +44,14 @@ size (``LFJAX_NOTEBOOK_SIZE=tiny``) uses the same, so it reuses these programs."
 def quick_run(tmp_path_factory):
     """``lfjax reproduce --quick --out DIR`` through the command line's entry point in this
     process (the exit status, stdout and stderr as the console script would give them), with
-    ``StudyConfig.quick`` on :data:`TINY_WAVELENGTHS_NM`. Returns (process result, out,
-    its parent folder, the config the run used)."""
+    ``StudyConfig.quick`` on :data:`TINY_WAVELENGTHS_NM`. In float32, as the console script
+    computes (this session is float64): the notebook's kernel, float32 too, then reads its
+    programs from the session's caches. Returns (process result, out, its parent folder,
+    the config the run used)."""
     import contextlib
     import io
+
+    import jax
 
     from lfjax.base.programs import enable_program_cache
     from lfjax.planner.cache import enable_plan_cache
@@ -63,7 +67,8 @@ def quick_run(tmp_path_factory):
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(rep.StudyConfig, "quick", classmethod(tiny_quick))
         config = rep.StudyConfig.quick()
-        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr), \
+                jax.enable_x64(False):
             code = cli.main(["reproduce", "--quick", "--out", str(out)])
     # the command line turned on the plan and program caches: the other modules in this
     # process run with the caches as the session set them
