@@ -29,6 +29,7 @@
 
 # %%
 import io
+import os
 
 import numpy as np
 from IPython.display import Image, display
@@ -44,6 +45,9 @@ enable_compilation_cache()
 
 QUICK = True
 config = reproduce.StudyConfig.quick() if QUICK else reproduce.StudyConfig()
+if os.environ.get("LFJAX_NOTEBOOK_SIZE") == "tiny":
+    # what tests/cli/test_cli.py runs: one wavelength; numbers meaningless
+    config = config.replace(wavelengths_nm=(550.0, 550.0, 1.0))
 config
 
 

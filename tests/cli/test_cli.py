@@ -7,13 +7,12 @@ import dataclasses
 import inspect
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from helpers import percent_cells
+from helpers import execute_notebook_tiny, percent_cells
 from lfjax import cli
 from lfjax import reproduce as rep
 from lfjax.base.errors import ParameterError
@@ -22,14 +21,6 @@ from lfjax.cli import common
 ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK = ROOT / "notebooks" / "reproduce_paper.ipynb"
 NOTEBOOK_TWIN = ROOT / "notebooks" / "reproduce_paper.py"
-
-
-def run_cli(*args, cwd=None, timeout=600):
-    """Run the command line in a fresh interpreter (as the console script does)."""
-    return subprocess.run(
-        [sys.executable, "-m", "lfjax.cli", *args], capture_output=True, text=True,
-        cwd=cwd, timeout=timeout, env={**os.environ, "PYTHONWARNINGS": "ignore"},
-    )
 
 
 def run_main(capsys, *args):
@@ -41,16 +32,56 @@ def run_main(capsys, *args):
 # ------------------------------------------------------------------ end to end
 
 
+TINY_WAVELENGTHS_NM = (550.0, 550.0, 1.0)
+"""The end-to-end run's one wavelength (``--quick`` sums 400–700 nm in 30 nm steps). Each
+wavelength is its own FFT band in the compiled programs, so one is what makes the run
+cheap; the checks below are of the command's structure (every file, table, figure and
+claim, labelled and finite), which does not depend on the spectrum. The notebook's tiny
+size (``LFJAX_NOTEBOOK_SIZE=tiny``) uses the same, so it reuses these programs."""
+
+
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
+    """``lfjax reproduce --quick --out DIR`` through the command line's entry point in this
+    process (the exit status, stdout and stderr as the console script would give them), with
+    ``StudyConfig.quick`` on :data:`TINY_WAVELENGTHS_NM`. In float32, as the console script
+    computes (this session is float64): the notebook's kernel, float32 too, then reads its
+    programs from the session's caches. Returns (process result, out, its parent folder,
+    the config the run used)."""
+    import contextlib
+    import io
+
+    import jax
+
+    from lfjax.base.programs import enable_program_cache
+    from lfjax.planner.cache import enable_plan_cache
+
     parent = tmp_path_factory.mktemp("cli")
     out = parent / "results"
-    proc = run_cli("reproduce", "--quick", "--out", str(out))
-    return proc, out, parent
+    quick = rep.StudyConfig.quick
+
+    def tiny_quick(cls, *args, **changes):
+        return quick(*args, **{"wavelengths_nm": TINY_WAVELENGTHS_NM, **changes})
+
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(rep.StudyConfig, "quick", classmethod(tiny_quick))
+        config = rep.StudyConfig.quick()
+        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr), \
+                jax.enable_x64(False):
+            code = cli.main(["reproduce", "--quick", "--out", str(out)])
+    # the command line turned on the plan and program caches: the other modules in this
+    # process run with the caches as the session set them
+    enable_program_cache(None)
+    enable_plan_cache(None)
+    proc = subprocess.CompletedProcess(["lfjax", "reproduce", "--quick"], code,
+                                       stdout.getvalue(), stderr.getvalue())
+    return proc, out, parent, config
 
 
 def test_quick_run_succeeds_and_says_where(quick_run):
-    proc, out, parent = quick_run
+    proc, out, parent, config = quick_run
+    assert config.wavelength_grid_nm.tolist() == [550.0]  # the tiny run, not the full quick
     assert proc.returncode == 0, proc.stderr[-3000:]
     last = proc.stdout.strip().splitlines()[-1]
     assert str(out) in last and last.rstrip().endswith(" s")
@@ -60,7 +91,7 @@ def test_quick_run_succeeds_and_says_where(quick_run):
 
 
 def test_quick_run_writes_every_file(quick_run):
-    _, out, _ = quick_run
+    _, out, _, _ = quick_run
     expected = {rep.RESULTS_FILE, rep.EXAMPLES_FILE, "REPORT.md", rep.MARKER_FILE}
     expected |= set(rep.FIGURES.values())
     expected |= {name for key, name in rep.TABLES.items() if key != "alternatives"}
@@ -73,8 +104,7 @@ def test_quick_run_writes_every_file(quick_run):
 def test_quick_run_tables_are_complete_and_finite(quick_run):
     import pandas as pd
 
-    _, out, _ = quick_run
-    config = rep.StudyConfig.quick()
+    _, out, _, config = quick_run
     n_eye = config.n_eyes + 1
     n_cells = 1 + 3 * len(config.depth_offsets_D)  # natural: the CDP only
     pred = pd.read_csv(out / rep.TABLES["predictions"])
@@ -110,7 +140,7 @@ def test_quick_run_tables_are_complete_and_finite(quick_run):
 def test_quick_run_results_file_is_labelled(quick_run):
     import xarray as xr
 
-    _, out, _ = quick_run
+    _, out, _, _ = quick_run
     with xr.open_dataset(out / rep.RESULTS_FILE, engine="h5netcdf") as ds:
         assert {"eye", "layout", "depth", "accommodation", "frequency", "metric"} <= set(ds.dims)
         assert ds.vsotf.dims == ("layout", "eye", "depth", "accommodation")
@@ -131,7 +161,7 @@ def test_quick_run_results_file_is_labelled(quick_run):
 
 
 def test_quick_run_report_states_every_claim(quick_run):
-    _, out, _ = quick_run
+    _, out, _, _ = quick_run
     text = (out / "REPORT.md").read_text()
     for i in range(1, 8):
         assert f"\n| {i} | " in text
@@ -452,19 +482,11 @@ def test_notebook_matches_its_script_twin():
     assert [(c.cell_type, c.source) for c in nb.cells] == percent_cells(NOTEBOOK_TWIN.read_text())
 
 
-def test_notebook_executes(tmp_path):
-    import nbformat
-    from nbclient import NotebookClient
-
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    client = NotebookClient(nb, timeout=600, kernel_name="python3",
-                            resources={"metadata": {"path": str(tmp_path)}})
-    client.execute()
-    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
-    assert not [o for o in outputs if o.output_type == "error"]
-    images = [o for o in outputs if "image/png" in o.get("data", {})]
+def test_notebook_executes(quick_run, tmp_path):
+    """Top to bottom at its tiny size (the quick study on the end-to-end run's one
+    wavelength: after ``quick_run`` its programs come from the session's caches)."""
+    _, images, text = execute_notebook_tiny(NOTEBOOK, tmp_path)
     assert len(images) >= 10  # Figs. 3–11 and the retinal images
-    text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
     assert "(1)" in text and "(7)" in text
 
 

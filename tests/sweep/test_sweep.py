@@ -45,7 +45,11 @@ TINY = {
     "population": {"n_eyes": 5, "seed": 3},
     "display": {"layouts": ["natural", "2x2"], "depth_offsets_D": [-1.0, 0.0, 1.0]},
     "accommodation": {"step_D": 0.5, "window_D": 1.0},
-    "spectrum": {"wavelengths_nm": [400.0, 700.0, 100.0]},
+    # one wavelength: each is its own FFT band of the compiled chunk function, and what the
+    # tests below check (store against through_focus, resume, sharding, processes) does not
+    # depend on how many are summed; that the sum follows the config's spectrum is checked by
+    # the laser lines of test_a_real_display_sweeps_as_through_focus_computes_it
+    "spectrum": {"wavelengths_nm": [550.0, 550.0, 1.0]},
     "run": {"chunk_size": 2},
 }
 FLOAT_EQUAL = ("vsotf", "strehl", "peak_value", "cutoff_frequency", "mtf_at_peak",
@@ -104,6 +108,26 @@ def reference(tmp_path_factory):
     config = tiny_config()
     path = tmp_path_factory.mktemp("sweep") / "reference.zarr"
     run = run_sweep(config, path, progress=False)
+    return config, path, run
+
+
+CHUNK_MARKS = ["chunk_complete", "chunk_checksum"]
+"""The bookkeeping variables: a chunk's checksum covers every layout of its eyes."""
+
+
+@pytest.fixture(scope="module")
+def reference_2x2(reference, tmp_path_factory):
+    """The reference's 2x2 layout alone, in this process: (config, store path, SweepRun).
+    Its chunk function is the reference's (the same eyes, planned sampling and spectrum), so
+    nothing is compiled again. The tests that start processes sweep this one: each process
+    then traces one chunk function, not two."""
+    _, ref_path, _ = reference
+    config = tiny_config(display={"layouts": ["2x2"]})
+    path = tmp_path_factory.mktemp("sweep") / "reference_2x2.zarr"
+    run = run_sweep(config, path, progress=False)
+    # the reference's numbers, bit for bit (the bookkeeping covers the layouts it holds)
+    assert_stores_equal(open_store(path).drop_vars(CHUNK_MARKS),
+                        open_store(ref_path).sel(layout=["2x2"]).drop_vars(CHUNK_MARKS))
     return config, path, run
 
 
@@ -382,14 +406,15 @@ def test_resume_of_a_complete_store_computes_nothing(reference):
 
 
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
-def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference, tmp_path, sig):
+def test_sweep_killed_mid_way_resumes_to_the_uninterrupted_store(reference_2x2, tmp_path, sig):
     """The sweep signals itself right after chunk 0 is marked complete (the test hook
     ``LFJAX_TEST_ABORT_AFTER_CHUNK``, read in lfjax.sweep.run): a deterministic kill point,
     not a poll that a loaded machine can miss. SIGKILL: nothing runs after it (the lock
     stays, stale); SIGTERM (a scheduler's preemption): the command stops as on Ctrl-C,
     releasing the lock. Resuming computes only chunks 1 and 2 and gives the uninterrupted
-    store bit for bit."""
-    config, ref_path, _ = reference
+    store bit for bit. (The reference's 2x2 layout alone: one chunk function to trace in
+    the process.)"""
+    config, ref_path, _ = reference_2x2
     toml = write_toml(tmp_path / "tiny.toml", config)
     store = tmp_path / "killed.zarr"
     log = tmp_path / "killed.log"
@@ -653,13 +678,17 @@ import jax
 from lfjax.sweep import load_config, run_sweep
 assert len(jax.local_devices()) == 4, jax.local_devices()
 run = run_sweep(load_config(sys.argv[1]), sys.argv[2], progress=False)
-assert run.traces == {(0, 0): 1, (0, 1): 1}, run.traces  # a fresh process: exactly one
+assert run.traces == {(0, 0): 1}, run.traces  # a fresh process: exactly one
 """
 
 
-def test_sharded_over_four_devices_equals_unsharded(reference, tmp_path):
-    config, ref_path, _ = reference
-    toml = write_toml(tmp_path / "four.toml", tiny_config(run={"chunk_size": 4}))
+def test_sharded_over_four_devices_equals_unsharded(reference_2x2, tmp_path):
+    """The reference's 2x2 layout (its eyes, sampling and spectrum: the same plan), four
+    eyes per chunk, one per device. (One layout: sharding splits the eye axis, which every
+    layout's chunk function maps the same way.)"""
+    _, ref_path, _ = reference_2x2
+    toml = write_toml(tmp_path / "four.toml", tiny_config(run={"chunk_size": 4},
+                                                          display={"layouts": ["2x2"]}))
     sharded = tmp_path / "four_devices.zarr"
     env = subprocess_env(XLA_FLAGS=os.environ.get("XLA_FLAGS", "")
                          + " --xla_force_host_platform_device_count=4")
@@ -668,9 +697,12 @@ def test_sharded_over_four_devices_equals_unsharded(reference, tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     # Each device maps its eye alone, the unsharded reference maps two per call: the same
     # float64 arithmetic up to round-off of the batch shape (stated tolerance 1e-9 relative).
-    a, b = open_store(sharded), open_store(ref_path)
-    chunked = ["chunk_complete", "chunk_checksum"]  # 4-eye chunks against 2-eye chunks
-    assert_stores_equal(a.drop_vars(chunked), b.drop_vars(chunked), rtol=1e-9, atol=1e-12)
+    # 4-eye chunks against 2-eye chunks: their bookkeeping (and chunk axis) differs
+    a, b = (open_store(path).drop_vars(CHUNK_MARKS) for path in (sharded, ref_path))
+    assert list(a.layout.values) == ["2x2"]
+    assert {k: n for k, n in a.sizes.items() if k != "chunk"} == \
+        {k: n for k, n in b.sizes.items() if k != "chunk"}
+    assert_stores_equal(a, b, rtol=1e-9, atol=1e-12)
 
 
 IMPORT_SCRIPT = """
@@ -709,11 +741,12 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_readme_two_process_distributed_command_writes_the_one_process_store(reference,
+def test_readme_two_process_distributed_command_writes_the_one_process_store(reference_2x2,
                                                                             tmp_path):
     """The README's multi-host command, as two local processes through the command line
-    (coordinator on 127.0.0.1): the shared store equals the one-process run bit for bit."""
-    config, ref_path, _ = reference
+    (coordinator on 127.0.0.1): the shared store equals the one-process run bit for bit.
+    (The reference's 2x2 layout alone: one chunk function to trace in each process.)"""
+    config, ref_path, _ = reference_2x2
     toml = write_toml(tmp_path / "tiny.toml", config)
     store = tmp_path / "two_processes.zarr"
     port = _free_port()

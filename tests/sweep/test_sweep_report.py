@@ -1,7 +1,7 @@
 """`lfjax sweep-report` and "what ten eyes cannot tell" (lfjax.sweep.report, .ten_eyes).
 
 One tiny real sweep (12 eyes + the average eye, natural / 2x2 / 3x3, three depths, two
-wavelengths; ~25 s on two cores) is computed once for the module. Its chunk size is 7, so
+wavelengths) is computed once for the module. Its chunk size is 7, so
 the store has two chunks and one can be marked incomplete on a copy.
 """
 
@@ -26,7 +26,9 @@ TINY = {
     "population": {"n_eyes": N_EYES, "seed": 0},
     "display": {"layouts": ["natural", "2x2", "3x3"], "depth_offsets_D": [-1.0, 0.0, 1.0]},
     "accommodation": {"step_D": 0.5, "window_D": 1.0},
-    "spectrum": {"wavelengths_nm": [450.0, 650.0, 100.0]},
+    # two wavelengths (each is its own FFT band of the compiled programs): a given step
+    # recorded as one uniform rule is still a grid, summed with V(λ) weights
+    "spectrum": {"wavelengths_nm": [500.0, 600.0, 100.0]},
     "run": {"chunk_size": 7},
 }
 
@@ -498,12 +500,12 @@ def test_given_step_is_recorded_as_a_uniform_rule(ds, report):
     assert set(spectra) == {f"0,{li}" for li in range(3)}
     for record in spectra.values():
         assert record["rule"] == "given" and record["step_nm"] == 100.0
-        assert record["wavelengths_nm"] == [450.0, 550.0, 650.0]
+        assert record["wavelengths_nm"] == [500.0, 600.0]
         assert sum(record["weights"]) == pytest.approx(1.0)
-    np.testing.assert_array_equal(ds.n_wavelengths.values, [[3, 3, 3]])
+    np.testing.assert_array_equal(ds.n_wavelengths.values, [[2, 2, 2]])
     summary = report[1]["summary"].read_text()
-    assert "450–650 nm in 100 nm steps." in summary
-    assert summary.count("| uniform 100 nm (3) |") == 3
+    assert "500–600 nm in 100 nm steps." in summary
+    assert summary.count("| uniform 100 nm (2) |") == 3
 
 
 def test_planned_rules_are_recorded_per_layout(tmp_path):
@@ -513,8 +515,10 @@ def test_planned_rules_are_recorded_per_layout(tmp_path):
 
     from lfjax.sweep.compute import spectral_plans, sweep_spectra
 
+    # 3x3 and 4x4: their planned Gauss rules differ (6 and 5 nodes); the natural view's
+    # would be 11, each node its own FFT band of the compiled chunk function
     config = config_from_dict({**TINY, "population": {"n_eyes": 1, "seed": 0},
-                               "display": {"layouts": ["natural", "4x4"], "depth_offsets_D": [0.0]},
+                               "display": {"layouts": ["3x3", "4x4"], "depth_offsets_D": [0.0]},
                                "spectrum": {"wavelengths_nm": [400.0, 700.0]},
                                "run": {"chunk_size": 2}})
     path = tmp_path / "planned.zarr"
@@ -534,6 +538,7 @@ def test_planned_rules_are_recorded_per_layout(tmp_path):
     for key, spectrum in expected.items():
         np.testing.assert_allclose(resumed[key].wavelengths_nm, spectrum.wavelengths_nm)
         np.testing.assert_allclose(resumed[key].weights, spectrum.weights, rtol=1e-6)
+    assert spectra["0,0"]["n_wavelengths"] != spectra["0,1"]["n_wavelengths"]  # its own
     gauss = spectra["0,1"]
     assert gauss["rule"] == "gauss" and gauss["step_nm"] is None  # the 4x4 views
     assert "Gauss rule in V(λ)" in gauss["reason"]
@@ -560,7 +565,7 @@ def test_a_store_without_recorded_rules_resumes_on_its_one_grid(store, tmp_path)
     config = config_from_dict(TINY)
     spectra = stored_spectra(old, config)
     assert set(spectra) == {(0, 0), (0, 1), (0, 2)}
-    expected = make_spectrum([450.0, 550.0, 650.0], config.options)
+    expected = make_spectrum([500.0, 600.0], config.options)
     for spectrum in spectra.values():
         np.testing.assert_allclose(spectrum.wavelengths_nm, expected.wavelengths_nm)
         np.testing.assert_allclose(spectrum.weights, expected.weights, rtol=1e-12)
