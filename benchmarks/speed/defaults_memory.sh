@@ -26,6 +26,6 @@ for c in $WHICH; do
       "$PY" -m lfjax.cli sweep --template "$OUT/small.toml" >/dev/null 2>&1 || true
       sed -i 's/^n_eyes = .*/n_eyes = 20/' "$OUT/small.toml"
       "$PY" -m lfjax.cli sweep "$OUT/small.toml" --out "$OUT/small.zarr" --no-progress >/dev/null 2>&1
-      run sweep-report sweep-report "$OUT/small.zarr" --out "$OUT/report" ;;
+      run sweep-report sweep-report "$OUT/small.zarr" --out "$OUT/report" --no-progress ;;
   esac
 done
