@@ -19,7 +19,7 @@
 #
 # The size is set by `LFJAX_NOTEBOOK_SIZE`: `small` (the committed outputs: the Thibos
 # average eye, three layouts, three depths, 50 nm wavelength steps) or `tiny` (what
-# `tests/display/test_lenslets.py` runs: 2×2 only, 100 nm steps, peaks from three states around the
+# `tests/display/test_lenslets.py` runs: 2×2 only, two depths, 1 D states, 150 nm steps, peaks from three states around the
 # grid's instead of Newton; numbers meaningless). The full
 # study: `benchmarks/studies/display_effects.py` (RESULTS §12) or `lfjax reproduce --display-effects`.
 #
@@ -39,8 +39,11 @@ from lfjax.display.spectra import display_spectrum
 
 SIZE = os.environ.get("LFJAX_NOTEBOOK_SIZE", "small")
 if SIZE == "tiny":
-    config = de.DisplayStudyConfig.quick(wavelength_step_nm=100.0, sweep_distances_mm=(400.0,),
-                                         peak_method="local")
+    # two depths, 1 D states, 3 wavelengths; the sweep in the study's window, so that its
+    # scenes reuse the study's compiled programs
+    config = de.DisplayStudyConfig.quick(wavelength_step_nm=150.0, sweep_distances_mm=(400.0,),
+                                         peak_method="local", depth_offsets_D=(0.0, 1.0),
+                                         accommodation_step_D=1.0, sweep_window_D=1.0)
 else:
     config = de.DisplayStudyConfig.quick(layouts=("2x2", "3x3", "4x4"),
                                          sweep_distances_mm=(30.0, 200.0, 400.0, 470.0))

@@ -21,6 +21,7 @@ from lfjax.design.fit import (
     design_loss_chunked,
     eye_chunk_size,
     design_notes,
+    design_panel,
     design_problem,
     feasibility,
     fit_design,
@@ -257,9 +258,12 @@ def test_cli_design_tiny_case(capsys, tmp_path, monkeypatch):
 
 def test_fit_design_says_its_plan_before_its_progress():
     """fit_design's progress: the plan (each count, refused ones too) before the first step,
-    then a line per step and per report, in order."""
+    then a line per step and per report, in order. (The panel and settings of ``TINY``'s
+    ``lfjax design``, its starting panel made as the command makes it: the fit and reports
+    are the programs test_cli_design_tiny_case compiled.)"""
     said = []
-    result = fit_design(near_eye_microdisplay(), depth_range_D=(1.0, 2.0), n_depths=2,
+    panel = design_panel("near-eye", 1.5, diffraction="off")
+    result = fit_design(panel, depth_range_D=(1.0, 2.0), n_depths=2,
                         views_per_side=(1, 2), train_eyes=sample_eyes(0, 1),
                         test_eyes=sample_eyes(1, 1), steps=1, report_accuracy="fit",
                         sampling=Sampling(2.0), progress=said.append,
