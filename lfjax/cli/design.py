@@ -133,7 +133,8 @@ def add_parser(sub) -> None:
     des.add_argument("--report-counts", choices=REPORT_COUNTS, default="chosen",
                      help="which fitted counts the held-out report scores: chosen (default: in "
                           "order of training loss until one passes, and any within "
-                          f"{SCREEN_MARGIN:.0%} of it; the rest are listed as not reported) or "
+                          f"{100 * SCREEN_MARGIN:.0f}%% of it; "  # argparse formats help: %% is %
+                          "the rest are listed as not reported) or "
                           "all (every count; several times slower)")
     common.add_out(des, "lfjax-design", "output folder; must be new or empty unless --force "
                                         "(default ./lfjax-design)")
