@@ -26,6 +26,12 @@ EVALUATIONS_PER_STEP = 1.3
 """L-BFGS-B's loss-and-gradient evaluations per step (its line search mostly accepts the
 first point; measured 1.1–1.5 on the presets' counts), plus the start's."""
 
+TYPICAL_STEPS = 2
+"""L-BFGS-B steps a count's fit typically takes before its projected gradient falls below
+``tol``: every fit of the near-eye preset's 2x2, 3x3 and 4x4 at the defaults stopped after 2
+of its 10 (RESULTS §21, §31); the box has three to four coordinates. The plan gives the time
+at this many steps and at ``steps``."""
+
 GRADIENT_COST = 4.0
 """Time of one value and gradient through checkpointed eye chunks over one forward
 evaluation: the forward, its recomputation in the reverse pass, and the reverse pass
@@ -99,7 +105,8 @@ class CountPlan:
     report_df_cpd: float = float("nan")
     report_states: int = 0
     report_wavelengths: int = 0
-    fit_seconds: float = 0.0
+    fit_seconds: float = 0.0  # at every step the fit may take
+    fit_seconds_typical: float = 0.0  # at TYPICAL_STEPS (or fewer, when fewer are allowed)
     report_seconds: float = 0.0
     fit_bytes: float = 0.0
     report_bytes: float = 0.0
@@ -159,19 +166,26 @@ class DesignPlan:
             if c.refused is not None:
                 lines.append(f"  {c.n_per_side}x{c.n_per_side}  refused before fitting: {c.refused}")
                 continue
+            fit_time = (f"~{_duration(c.fit_seconds)}" if c.fit_seconds_typical >= c.fit_seconds else
+                        f"~{_duration(c.fit_seconds_typical)} (~{_duration(c.fit_seconds)} at all {self.steps} steps)")
             lines.append(
                 f"  {c.n_per_side}x{c.n_per_side}  fit FFT {c.fit_fft} (df {c.fit_df_cpd:.3g} cpd, "
-                f"{c.fit_states} states, {c.fit_wavelengths} wavelength(s)) ~{_duration(c.fit_seconds)}; "
+                f"{c.fit_states} states, {c.fit_wavelengths} wavelength(s)) {fit_time}; "
                 f"report FFT {c.report_fft} (df {c.report_df_cpd:.3g} cpd, {c.report_states} states, "
                 f"{c.report_wavelengths} wavelengths) ~{_duration(c.report_seconds)}; "
                 f"memory ~{_bytes(c.peak_bytes)}")
         reports = [c.report_seconds for c in self.counts if c.refused is None and c.resumed is None]
-        fits = sum(c.fit_seconds for c in self.counts)
+        typical = sum(c.fit_seconds_typical for c in self.counts)
         if self.report_counts == "all" or len(reports) < 2:
-            total = f"~{_duration(self.seconds)}"
+            low = typical + sum(reports)
         else:  # which count leads is known only after the fits
-            total = (f"~{_duration(fits + min(reports))} to ~{_duration(self.seconds)} with one "
-                     f"count reported (~{_duration(self.seconds_all_reported)} if every count is)")
+            low = typical + min(reports)
+        total = (f"~{_duration(low)} if the fits stop after {TYPICAL_STEPS} steps as they "
+                 f"typically do, at most ~{_duration(self.seconds)}" if low < self.seconds
+                 else f"~{_duration(self.seconds)}")
+        if self.report_counts == "chosen" and len(reports) >= 2:
+            total += (f" with one count reported (~{_duration(self.seconds_all_reported)} if every "
+                      f"count is)")
         lines.append(f"  total on 2 CPU cores (estimated): {total}; peak memory "
                      f"~{_bytes(self.peak_bytes)}")
         available = host_memory_bytes() if self.available_bytes is None else self.available_bytes
@@ -194,6 +208,8 @@ def count_plan(n_per_side: int, fit_problem, report_problem, train_eyes: int, re
     report_states = int(grid.states_D.shape[0]) + n_peak_depths * int(report_refined_states)
     report_units, report_arrays = evaluation_size(report_problem, views, report_states)
     evaluations = 1 + EVALUATIONS_PER_STEP * steps if steps > 0 else 0
+    typical = 1 + EVALUATIONS_PER_STEP * min(steps, TYPICAL_STEPS) if steps > 0 else 0
+    per_evaluation = GRADIENT_COST * fit_units * train_eyes * SECONDS_PER_UNIT
     return CountPlan(
         n_per_side,
         fit_fft=int(fit_problem.config.n_fft), fit_df_cpd=float(fit_problem.config.freq_step_cpd),
@@ -202,11 +218,11 @@ def count_plan(n_per_side: int, fit_problem, report_problem, train_eyes: int, re
         report_fft=int(report_problem.config.n_fft),
         report_df_cpd=float(report_problem.config.freq_step_cpd), report_states=report_states,
         report_wavelengths=int(report_problem.spectrum.wavelengths_nm.shape[0]),
-        fit_seconds=0.0 if steps == 0 else (
-            evaluations * GRADIENT_COST * fit_units * train_eyes * SECONDS_PER_UNIT + COMPILE_SECONDS),
+        fit_seconds=0.0 if steps == 0 else evaluations * per_evaluation + COMPILE_SECONDS,
+        fit_seconds_typical=0.0 if steps == 0 else typical * per_evaluation + COMPILE_SECONDS,
         report_seconds=2 * REPORT_PASSES * report_units * report_eyes * SECONDS_PER_UNIT,
         fit_bytes=0.0 if steps == 0 else REVERSE_ALLOWANCE * fit_arrays * eye_chunk,
         report_bytes=FORWARD_ALLOWANCE * report_arrays)
 
 
-__all__ = ["SCREEN_MARGIN", "CountPlan", "DesignPlan", "count_plan", "evaluation_size"]
+__all__ = ["SCREEN_MARGIN", "TYPICAL_STEPS", "CountPlan", "DesignPlan", "count_plan", "evaluation_size"]

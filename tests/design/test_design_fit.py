@@ -178,6 +178,12 @@ def test_fast_report_and_the_plan_of_a_count():
     assert two.fit_bytes == pytest.approx(2 * one.fit_bytes) and more.fit_bytes == one.fit_bytes
     assert more.fit_seconds - COMPILE_SECONDS == pytest.approx(4 * (one.fit_seconds - COMPILE_SECONDS))
     assert one.fit_seconds > COMPILE_SECONDS and count_plan(2, fit, fast, 10, 3, 0, 1).fit_bytes == 0
+    # the typical fit stops after TYPICAL_STEPS; a fit allowed fewer steps is timed at those
+    assert COMPILE_SECONDS < one.fit_seconds_typical < one.fit_seconds
+    short = count_plan(2, fit, fast, 10, 3, 1, 1)
+    assert short.fit_seconds_typical == short.fit_seconds
+    said = DesignPlan([one], 10, 3, 1, 10, "fast", available_bytes=one.peak_bytes * 1.01).summary()
+    assert "at all 10 steps" in said and "if the fits stop after 2 steps" in said
     assert one.report_wavelengths == 11 and one.fit_wavelengths == 1
     assert count_plan(2, fit, full, 10, 3, 10, 1, 3).report_seconds > one.report_seconds
     plan = DesignPlan([one], 10, 3, 1, 10, "fast", available_bytes=one.peak_bytes * 1.01)
