@@ -35,6 +35,25 @@ _LOADED: dict[str, tuple[Callable, object]] = {}
 _FAILED: set[str] = set()
 
 
+def in_callers_jax_context(fn: Callable) -> Callable:
+    """``fn`` wrapped to run, in another thread, under the calling thread's JAX settings.
+
+    ``jax.enable_x64`` and ``jax.default_device`` used as context managers hold for their
+    own thread only: a worker thread would compute in the process-wide dtype (float64
+    where the caller asked for float32, or the reverse) and on the default device. The
+    wrapper reads both now, in the caller, and enters them around each call.
+    """
+    x64 = bool(jax.config.jax_enable_x64)
+    device = jax.config.jax_default_device
+
+    @functools.wraps(fn)
+    def wrapped(*args, **kwargs):
+        with jax.enable_x64(x64), jax.default_device(device):
+            return fn(*args, **kwargs)
+
+    return wrapped
+
+
 def cache_folder(folder) -> Path | None:
     """``folder`` created if needed and returned when this process can write in it, else
     None (a cache that cannot be written is off). None gives None."""
@@ -171,6 +190,7 @@ def _write(key: str, entry) -> None:
 
 
 __all__ = [
+    "in_callers_jax_context",
     "cache_folder",
     "call_cached",
     "clear_loaded",

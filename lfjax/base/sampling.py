@@ -21,7 +21,7 @@ import numpy as np
 
 from lfjax.base.errors import ParameterError
 from lfjax.base.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
-from lfjax.base.zernike import zernike_basis
+from lfjax.base.zernike import zernike_basis_host
 
 EDGE_EXTENT_SCALES = 6.0
 """Logistic edge profile is taken to extend this many scale lengths (e^-6 ≈ 0.25 %)."""
@@ -267,7 +267,7 @@ def eye_slope_rad(zernike_um: np.ndarray, measured_pupil_mm: float, pupil_diamet
     t = np.linspace(-r_cal, r_cal, n)
     xx, yy = np.meshgrid(t, t)
     inside = xx**2 + yy**2 <= r_cal**2
-    basis = np.asarray(zernike_basis(z.shape[1], xx / r_meas, yy / r_meas))
+    basis = zernike_basis_host(z.shape[1], xx / r_meas, yy / r_meas)
     h = t[1] - t[0]
     slope = 0.0
     # blocks of eyes: the wavefronts and their gradients take ~90 KB per eye, so a whole

@@ -79,17 +79,29 @@ def zernike_mode(ansi_j: int, x, y):
     Returns the RMS-normalised polynomial (unitless); it is not masked to the unit disk,
     so callers can evaluate the phase on every sample an anti-aliased edge touches.
     """
+    return _zernike_mode(jnp, ansi_j, x, y)
+
+
+def zernike_mode_host(ansi_j: int, x, y) -> np.ndarray:
+    """:func:`zernike_mode` in float64 NumPy, for sizes worked out on the host before any
+    program runs: eager JAX would dispatch (and compile) every operation of the
+    polynomial one by one, about 80 ms a mode on a 65 × 65 grid against 0.1 ms here."""
+    return _zernike_mode(np, ansi_j, np.asarray(x, np.float64), np.asarray(y, np.float64))
+
+
+def _zernike_mode(xp, ansi_j: int, x, y):
+    """:func:`zernike_mode` with the array namespace ``xp`` (``jax.numpy`` or ``numpy``)."""
     n, m = nm_from_ansi(ansi_j)
     m_abs = abs(m)
     rho2 = x * x + y * y
-    radial = jnp.zeros_like(rho2)
+    radial = xp.zeros_like(rho2)
     for c in reversed(_radial_coefficients(n, m_abs)):  # Horner in ρ²
         radial = radial * rho2 + c
     if m_abs == 0:
-        angular = jnp.ones_like(rho2)
+        angular = xp.ones_like(rho2)
     else:
         z = (x + 1j * y) ** m_abs if m_abs > 1 else (x + 1j * y)
-        angular = jnp.real(z) if m > 0 else jnp.imag(z)
+        angular = xp.real(z) if m > 0 else xp.imag(z)
     return normalisation(n, m) * radial * angular
 
 
@@ -99,6 +111,15 @@ def zernike_basis(n_modes: int, x, y):
         raise ValueError(f"n_modes must be >= 1, got {n_modes}")
     nm_from_ansi(n_modes - 1)  # validates the order
     return jnp.stack([zernike_mode(j, x, y) for j in range(n_modes)])
+
+
+def zernike_basis_host(n_modes: int, x, y) -> np.ndarray:
+    """:func:`zernike_basis` in float64 NumPy (:func:`zernike_mode_host`): for the host-side
+    guards and plans, which size programs before any runs."""
+    if n_modes < 1:
+        raise ValueError(f"n_modes must be >= 1, got {n_modes}")
+    nm_from_ansi(n_modes - 1)  # validates the order
+    return np.stack([zernike_mode_host(j, x, y) for j in range(n_modes)])
 
 
 def wavefront_um(coefficients_um, x, y):
@@ -182,7 +203,9 @@ __all__ = [
     "n_modes_for_order",
     "normalisation",
     "zernike_mode",
+    "zernike_mode_host",
     "zernike_basis",
+    "zernike_basis_host",
     "wavefront_um",
     "monomial_coefficients",
     "wavefront_on_grid",

@@ -58,7 +58,7 @@ import numpy as np
 
 from lfjax.base.sampling import EYE_BLOCK, Sampling, wavelength_bands
 from lfjax.base.units import DEGREES_PER_RADIAN
-from lfjax.base.zernike import n_modes_for_order, nm_from_ansi, zernike_basis
+from lfjax.base.zernike import n_modes_for_order, nm_from_ansi, zernike_basis_host
 from lfjax.kernel.optics import field_radius_arcmin
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import Spectrum, gauss_rule, make_spectrum
@@ -786,7 +786,7 @@ def _order_rms_um(zernike_um, measured_pupil_mm: float, pupil_mm: float) -> dict
     xx, yy = np.meshgrid(t, t)
     inside = xx * xx + yy * yy <= 1.0
     scale = pupil_mm / measured_pupil_mm
-    basis = np.asarray(zernike_basis(z.shape[1], xx * scale, yy * scale))[:, inside]
+    basis = zernike_basis_host(z.shape[1], xx * scale, yy * scale)[:, inside]
     orders = np.array([nm_from_ansi(j)[0] for j in range(z.shape[1])])
     out = {}
     for order in np.unique(orders):

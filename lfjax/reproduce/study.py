@@ -17,15 +17,19 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from lfjax._version import __version__
+from lfjax.base.errors import ParameterError
 from lfjax.base.parabola import parabola_vertex
+from lfjax.base.programs import in_callers_jax_context
 from lfjax.model.eyes import Eyes, aberration_free_eye
 from lfjax.vision.images import psf_on_grid, retinal_image, snellen_e
 from lfjax.model.layouts import Layout, grid_layout, open_pupil, paper_layouts
@@ -128,12 +132,15 @@ def run_study(
     config: StudyConfig = StudyConfig(),  # noqa: B008 (frozen dataclass)
     options: ModelOptions | None = None,
     stage: Callable[[str], None] | None = None,
+    workers: int | None = None,
 ):
     """Run the through-focus study; returns an :class:`xarray.Dataset`.
 
     One :func:`~lfjax.vision.focus.through_focus` call per layout evaluates every eye
-    (the virtual eyes and the average eye in one batch). ``stage(name)`` is called before
-    each layout (progress reporting).
+    (the virtual eyes and the average eye in one batch). ``stage(name)`` is called, in
+    the calling thread, before the study waits for each layout (progress reporting).
+    ``workers``: layouts computed at once in threads (:func:`layout_workers`; default:
+    one per CPU core on the CPU, one elsewhere); the numbers do not depend on it.
 
     Dataset (dims ``layout, eye, depth, accommodation, frequency, metric``):
     ``vsotf``, ``strehl`` (NaN outside the evaluated window and, for natural view, at
@@ -146,19 +153,44 @@ def run_study(
     ``freq_step_cpd``, ``n_fft``.
     """
     options = config.options if options is None else options
-    return _run_studies(config, {"": options}, stage, batched=False)[""]
+    return _run_studies(config, {"": options}, stage, batched=False, workers=workers)[""]
 
 
 def run_study_variants(
     config: StudyConfig, variants: dict[str, ModelOptions],
-    stage: Callable[[str], None] | None = None,
+    stage: Callable[[str], None] | None = None, workers: int | None = None,
 ) -> dict:
     """:func:`run_study` under several model options, {name: ModelOptions} → {name: Dataset}.
 
     Each layout's variants run as one batch (:func:`layout_through_focus_variants`: one
     compiled program over their stacked :class:`~lfjax.model.options.ModelParameters`); ``stage``
-    is called once per layout. Each Dataset's ``compute_seconds`` is the whole batch's."""
-    return _run_studies(config, dict(variants), stage, batched=True)
+    is called once per layout and ``workers`` is :func:`run_study`'s. Each Dataset's
+    ``compute_seconds`` is the whole batch's."""
+    return _run_studies(config, dict(variants), stage, batched=True, workers=workers)
+
+
+def layout_workers(workers: int | None, n_layouts: int) -> int:
+    """How many layouts :func:`run_study` computes at once, in threads.
+
+    ``None``: on the CPU, one per core the process may use (at most one per layout): one
+    layout's compiled program keeps about one core busy (XLA's CPU runtime runs its FFTs
+    and fusions on one thread), so a second layout in another thread fills the second
+    core of a two-core machine (the compiled programs release the GIL while they run;
+    benchmarks/RESULTS.md §32). On an accelerator, one: its programs already fill it.
+    Otherwise ``workers`` itself, an integer ≥ 1.
+    """
+    if workers is None:
+        if jax.default_backend() != "cpu":
+            return 1
+        try:
+            cores = len(os.sched_getaffinity(0))
+        except AttributeError:  # not Linux
+            cores = os.cpu_count() or 1
+        return max(1, min(cores, n_layouts))
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise ParameterError("workers", "{workers} must be an integer ≥ 1 (layouts computed at "
+                             "once) or None (one per CPU core), got {got!r}", got=workers)
+    return int(workers)
 
 
 def layout_through_focus_variants(
@@ -198,14 +230,15 @@ def _layout_run_variants(eyes, layout, depths_D, config, options):
     return [(tf, sampling, (wavelengths, rule)) for tf, sampling in zip(tfs, samplings)]
 
 
-def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool) -> dict:
+def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool,
+                 workers: int | None = None) -> dict:
+    names = list(config.layouts)
+    n_workers = layout_workers(workers, len(names))
     eyes, labels = study_eyes(config)
     layouts = paper_layouts(config.pupil_diameter_mm)
     depths = config.depths_D
-    per_layout = {name: [] for name in variants}  # variant → [(tf, sampling, λ, seconds)]
-    for name in config.layouts:
-        if stage is not None:
-            stage(name)
+
+    def one_layout(name):
         t0 = time.perf_counter()
         layout_depths = np.array([config.cdp_D]) if name == "natural" else depths
         if batched:
@@ -214,9 +247,31 @@ def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool) -> d
         else:
             results = [_layout_run(eyes, layouts[name], layout_depths, config, None, o)
                        for o in variants.values()]
-        seconds = time.perf_counter() - t0
+        return results, time.perf_counter() - t0
+
+    per_layout = {name: [] for name in variants}  # variant → [(tf, sampling, λ, seconds)]
+
+    def gather(results, seconds):
         for variant, (tf, sampling, wavelengths) in zip(variants, results):
             per_layout[variant].append((tf, sampling, wavelengths, seconds))
+
+    if n_workers == 1:
+        for name in names:
+            if stage is not None:
+                stage(name)
+            gather(*one_layout(name))
+    else:
+        pool = ThreadPoolExecutor(n_workers, thread_name_prefix="lfjax-layout")
+        try:
+            task = in_callers_jax_context(one_layout)
+            futures = [pool.submit(task, name) for name in names]
+            for name, future in zip(names, futures):
+                if stage is not None:
+                    stage(name)
+                gather(*future.result())
+        finally:
+            # on an error or an interrupt, the layouts not started are dropped
+            pool.shutdown(wait=True, cancel_futures=True)
     return {variant: _study_dataset(config, o, eyes, labels, layouts, per_layout[variant])
             for variant, o in variants.items()}
 
@@ -541,6 +596,7 @@ __all__ = [
     "compute_examples",
     "layout_through_focus",
     "layout_through_focus_variants",
+    "layout_workers",
     "run_study",
     "run_study_variants",
     "study_sampling",

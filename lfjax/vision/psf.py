@@ -44,7 +44,7 @@ from lfjax.base.sampling import EDGE_EXTENT_SCALES, Sampling
 from lfjax.model.spectral import Spectrum
 from lfjax.base.units import ARCMIN_PER_RADIAN, dioptres_to_c20_um
 from lfjax.vision.prepare import States, prepare
-from lfjax.base.zernike import zernike_mode
+from lfjax.base.zernike import zernike_mode, zernike_mode_host
 
 WAVELENGTH_RANGE_NM = (380.0, 830.0)
 """Wavelengths accepted by :func:`monochromatic_psf` (nm)."""
@@ -119,14 +119,13 @@ def _wavefront_size(coefficients_um, measured_pupil_mm, pupil_mm, wavelength_nm,
     scale = pupil_mm / measured_pupil_mm
     c = np.asarray(coefficients_um, dtype=np.float64)
     w_um = np.zeros_like(xx)
-    with jax.ensure_compile_time_eval():  # evaluated now, also inside a user's jit
-        for j in range(c.shape[0]):
-            if c[j] != 0.0:
-                w_um += c[j] * np.asarray(zernike_mode(j, xx * scale, yy * scale), np.float64)
-        if defocus_D != 0.0:
-            w_um += float(dioptres_to_c20_um(defocus_D, pupil_mm)) * np.asarray(
-                zernike_mode(4, xx, yy), np.float64
-            )
+    for j in range(c.shape[0]):
+        if c[j] != 0.0:
+            w_um += c[j] * zernike_mode_host(j, xx * scale, yy * scale)
+    if defocus_D != 0.0:
+        with jax.ensure_compile_time_eval():  # evaluated now, also inside a user's jit
+            c20_um = float(dioptres_to_c20_um(defocus_D, pupil_mm))
+        w_um += c20_um * zernike_mode_host(4, xx, yy)
     waves = w_um[inside] * (1e3 / wavelength_nm)
     rms = float(np.sqrt(np.mean((waves - waves.mean()) ** 2)))
     h_mm = pupil_mm / (_RMS_GRID - 1)

@@ -88,3 +88,29 @@ def test_direct_call_when_off_traced_or_not_exportable(cache):
     np.testing.assert_allclose(programs.call_cached(affine, params, x, power=1)["y"],
                                2.0 * x + params["b"], rtol=1e-6)
     assert list(cache.glob("*.jaxexport")) == []
+
+
+def test_a_worker_thread_computes_under_the_callers_dtype_setting():
+    """``jax.enable_x64`` as a context holds for its own thread only: a plain worker thread
+    computes in the session's dtype, the wrapped function in the caller's."""
+    import threading
+
+    import jax
+    import jax.numpy as jnp
+
+    from lfjax.base.programs import in_callers_jax_context
+
+    def dtype():
+        return jnp.asarray(1.0).dtype
+
+    for x64 in (False, True):
+        seen = {}
+        with jax.enable_x64(x64):
+            wrapped = in_callers_jax_context(dtype)
+            plain = threading.Thread(target=lambda: seen.update(plain=dtype()))
+            inner = threading.Thread(target=lambda: seen.update(wrapped=wrapped()))
+            for thread in (plain, inner):
+                thread.start()
+                thread.join()
+        assert seen["wrapped"] == (jnp.float64 if x64 else jnp.float32)
+        assert seen["plain"] == (jnp.float64 if jax.config.jax_enable_x64 else jnp.float32)

@@ -204,3 +204,15 @@ def test_pipeline_wavefront_separable_and_high_order_paths_agree_with_the_polyno
         inside = xx**2 + yy**2 <= (pupil / 2) ** 2
         assert w.shape == (2, 2, 31, 31)
         np.testing.assert_allclose(np.asarray(w)[:, inside], expected[:, inside], rtol=0, atol=2e-4)
+
+
+def test_host_modes_equal_the_jax_modes_in_float64():
+    """The host guards' NumPy modes are the traced modes, without JAX dispatch: equal to
+    float32 rounding on and beyond the unit disk, in float64, for every mode to order 10."""
+    x, y = _points(11, -1.2, 1.2)
+    host = zernike.zernike_basis_host(66, x, y)
+    assert host.dtype == np.float64 and host.shape == (66, N_POINTS)
+    np.testing.assert_allclose(host, np.asarray(_basis66(x, y)), rtol=1e-5, atol=1e-4)
+    np.testing.assert_array_equal(zernike.zernike_mode_host(12, x, y), host[12])
+    with pytest.raises(ValueError, match="n_modes"):
+        zernike.zernike_basis_host(0, x, y)

@@ -80,3 +80,22 @@ def test_baseline_not_read_from_a_study_that_cannot_stand_for_it(study):
     assert _baseline_from_study(study, CONFIG.replace(layouts=("natural", "2x2")),
                                 CONFIG.replace(layouts=("natural", "2x2")).reduced(rules),
                                 rules) is None
+
+
+def test_layouts_in_threads_give_the_numbers_of_one_after_another():
+    """``workers``: the layouts computed at once in threads give every number bit for bit
+    as computed one after another, and the stages are reported in the layouts' order."""
+    from lfjax.base.errors import ParameterError
+    from lfjax.reproduce.study import layout_workers
+
+    two = CONFIG.replace(layouts=("natural", "2x2"))
+    stages = {1: [], 2: []}
+    runs = {n: run_study(two, stage=stages[n].append, workers=n) for n in (1, 2)}
+    assert stages[1] == stages[2] == ["natural", "2x2"]
+    for name in ("vsotf", "strehl", "predicted_accommodation_continuous", "cutoff_frequency",
+                 "radial_mtf"):
+        np.testing.assert_array_equal(runs[1][name].values, runs[2][name].values)
+    assert layout_workers(None, 1) == 1
+    for bad in (0, 1.5, True):
+        with pytest.raises(ParameterError, match="workers"):
+            layout_workers(bad, 2)
