@@ -138,7 +138,8 @@ def run_study(
 
     One :func:`~lfjax.vision.focus.through_focus` call per layout evaluates every eye
     (the virtual eyes and the average eye in one batch). ``stage(name)`` is called, in
-    the calling thread, before the study waits for each layout (progress reporting).
+    the calling thread, before the study waits for each layout (progress reporting; with
+    several workers, in the order they are started: the most views × depths first).
     ``workers``: layouts computed at once in threads (:func:`layout_workers`; default:
     one per CPU core on the CPU, one elsewhere); the numbers do not depend on it.
 
@@ -264,11 +265,18 @@ def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool,
         pool = ThreadPoolExecutor(n_workers, thread_name_prefix="lfjax-layout")
         try:
             task = in_callers_jax_context(one_layout)
-            futures = [pool.submit(task, name) for name in names]
-            for name, future in zip(names, futures):
+            # the most views × depths first, so that the short layouts (the natural view:
+            # one view, one depth) fill the end rather than one long layout running alone
+            order = sorted(names, key=lambda n: -layouts[n].n_subapertures
+                           * (1 if n == "natural" else len(depths)))
+            futures = {name: pool.submit(task, name) for name in order}
+            done = {}
+            for name in order:
                 if stage is not None:
                     stage(name)
-                gather(*future.result())
+                done[name] = futures[name].result()
+            for name in names:  # the Dataset keeps the configuration's order
+                gather(*done[name])
         finally:
             # on an error or an interrupt, the layouts not started are dropped
             pool.shutdown(wait=True, cancel_futures=True)

@@ -84,14 +84,16 @@ def test_baseline_not_read_from_a_study_that_cannot_stand_for_it(study):
 
 def test_layouts_in_threads_give_the_numbers_of_one_after_another():
     """``workers``: the layouts computed at once in threads give every number bit for bit
-    as computed one after another, and the stages are reported in the layouts' order."""
+    as computed one after another; the threads start (and report) the larger layout first,
+    and the Dataset keeps the configuration's order."""
     from lfjax.base.errors import ParameterError
     from lfjax.reproduce.study import layout_workers
 
     two = CONFIG.replace(layouts=("natural", "2x2"))
     stages = {1: [], 2: []}
     runs = {n: run_study(two, stage=stages[n].append, workers=n) for n in (1, 2)}
-    assert stages[1] == stages[2] == ["natural", "2x2"]
+    assert stages[1] == ["natural", "2x2"] and stages[2] == ["2x2", "natural"]
+    assert list(runs[2].layout.values) == ["natural", "2x2"]
     for name in ("vsotf", "strehl", "predicted_accommodation_continuous", "cutoff_frequency",
                  "radial_mtf"):
         np.testing.assert_array_equal(runs[1][name].values, runs[2][name].values)
