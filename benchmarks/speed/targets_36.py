@@ -25,6 +25,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
 
 
@@ -47,6 +49,8 @@ def main() -> None:
     p.add_argument("--after", type=Path, required=True, help="checkout measured second (B)")
     p.add_argument("--sweep-eyes", type=int, default=47, help="eyes of the sweep (plus the average eye)")
     p.add_argument("--skip-reproduce", action="store_true")
+    p.add_argument("--warm-runs", type=int, default=1,
+                   help="warm runs of each checkout, alternating (their median is printed too)")
     p.add_argument("--skip-sweep", action="store_true")
     p.add_argument("--keep", type=Path, default=None,
                    help="copy the after checkout's warm reproduce output here (to compare)")
@@ -63,9 +67,10 @@ def main() -> None:
         for name in checkouts:
             (tmp / name).mkdir()
         if not args.skip_reproduce:
-            for phase in ("cold", "warm"):
+            phases = ["cold"] + ["warm" if k == 0 else f"warm {k + 1}" for k in range(args.warm_runs)]
+            for phase in phases:
                 for name, checkout in checkouts.items():
-                    out = tmp / name / f"reproduce_{phase}"
+                    out = tmp / name / f"reproduce_{phase.replace(' ', '_')}"
                     wall, rss, rc = run(checkout, ["reproduce", "--out", str(out)], tmp / name / "caches",
                                         tmp / name, log)
                     rows.append((f"reproduce {phase}", name, wall, rss, rc, None))
@@ -95,6 +100,12 @@ def main() -> None:
         b = next(r for r in rows if r[0] == step and r[1] == "before")
         a = next(r for r in rows if r[0] == step and r[1] == "after")
         print(f"| {step} | {b[2]:.1f} s ({b[3]:.2f} GiB) | {a[2]:.1f} s ({a[3]:.2f} GiB) | {a[2] / b[2]:.2f} |")
+    warm = {name: sorted(r[2] for r in rows if r[0].startswith("reproduce warm") and r[1] == name)
+            for name in ("before", "after")}
+    if len(warm["after"]) > 1:
+        median = {name: float(np.median(w)) for name, w in warm.items()}
+        print(f"| reproduce warm, median of {len(warm['after'])} | {median['before']:.1f} s | "
+              f"{median['after']:.1f} s | {median['after'] / median['before']:.2f} |")
 
 
 if __name__ == "__main__":

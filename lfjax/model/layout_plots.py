@@ -10,11 +10,21 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from matplotlib.figure import Figure
-from matplotlib.patches import Circle, Rectangle
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 COLOURS = ("tab:grey", "tab:red", "tab:blue", "tab:green")
 FIGURES = {"layouts": "layouts.png", "through_focus": "through_focus.png", "history": "history.png"}
+
+
+def _new_figure(**kwargs) -> Figure:
+    """A matplotlib Figure, imported when first drawn: ``import lfjax`` does not pay for
+    matplotlib (0.7 s)."""
+    from matplotlib.figure import Figure
+
+    return Figure(**kwargs)
 
 
 def draw_layout(ax, layout, pupil_diameter_mm: float, colour: str = "tab:red", title: str | None = None,
@@ -22,6 +32,8 @@ def draw_layout(ax, layout, pupil_diameter_mm: float, colour: str = "tab:red", t
     """Subaperture discs (filled, cropped by the pupil) and the pupil outline on ``ax`` (mm);
     ``aperture="strip"``: vertical strips ``d`` wide spanning the pupil's height (a 1×n
     HPO layout, :mod:`lfjax.model.strips`), their edges drawn within the pupil."""
+    from matplotlib.patches import Circle, Rectangle
+
     radius = 0.5 * float(pupil_diameter_mm)
     pupil = Circle((0.0, 0.0), radius, fill=False, lw=1.5, color="black")
     ax.add_patch(pupil)
@@ -54,7 +66,7 @@ def fig_layouts(layouts: dict, pupil_diameter_mm: float) -> Figure:
     """Layouts side by side, e.g. {"before": Layout, "after": Layout}; discs dashed beyond
     the pupil, which crops them."""
     n = len(layouts)
-    fig = Figure(figsize=(3.3 * n, 3.4), layout="constrained")
+    fig = _new_figure(figsize=(3.3 * n, 3.4), layout="constrained")
     for i, (label, layout) in enumerate(layouts.items()):
         ax = fig.add_subplot(1, n, i + 1)
         d = np.asarray(layout.diameters_mm, float)
@@ -73,7 +85,7 @@ def fig_through_focus(curves: dict, depths_D, title: str | None = None) -> Figur
     """
     depths = np.asarray(depths_D, float)
     n = len(depths)
-    fig = Figure(figsize=(2.6 * n + 0.6, 3.2), layout="constrained")
+    fig = _new_figure(figsize=(2.6 * n + 0.6, 3.2), layout="constrained")
     axes = [fig.add_subplot(1, n, i + 1) for i in range(n)]
     for j, (label, (acc, vs)) in enumerate(curves.items()):
         colour = COLOURS[(j + 1) % len(COLOURS)]
@@ -104,7 +116,7 @@ def fig_through_focus(curves: dict, depths_D, title: str | None = None) -> Figur
 def fig_history(history, label: str = "loss") -> Figure:
     """Objective (loss) after each solver step."""
     h = np.asarray(history, float)
-    fig = Figure(figsize=(4.5, 3.0), layout="constrained")
+    fig = _new_figure(figsize=(4.5, 3.0), layout="constrained")
     ax = fig.add_subplot()
     ax.plot(np.arange(h.size), h, marker="o", ms=3, color="tab:red")
     ax.set_xlabel("solver step")
@@ -118,7 +130,7 @@ def fig_front(front, pupil_diameter_mm: float) -> Figure:
     fitted points joined in order of tolerance, the tangent n×n grids (squares) and natural
     viewing (star) marked, each fitted layout drawn small beside its point."""
     rows = front.table()
-    fig = Figure(figsize=(8.0, 5.6), layout="constrained")
+    fig = _new_figure(figsize=(8.0, 5.6), layout="constrained")
     ax = fig.add_subplot()
     fitted = [r for r in rows if r["tolerance_D"] is not None]
     refs = [r for r in rows if r["tolerance_D"] is None]

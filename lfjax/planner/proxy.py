@@ -25,7 +25,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.fft as sfft
 
 from lfjax.base.sampling import EDGE_EXTENT_SCALES, Sampling, next_fast_size, wavelength_bands
 from lfjax.base.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
@@ -45,6 +44,14 @@ PROXY_WAVELENGTHS = 7
 taking the V(λ) weight of its nearest neighbours (a cost bound on planning; the validation
 scenes use 3 wavelengths, so this thinning is not what they test)."""
 
+
+
+def _sfft():
+    """:mod:`scipy.fft`, imported when the proxy first transforms: 0.4 s that a run whose
+    plans all come from the plan cache need not pay."""
+    import scipy.fft
+
+    return scipy.fft
 
 def _subsample_spectrum(spectrum: Spectrum, n_max: int = PROXY_WAVELENGTHS):
     """At most ``n_max`` wavelengths, each carrying the weight of its nearest neighbours."""
@@ -130,11 +137,11 @@ def _aperture_otfs(view, pupil_mm, defocus_D, sa_c40_um, sa_radius_mm, wavelengt
         kernel = np.exp((-2j * np.pi / wl_mm) * theta[:, None] * k[None, :]).astype(np.complex64)
         spec = kernel @ field_ @ kernel.T
         psf = (spec.real**2 + spec.imag**2).astype(np.float32)
-        otf = sfft.rfft2(psf, workers=-1) * (dx_mm**4 * pixel_rad**2 / wl_mm**2)
+        otf = _sfft().rfft2(psf, workers=-1) * (dx_mm**4 * pixel_rad**2 / wl_mm**2)
     else:
-        spec = sfft.fft2(field_, s=(n_fft, n_fft), workers=-1)
+        spec = _sfft().fft2(field_, s=(n_fft, n_fft), workers=-1)
         psf = (spec.real**2 + spec.imag**2).astype(np.float32)
-        otf = sfft.rfft2(psf, workers=-1) * (dx_mm * dx_mm / n_fft**2)
+        otf = _sfft().rfft2(psf, workers=-1) * (dx_mm * dx_mm / n_fft**2)
     otf[:, 0, 0] = energy
     return otf
 
@@ -294,7 +301,7 @@ class Proxy:
         wts = ncsf_half_plane(h, 2.0 * df_cpd, scene.options.ncsf, host=True)
 
         def vsotf_of(crop):
-            otf = sfft.rfft2(np.fft.ifftshift(crop, axes=(-2, -1)), workers=-1)
+            otf = _sfft().rfft2(np.fft.ifftshift(crop, axes=(-2, -1)), workers=-1)
             otf[:, 0, 0] = energy
             sums = np.einsum("pyx,yx->p", otf.real, wts)
             return sums[:-1] / sums[-1]
@@ -309,7 +316,7 @@ class Proxy:
         by its symmetry."""
         psf = 0.0
         for (_, maps), otf_g in zip(self.groups, rendered):
-            psf_g = np.fft.fftshift(sfft.irfft2(otf_g, s=(n_fft, n_fft), workers=-1), axes=(-2, -1))
+            psf_g = np.fft.fftshift(_sfft().irfft2(otf_g, s=(n_fft, n_fft), workers=-1), axes=(-2, -1))
             psf = psf + sum(map_psf(psf_g, m) for m in maps)
         return psf
 
@@ -328,7 +335,7 @@ class Proxy:
         num, den, rendered = self._sums(pairs, lambda lam: lam * 1e-6 * df_rad, n_fft,
                                         lambda lam: df_cpd, keep_otf=True)
         psf = self._psf(rendered, n_fft)
-        otf = sfft.rfft2(np.fft.ifftshift(psf, axes=(-2, -1)), workers=-1)
+        otf = _sfft().rfft2(np.fft.ifftshift(psf, axes=(-2, -1)), workers=-1)
         modulus = np.abs(otf) / np.abs(otf[:, :1, :1])
         index, weights, k = radial_bins(n_fft)
         radial = np.sum(modulus.reshape(modulus.shape[0], -1)[:, index] * weights, axis=-1)

@@ -98,12 +98,17 @@ def write_display_outputs(study, sweep, folder: Path) -> list[str]:
 
 
 def _files_and_figures(ds, examples, config: StudyConfig, folder: Path) -> tuple[list[str], float]:
-    """``results.nc``, ``examples.nc`` and every figure, written into ``folder``: (file
-    names, seconds)."""
+    """``results.nc``, ``examples.nc``, the tables that read only the study (predictions,
+    summary, cut-offs) and every figure, written into ``folder``: (file names, seconds)."""
     t0 = time.perf_counter()
     ds.to_netcdf(folder / RESULTS_FILE, engine="h5netcdf")
     examples.to_netcdf(folder / EXAMPLES_FILE, engine="h5netcdf")
-    names = [RESULTS_FILE, EXAMPLES_FILE] + save_figures(ds, examples, folder, config)
+    names = [RESULTS_FILE, EXAMPLES_FILE]
+    for key, make in (("predictions", prediction_table), ("summary", summary_table),
+                      ("cutoff", cutoff_table)):
+        printable(make(ds)).to_csv(folder / TABLES[key], index=False, float_format="%.6g")
+        names.append(TABLES[key])
+    names += save_figures(ds, examples, folder, config)
     return names, time.perf_counter() - t0
 
 
@@ -337,9 +342,9 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         ds = run_study(config, stage=lambda n: stage(f"through-focus {n}"))
         examples = compute_examples(ds, config, stage=stage)
         claims = evaluate_claims(ds, config.dof_fraction)
-        # the Dataset files and the figures read only ds and examples: written in a thread
-        # while the alternatives run (their compiled programs release the GIL). The
-        # examples stay here: JAX calls from a second thread wait behind the
+        # the Dataset files, the study's tables and the figures read only ds and examples:
+        # written in a thread while the alternatives run (their compiled programs release
+        # the GIL). The examples stay here: JAX calls from a second thread wait behind the
         # alternatives' programs (measured: 13 s slower in all)
         figures = figure_pool.submit(in_callers_jax_context(_files_and_figures), ds, examples,
                                      config, tmp)
@@ -358,12 +363,7 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
                                              note=lambda text: bar.set_postfix_str(text))
         stage("tables")
         files = []
-        tables = {
-            "predictions": prediction_table(ds),
-            "summary": summary_table(ds),
-            "cutoff": cutoff_table(ds),
-            "claims": claims_table(claims),
-        }
+        tables = {"claims": claims_table(claims)}
         if alternatives:
             tables["alternatives"] = alternatives_table(claims, alternatives)
         for key, table in tables.items():
@@ -374,7 +374,7 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
                                              float_format="%.6g")
             files.append(POPULATION_TABLE)
         stage("figures")
-        figure_files, timings["files and figures (in a thread)"] = figures.result()
+        figure_files, timings["files, tables and figures (in a thread)"] = figures.result()
         files += figure_files
         if display_parts is not None:
             files += write_display_outputs(display_parts[0], display_parts[1], tmp)

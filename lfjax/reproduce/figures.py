@@ -13,17 +13,34 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from matplotlib.colors import hsv_to_rgb
-from matplotlib.figure import Figure
 
 from lfjax.vision.claims import aberrated, average
 from lfjax.model.eyes import sample_eyes, thibos_statistics
 from lfjax.kernel.metrics import diffraction_limited_mtf, ncsf
 from lfjax.base.zernike import nm_from_ansi
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+
+def _new_figure(**kwargs) -> Figure:
+    """A matplotlib Figure (imported here: matplotlib's import costs 0.7 s that a command
+    line run pays before any work; the reproduction draws in a thread while it computes)."""
+    from matplotlib.figure import Figure
+
+    return Figure(**kwargs)
+
+
+def _hsv_to_rgb(hsv):
+    from matplotlib.colors import hsv_to_rgb
+
+    return hsv_to_rgb(hsv)
+
 
 FIGURES = {
     "fig03": "fig03_zernike_coefficients.png",
@@ -70,7 +87,7 @@ def fig_zernike(ds) -> Figure:
     # the same draw with its tilts (the optics drops j = 0–2: they only shift the PSF)
     raw = np.asarray(sample_eyes(seed, n_eyes, pupil, zero_piston_tilt=False).zernike_um)
     j = np.arange(1, 14)
-    fig = Figure(figsize=(8.0, 4.2), layout="constrained")
+    fig = _new_figure(figsize=(8.0, 4.2), layout="constrained")
     ax = fig.add_subplot()
     colours = [f"C{i % 10}" for i in range(n_eyes)]
     for i in range(n_eyes):
@@ -102,7 +119,7 @@ def fig_ncsf(ds, examples) -> Figure:
     # one jitted call: eager evaluation would compile every elementwise op separately
     s2d = np.asarray(jax.jit(ncsf, static_argnums=2)(jnp.asarray(fx), jnp.asarray(fy), model))
     top = float(s2d.max())
-    fig = Figure(figsize=(10.0, 4.2), layout="constrained")
+    fig = _new_figure(figsize=(10.0, 4.2), layout="constrained")
     ax1, ax2 = fig.subplots(1, 2, width_ratios=[1, 1.3])
     im = ax1.imshow(np.clip(s2d, top * 1e-3, None), origin="lower",
                     extent=[f[0], f[-1], f[0], f[-1]], cmap="viridis",
@@ -141,7 +158,7 @@ def fig_ncsf(ds, examples) -> Figure:
 def _otf_rgb(modulus, phase):
     hue = np.mod(phase, 2 * np.pi) / (2 * np.pi)  # phase 0: red
     hsv = np.stack([hue, np.ones_like(hue), np.clip(modulus, 0, 1)], axis=-1)
-    return hsv_to_rgb(hsv)
+    return _hsv_to_rgb(hsv)
 
 
 def fig_example(ds, examples) -> Figure:
@@ -154,7 +171,7 @@ def fig_example(ds, examples) -> Figure:
     vs = sub.vsotf.values
     states_rel = examples.fig5_state_rel.values
     n = states_rel.size
-    fig = Figure(figsize=(1.6 * n + 1.0, 6.8))
+    fig = _new_figure(figsize=(1.6 * n + 1.0, 6.8))
     grid = fig.add_gridspec(3, n, height_ratios=[1.3, 1, 1], left=0.1, right=0.99, bottom=0.07,
                             top=0.95, wspace=0.35, hspace=0.45)
     ax = fig.add_subplot(grid[0, :])
@@ -231,7 +248,7 @@ def fig_natural(ds, metric: str = "vsotf") -> Figure:
     """Fig. 6: through-focus VSOTF, natural view, point on the CDP."""
     cdp = float(ds.attrs["cdp_D"])
     di = int(np.argmin(np.abs(ds.depth.values - cdp)))
-    fig = Figure(figsize=(7.0, 4.2), layout="constrained")
+    fig = _new_figure(figsize=(7.0, 4.2), layout="constrained")
     ax = fig.add_subplot()
     _through_focus_panel(ax, ds, "natural", di, metric, show_cdp=False, legend=True)
     window = float(ds.attrs.get("config_window_D", 2.0))
@@ -249,7 +266,7 @@ def _layout_by_depth(ds, panel, ylabel: str, xlabel: str, title: str, row_height
     ``panel(ax, layout, depth_index)``, with one legend and shared axis labels."""
     layouts = [n for n in ("2x2", "3x3", "4x4") if n in ds.layout.values]
     nd = ds.depth.size
-    fig = Figure(figsize=(1.9 * nd + 1.0, row_height * len(layouts) + 1.2))
+    fig = _new_figure(figsize=(1.9 * nd + 1.0, row_height * len(layouts) + 1.2))
     axes = fig.subplots(len(layouts), nd, sharex=True, sharey=sharey, squeeze=False,
                         gridspec_kw=_GRID_SPACING)
     for r, name in enumerate(layouts):
@@ -295,7 +312,7 @@ def fig_vsotf_vs_strehl(ds, examples) -> Figure:
     di = int(np.argmin(np.abs(ds.depth.values - depth)))
     sub = ds.sel(layout="2x2").isel(depth=di)
     acc = ds.accommodation.values
-    fig = Figure(figsize=(11.0, 5.6), layout="constrained")
+    fig = _new_figure(figsize=(11.0, 5.6), layout="constrained")
     grid = fig.add_gridspec(2, 4, width_ratios=[1.6, 1.6, 1, 1])
     states = examples.fig9_state.values
     names = [str(s) for s in examples.fig9_state_name.values]
@@ -371,7 +388,7 @@ def fig_cutoff(ds) -> Figure:
     """Fig. 11: (A) radial MTF, natural view; (B) cut-off frequency vs rendered depth."""
     threshold = float(ds.attrs.get("config_cutoff_threshold", 0.05))
     cdp = float(ds.attrs["cdp_D"])
-    fig = Figure(figsize=(10.0, 4.8), layout="constrained")
+    fig = _new_figure(figsize=(10.0, 4.8), layout="constrained")
     ax1, ax2 = fig.subplots(1, 2)
     if "natural" in ds.layout.values:
         di = int(np.argmin(np.abs(ds.depth.values - cdp)))
