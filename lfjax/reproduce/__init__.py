@@ -392,7 +392,10 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         _move_into_place(tmp, out)
     except BaseException:
         bar.close()
-        figure_pool.shutdown(wait=True, cancel_futures=True)  # it writes into tmp
+        # not waited for (an interrupt must not wait for a figure): its writes into the
+        # removed folder fail in the thread, and a folder it recreates is an orphan the
+        # next run removes
+        figure_pool.shutdown(wait=False, cancel_futures=True)
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     finally:

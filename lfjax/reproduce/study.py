@@ -277,9 +277,11 @@ def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool,
                 done[name] = futures[name].result()
             for name in names:  # the Dataset keeps the configuration's order
                 gather(*done[name])
-        finally:
-            # on an error or an interrupt, the layouts not started are dropped
-            pool.shutdown(wait=True, cancel_futures=True)
+        except BaseException:
+            # an error or an interrupt: drop the layouts not started, wait for none
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
     return {variant: _study_dataset(config, o, eyes, labels, layouts, per_layout[variant])
             for variant, o in variants.items()}
 
