@@ -61,6 +61,11 @@ def add_parser(sub) -> None:
                           "whichever needs fewer) for peaks to 0.01 D and cut-offs to "
                           "0.25 cpd; 'vsotf' uses 10 nm steps (lfjax 0.3's plan, made for a "
                           "VSOTF error of 1e-3). --quick: 30 nm steps")
+    rep.add_argument("--settle-verdicts", action="store_true",
+                     help="with --accuracy claims: compute again at the reference spectrum "
+                          "(--accuracy vsotf's steps) the layouts a verdict turns on when the "
+                          "planned spectrum's error could change it, so that every verdict is "
+                          "the reference's (such verdicts are otherwise marked unsettled)")
     rep.add_argument("--no-alternatives", action="store_true",
                      help="skip the reruns under alternative modelling choices (Stiles-"
                           "Crawford form, accommodation spherical aberration, LCA constant)")
@@ -92,6 +97,8 @@ def run(args) -> int:
             config = config.replace(alternatives=False)
         if args.accuracy is not None:
             config = config.replace(accuracy=args.accuracy)
+        if args.settle_verdicts:
+            config = config.replace(settle_verdicts=True)
         check_reproduce(args.out, config, force=args.force, population_store=args.population,
                         display_effects_eyes=display_eyes)
     except ValueError as err:

@@ -10,6 +10,9 @@ The parts, each importing only those listed before it:
 * :mod:`~lfjax.reproduce.config` — :class:`StudyConfig`, :func:`study_eyes`, the sampling plan;
 * :mod:`~lfjax.reproduce.study` — :func:`run_study` returns every number as one labelled
   :class:`xarray.Dataset`; :func:`compute_examples` the data of Figs. 4, 5 and 9;
+* :mod:`~lfjax.reproduce.settling` — claims whose verdict the planned spectrum's error could
+  change (:func:`mark_unsettled`), and their layouts computed again at the reference
+  spectrum (:func:`settle`, ``StudyConfig.settle_verdicts``);
 * :mod:`~lfjax.reproduce.alternatives` — the modelling choices the paper leaves open
   (``ALTERNATIVES``) and the claims under each (:func:`run_alternatives`);
 * :mod:`~lfjax.reproduce.report` — CSV tables and ``REPORT.md``;
@@ -60,6 +63,7 @@ from lfjax.model.options import ModelOptions
 from lfjax.sweep.store import open_store
 from lfjax.sweep.ten_eyes import check_population_store, ten_eye_claims, ten_eye_markdown, ten_eye_table
 from lfjax.reproduce.alternatives import ALTERNATIVES, run_alternatives
+from lfjax.reproduce.settling import mark_unsettled, settle
 from lfjax.reproduce.config import LF_LAYOUTS, METRICS, StudyConfig, study_eyes
 from lfjax.reproduce.figures import FIGURES, all_figures, save_figures
 from lfjax.reproduce.report import (
@@ -340,8 +344,19 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         stage("eyes")
         study_eyes(config)
         ds = run_study(config, stage=lambda n: stage(f"through-focus {n}"))
+        planned = ds  # the alternatives' spectra and baseline are the plan's
+        claims = None
+        if config.settle_verdicts and config.accuracy != "vsotf":
+            # before the examples and files: they show the settled numbers
+            settled, found = settle({"study": ds}, {"study": config.options}, config.reference(),
+                                    config.dof_fraction,
+                                    stage=lambda text: bar.set_postfix_str(text))
+            ds, claims = settled["study"], found["study"]
         examples = compute_examples(ds, config, stage=stage)
-        claims = evaluate_claims(ds, config.dof_fraction)
+        if claims is None:
+            claims = evaluate_claims(ds, config.dof_fraction)
+            if config.accuracy != "vsotf":
+                claims = mark_unsettled(claims, ds)
         # the Dataset files, the study's tables and the figures read only ds and examples:
         # written in a thread while the alternatives run (their compiled programs release
         # the GIL). The examples stay here: JAX calls from a second thread wait behind the
@@ -349,8 +364,9 @@ def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # 
         figures = figure_pool.submit(in_callers_jax_context(_files_and_figures), ds, examples,
                                      config, tmp)
         alternatives = (run_alternatives(config, stage=stage,
-                                         wavelength_rules=study_wavelength_rules(ds),
-                                         study=ds)
+                                         wavelength_rules=study_wavelength_rules(planned),
+                                         study=planned,
+                                         settle_stage=lambda text: bar.set_postfix_str(text))
                         if config.alternatives else {})
         population = None
         if population_store is not None:
@@ -429,12 +445,14 @@ __all__ = [
     "dof_D",
     "evaluate_claims",
     "layout_through_focus",
+    "mark_unsettled",
     "population_section",
     "prediction_table",
     "reproduce",
     "run_alternatives",
     "run_study",
     "save_figures",
+    "settle",
     "study_eyes",
     "study_sampling",
     "summary_table",

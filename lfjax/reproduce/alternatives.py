@@ -19,6 +19,7 @@ import json
 
 from lfjax.vision.claims import evaluate_claims
 from lfjax.reproduce.config import StudyConfig
+from lfjax.reproduce.settling import mark_unsettled, settle
 from lfjax.reproduce.study import run_study_variants, study_wavelength_rules
 
 ALTERNATIVES: dict[str, dict] = {
@@ -35,7 +36,7 @@ BASELINE = "baseline (reduced)"
 
 
 def run_alternatives(config: StudyConfig, stage=None, wavelength_rules=None,
-                     study=None) -> dict:
+                     study=None, settle_stage=None) -> dict:
     """Claims under each modelling-choice alternative on :meth:`StudyConfig.reduced`.
 
     ``wavelength_rules``: {layout: (rule, value)} to reuse (the main study's plan,
@@ -44,6 +45,11 @@ def run_alternatives(config: StudyConfig, stage=None, wavelength_rules=None,
     (its depths include the reduced depths, with the same eyes, states, options and
     spectra), the baseline is read from it instead of computed again: each (eye, depth)'s
     numbers do not depend on which other depths are evaluated beside it.
+    Each claim records the layouts its verdict turns on within the planned spectrum's
+    error (:attr:`~lfjax.vision.claims.Claim.unsettled`); with
+    ``config.settle_verdicts`` those layouts are computed again at the reference spectrum
+    (:func:`~lfjax.reproduce.settling.settle`; ``settle_stage(name)`` is called as each
+    starts) and the verdicts are the reference's.
     Returns {variant: list[Claim]} with a ``"baseline (reduced)"`` entry first.
     """
     reduced = config.reduced(wavelength_rules)
@@ -58,7 +64,13 @@ def run_alternatives(config: StudyConfig, stage=None, wavelength_rules=None,
     datasets = run_study_variants(reduced, variants, stage=sub_stage)
     if baseline is not None:
         datasets = {BASELINE: baseline} | datasets
-    return {name: evaluate_claims(ds, config.dof_fraction) for name, ds in datasets.items()}
+    claims = {name: evaluate_claims(ds, config.dof_fraction) for name, ds in datasets.items()}
+    if config.settle_verdicts and config.accuracy != "vsotf":
+        options = {BASELINE: config.options} | variants
+        datasets, claims = settle(datasets, options, config.reference().reduced(),
+                                  config.dof_fraction, claims, stage=settle_stage)
+        return claims
+    return {name: mark_unsettled(found, datasets[name]) for name, found in claims.items()}
 
 
 def _baseline_from_study(study, config: StudyConfig, reduced: StudyConfig, wavelength_rules):

@@ -92,6 +92,12 @@ class StudyConfig(DepthGrid):
         the Gauss rule for V(λ) with the fewest nodes that meets the same peak and cut-off
         targets when it needs fewer wavelengths than the planned uniform step
         (:attr:`lfjax.planner.plan.Plan.spectral_rule`); ``"uniform"`` keeps the step.
+    settle_verdicts : bool
+        With ``accuracy="claims"``: compute again at the reference spectrum (``"vsotf"``'s
+        uniform steps) the layouts on which a claim's verdict turns when the planned
+        spectrum's error could change it (:mod:`lfjax.reproduce.settling`), so that every
+        verdict is the one ``--accuracy vsotf`` gives. Off: such verdicts are reported as
+        unsettled, with the layouts they turn on.
     wavelength_rules : ((layout, rule, value), ...)
         Spectra fixed per layout instead of planned: ``("2x2", "uniform", 30.0)`` is a 30 nm
         step over ``wavelengths_nm``' range, ``("3x3", "gauss", 6)`` the 6-node Gauss rule
@@ -131,6 +137,7 @@ class StudyConfig(DepthGrid):
     cutoff_tolerance_cpd: float = 0.25
     spectral_rule: str = "auto"
     wavelength_rules: tuple[tuple[str, str, float], ...] = ()
+    settle_verdicts: bool = False
 
     def __post_init__(self):
         if int(self.n_eyes) != self.n_eyes or self.n_eyes < 1:
@@ -164,6 +171,8 @@ class StudyConfig(DepthGrid):
         if self.spectral_rule not in SPECTRAL_RULES:
             raise ValueError(f"spectral_rule must be one of {SPECTRAL_RULES}, "
                              f"got {self.spectral_rule!r}")
+        if not isinstance(self.settle_verdicts, (bool, np.bool_)):
+            raise ValueError(f"settle_verdicts must be True or False, got {self.settle_verdicts!r}")
         for entry in self.wavelength_rules:
             if not _valid_rule(entry):
                 raise ValueError(
@@ -207,6 +216,13 @@ class StudyConfig(DepthGrid):
                 (name, str(rule), float(value))
                 for name, (rule, value) in dict(wavelength_rules).items())
         return dataclasses.replace(self, **changes)
+
+    def reference(self) -> StudyConfig:
+        """The configuration whose numbers ``accuracy="vsotf"`` computes for this one's
+        set: its fixed wavelength grid and every peak refined (the reference that
+        :mod:`lfjax.reproduce.settling` settles verdicts at). A reduced set's reference is the
+        reduced set of the full configuration's reference: use ``full.reference().reduced()``."""
+        return dataclasses.replace(self, accuracy="vsotf", wavelength_rules=())
 
     def replace(self, **changes) -> StudyConfig:
         return dataclasses.replace(self, **changes)

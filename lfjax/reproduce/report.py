@@ -118,7 +118,21 @@ def claims_table(claims: list[Claim]):
     import pandas as pd
 
     return pd.DataFrame([dict(id=c.id, finding=c.finding, criterion=c.criterion, result=c.result,
-                              verdict=c.verdict) for c in claims])
+                              verdict=c.verdict, **_settling(c)) for c in claims])
+
+
+def _settling(claim: Claim) -> dict:
+    """The table columns saying whether the numbers settle a verdict: the layouts it turns
+    on within the planned spectrum's error (``unsettled_layouts``) and those computed
+    again at the reference spectrum to settle it (``reference_layouts``), space-separated."""
+    return dict(unsettled_layouts=" ".join(claim.unsettled),
+                reference_layouts=" ".join(claim.reference_layouts))
+
+
+def _marked(claim: Claim, text: str) -> str:
+    """``text`` (a verdict) marked † when the planned spectrum leaves it unsettled and ‡
+    when it was settled at the reference spectrum."""
+    return text + ("†" if claim.unsettled else "‡" if claim.reference_layouts else "")
 
 
 def alternatives_table(baseline: list[Claim], alternatives: dict):
@@ -132,7 +146,8 @@ def alternatives_table(baseline: list[Claim], alternatives: dict):
         for c in claims:
             rows.append(dict(variant=variant, claim=c.id, verdict=c.verdict,
                              flips_vs_reduced_baseline=c.verdict != ref.get(c.id),
-                             full_study_verdict=full.get(c.id), result=c.result))
+                             full_study_verdict=full.get(c.id), result=c.result,
+                             **_settling(c)))
     return pd.DataFrame(rows)
 
 
@@ -148,6 +163,26 @@ def _wavelength_step(layout_ds) -> str:
     if "wavelength_step_nm" not in layout_ds:
         return "not recorded"
     return f"{float(layout_ds.wavelength_step_nm):g} ({int(layout_ds.n_wavelengths)} λ)"
+
+
+def _settling_note(claims: list[Claim], alternatives: dict) -> str:
+    """The paragraph under the claims explaining † and ‡ (see :mod:`lfjax.reproduce.settling`)."""
+    where = [("the study", claims)] + [(f"`{v}`", found) for v, found in alternatives.items()]
+    unsettled = [f"claim {c.id} in {name} (turns on {', '.join(c.unsettled)})"
+                 for name, found in where for c in found if c.unsettled]
+    settled = [f"claim {c.id} in {name} ({', '.join(c.reference_layouts)})"
+               for name, found in where for c in found if c.reference_layouts and not c.unsettled]
+    text = ("Each layout's spectrum is planned for the peaks and cut-offs the claims read. A "
+            "verdict whose numbers lie closer to its threshold than that spectrum's error "
+            "(lfjax.vision.claim_margins) is the spectrum's, not the model's.")
+    if unsettled:
+        text += (" † Unsettled: " + "; ".join(unsettled) + ". The reference spectrum "
+                 "(`--accuracy vsotf`) may give the other verdict; `--settle-verdicts` computes "
+                 "the layouts named at the reference spectrum and reports its verdict.")
+    if settled:
+        text += (" ‡ Settled at the reference spectrum (`--settle-verdicts`): "
+                 + "; ".join(settled) + ": those layouts' numbers are the reference's.")
+    return text
 
 
 def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timings: dict,
@@ -192,8 +227,12 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
     add("|---|---|---|---|---|")
     for c in claims:
         add(f"| {c.id} | {_md_escape(c.finding)} | {_md_escape(c.criterion)} | "
-            f"{_md_escape(c.result)} | **{c.verdict}** |")
+            f"{_md_escape(c.result)} | **{_marked(c, c.verdict)}** |")
     add("")
+    everything = list(claims) + [c for found in alternatives.values() for c in found]
+    if any(c.unsettled or c.reference_layouts for c in everything):
+        add(_settling_note(claims, alternatives))
+        add("")
     add("## Modelling choices")
     add("")
     if alternatives:
@@ -215,9 +254,10 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
         for c in claims:
             cells = []
             for v in variants:
-                verdict = next(x.verdict for x in alternatives[v] if x.id == c.id)
-                cells.append(f"**{verdict}**" if verdict != base.get(c.id) else verdict)
-            add(f"| {c.id} | {c.verdict} | " + " | ".join(cells) + " |")
+                other = next(x for x in alternatives[v] if x.id == c.id)
+                verdict = _marked(other, other.verdict)
+                cells.append(f"**{verdict}**" if other.verdict != base.get(c.id) else verdict)
+            add(f"| {c.id} | {_marked(c, c.verdict)} | " + " | ".join(cells) + " |")
         add("")
         flips = [(v, x.id) for v in variants for x in alternatives[v]
                  if x.verdict != base.get(x.id)]

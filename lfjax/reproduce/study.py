@@ -166,7 +166,7 @@ def run_study_variants(
     Each layout's variants run as one batch (:func:`layout_through_focus_variants`: one
     compiled program over their stacked :class:`~lfjax.model.options.ModelParameters`); ``stage``
     is called once per layout and ``workers`` is :func:`run_study`'s. Each Dataset's
-    ``compute_seconds`` is the whole batch's."""
+    ``compute_seconds`` is the whole batch's (with several workers, the sum of its variants' calls)."""
     return _run_studies(config, dict(variants), stage, batched=True, workers=workers)
 
 
@@ -205,18 +205,22 @@ def layout_through_focus_variants(
             _layout_run_variants(eyes, layout, depths_D, config, options)]
 
 
-def _layout_run_variants(eyes, layout, depths_D, config, options):
+def _layout_run_variants(eyes, layout, depths_D, config, options, only=None):
     """:func:`layout_through_focus_variants`, each with the wavelengths (nm) it used: the
     first variant's (the planned spectrum is the baseline's, so every variant is measured
-    on the same wavelengths)."""
+    on the same wavelengths). ``only``: indices of the variants to compute (default all;
+    the spectrum is still the first variant's), so that one layout's variants can be
+    shared among threads."""
     first, wavelengths, weights = planned_sampling(eyes, layout, depths_D, config, options[0])
     rule = _rule_of(config, wavelengths, weights)
     if (config.accuracy == "claims"
             and layout.name not in {entry[0] for entry in config.wavelength_rules}):
         config = config.replace(wavelength_rules=tuple(config.wavelength_rules)
                                 + ((layout.name, *rule),))
-    samplings = [first] + [planned_sampling(eyes, layout, depths_D, config, o)[0]
-                           for o in options[1:]]
+    only = list(range(len(options))) if only is None else list(only)
+    samplings = [first if i == 0 else planned_sampling(eyes, layout, depths_D, config, options[i])[0]
+                 for i in only]
+    options = [options[i] for i in only]
 
     def run(samplings):
         return jax.block_until_ready(through_focus_variants(
@@ -239,12 +243,12 @@ def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool,
     layouts = paper_layouts(config.pupil_diameter_mm)
     depths = config.depths_D
 
-    def one_layout(name):
+    def one_layout(name, only=None):
         t0 = time.perf_counter()
         layout_depths = np.array([config.cdp_D]) if name == "natural" else depths
         if batched:
             results = _layout_run_variants(eyes, layouts[name], layout_depths, config,
-                                           list(variants.values()))
+                                           list(variants.values()), only)
         else:
             results = [_layout_run(eyes, layouts[name], layout_depths, config, None, o)
                        for o in variants.values()]
@@ -269,12 +273,21 @@ def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool,
             # one view, one depth) fill the end rather than one long layout running alone
             order = sorted(names, key=lambda n: -layouts[n].n_subapertures
                            * (1 if n == "natural" else len(depths)))
-            futures = {name: pool.submit(task, name) for name in order}
+            # several variants: one task per (layout, variant), so that a large layout's
+            # variants share the cores instead of one thread computing all of them while
+            # the other waits (the variants of a layout are one compiled program's calls)
+            per_variant = batched and len(variants) > 1
+            parts = {name: ([[i] for i in range(len(variants))] if per_variant else [None])
+                     for name in order}
+            futures = {name: [pool.submit(task, name, only) for only in parts[name]]
+                       for name in order}
             done = {}
             for name in order:
                 if stage is not None:
                     stage(name)
-                done[name] = futures[name].result()
+                results = [f.result() for f in futures[name]]
+                done[name] = ([r for rs, _ in results for r in rs],
+                              sum(seconds for _, seconds in results))
             for name in names:  # the Dataset keeps the configuration's order
                 gather(*done[name])
         except BaseException:
@@ -434,6 +447,54 @@ def study_wavelength_rules(ds) -> dict[str, tuple[str, float]]:
         elif np.isfinite(float(layout_ds.wavelength_step_nm)):
             rules[str(name)] = ("uniform", float(layout_ds.wavelength_step_nm))
     return rules
+
+
+def replace_layouts(ds, other):
+    """``ds`` with the layouts of ``other`` (a study Dataset of the same eyes, depths and
+    states, computed on another spectrum or sampling) put in place of its own: every
+    per-layout variable, the samplings and spectra in the attributes, and
+    ``reference_layouts_json`` (the layouts so replaced). The frequency axis becomes the
+    longer of the two (a layout's MTF is 0 beyond its own frequency grid)."""
+    names = [str(n) for n in other.layout.values]
+    missing = [n for n in names if n not in [str(x) for x in ds.layout.values]]
+    if missing:
+        raise ValueError(f"replace_layouts: {missing} are not layouts of the Dataset")
+    freq = ds.frequency.values if ds.frequency.size >= other.frequency.size else other.frequency.values
+    ds, other = _on_frequency_axis(ds, freq), _on_frequency_axis(other, freq)
+    out = ds.copy()
+    for var in out.data_vars:
+        if "layout" not in out[var].dims:
+            continue
+        values = other[var].sel(layout=names).transpose(*out[var].dims).values
+        if out[var].dtype.kind == "U":  # e.g. spectral_rule: "gauss" cannot hold "uniform"
+            out[var] = out[var].astype(object)
+        data = out[var].values.copy()
+        index = [list(out.layout.values).index(n) for n in names]
+        axis = out[var].dims.index("layout")
+        np.moveaxis(data, axis, 0)[index] = np.moveaxis(values, axis, 0)
+        out[var] = (out[var].dims, data.astype(str) if data.dtype == object else data,
+                    out[var].attrs)
+    for key in ("sampling_json", "wavelengths_json"):
+        merged = json.loads(out.attrs[key])
+        merged.update({n: json.loads(other.attrs[key])[n] for n in names})
+        out.attrs[key] = json.dumps(merged)
+    done = set(json.loads(ds.attrs.get("reference_layouts_json", "[]"))) | set(names)
+    out.attrs["reference_layouts_json"] = json.dumps(
+        [str(n) for n in out.layout.values if str(n) in done])
+    return out
+
+
+def _on_frequency_axis(ds, freq):
+    """``ds`` with its MTFs on the frequency axis ``freq`` (a longer 1 cpd axis from 0):
+    0 beyond each layout's own grid where the layout was computed, NaN where it was not."""
+    if ds.frequency.size == len(freq):
+        return ds
+    computed = np.isfinite(ds.radial_mtf.isel(frequency=0))
+    at_peak = np.isfinite(ds.mtf_at_peak.isel(frequency=0))
+    out = ds.reindex(frequency=freq)
+    out["radial_mtf"] = out.radial_mtf.fillna(0.0).where(computed).astype(np.float32)
+    out["mtf_at_peak"] = out.mtf_at_peak.fillna(0.0).where(at_peak).astype(np.float32)
+    return out
 
 
 def study_sampling(ds, layout: str) -> Sampling:
@@ -611,4 +672,5 @@ __all__ = [
     "run_study_variants",
     "study_sampling",
     "study_wavelength_rules",
+    "replace_layouts",
 ]

@@ -6,14 +6,15 @@ preparation seam every entry point and application shares: checks, states, sampl
 configuration, scene), :mod:`~lfjax.vision.psf` (PSFs and
 OTF stacks), :mod:`~lfjax.vision.images` (retinal images), :mod:`~lfjax.vision.resolution`
 (the perceivable cut-off of a display), :mod:`~lfjax.vision.orientation` (through-focus by
-orientation band) and :mod:`~lfjax.vision.claims` (the paper's
-findings as checkable criteria).
+orientation band), :mod:`~lfjax.vision.claims` (the paper's
+findings as checkable criteria) and :mod:`~lfjax.vision.claim_margins` (which verdicts a
+planned spectrum's error could change).
 """
 
-from lfjax.vision import claims, focus, images, orientation, peaks, prepare, psf, resolution
+from lfjax.vision import claim_margins, claims, focus, images, orientation, peaks, prepare, psf, resolution
 from lfjax.vision.focus import ThroughFocus, metrics_at, through_focus, through_focus_variants
 from lfjax.vision.peaks import Peaks, accommodation_peaks
 
-__all__ = ["claims", "focus", "images", "orientation", "peaks", "prepare", "psf", "resolution",
+__all__ = ["claim_margins", "claims", "focus", "images", "orientation", "peaks", "prepare", "psf", "resolution",
            "ThroughFocus", "metrics_at", "through_focus", "through_focus_variants", "Peaks",
            "accommodation_peaks"]

@@ -40,6 +40,13 @@ class Claim:
     criterion: str
     result: str
     holds: bool | None  # None: could not be evaluated on this data
+    unsettled: tuple[str, ...] = ()
+    """Layouts whose numbers, moved within the planned spectrum's error, could change the
+    verdict (:func:`lfjax.vision.claim_margins.undecided_layouts`); empty when the numbers
+    settle it."""
+    reference_layouts: tuple[str, ...] = ()
+    """Layouts computed again at the reference spectrum to settle the verdict
+    (:mod:`lfjax.reproduce.settling`)."""
 
     @property
     def verdict(self) -> str:
@@ -88,7 +95,7 @@ def dof_D(rel_depths, cutoffs, fraction: float) -> tuple[float, bool]:
     return float(hi - lo), censored
 
 
-def _all_of(verdicts) -> bool | None:
+def all_of(verdicts) -> bool | None:
     """Conjunction of parts that may be undecided (None): False if any part fails, None if
     none fails but one is undecided, else True."""
     verdicts = list(verdicts)
@@ -97,7 +104,7 @@ def _all_of(verdicts) -> bool | None:
     return None if any(v is None for v in verdicts) else True
 
 
-def _compare(a, a_censored, b, b_censored, tol, strict) -> bool | None:
+def compare_bounds(a, a_censored, b, b_censored, tol, strict) -> bool | None:
     """Is the true value behind b >= a (strict: > a)? a and b are lower bounds where
     censored. True when proven (a exact), False when disproven (b exact), else None."""
     if not (math.isfinite(a) and math.isfinite(b)):
@@ -209,7 +216,7 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
             "forbids negative errors there) (negative); max - min over depths <= 0.2 D "
             "(constant). Continuous peaks remove the 0.2 D grid's ±0.1 D alternation between "
             "half-dioptre depths; the grid peaks are shown for reference.",
-            "; ".join(parts), _all_of(verdicts + ([None] if missing else []))))
+            "; ".join(parts), all_of(verdicts + ([None] if missing else []))))
     else:
         claims.append(Claim("2", "VSOTF errors small/negative/constant.", "needs LF layouts",
                             "not evaluated", None))
@@ -249,7 +256,7 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
                 parts.append("no 2x2 depth beyond +-1 D")
         else:
             parts.append("no 2x2 layout")
-        holds = _all_of([agree_ok == agree_cells if agree_cells else None, cdp_ok])
+        holds = all_of([agree_ok == agree_cells if agree_cells else None, cdp_ok])
         claims.append(Claim(
             "3", "Strehl ratio predicts the same accommodation as VSOTF, except for 2x2 "
                  "viewpoints with points rendered more than 1 D from the CDP, where it predicts "
@@ -328,11 +335,11 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
             parts.append(f"{name}: DOF {'>=' if cens else ''}{d:.2f} D (at 0.7/0.9 of best: "
                          f"{others[0]}/{others[1]} D)")
         # a censored DOF is a lower bound: a comparison it would have to win is undecided
-        steps = [_compare(dofs[a], censored[a], dofs[b], censored[b], 1e-9, strict=False)
+        steps = [compare_bounds(dofs[a], censored[a], dofs[b], censored[b], 1e-9, strict=False)
                  for a, b in zip(lf, lf[1:])]
-        steps.append(_compare(dofs[lf[0]], censored[lf[0]], dofs[lf[-1]], censored[lf[-1]],
+        steps.append(compare_bounds(dofs[lf[0]], censored[lf[0]], dofs[lf[-1]], censored[lf[-1]],
                               1e-9, strict=True))
-        holds6 = _all_of(steps)
+        holds6 = all_of(steps)
         claims.append(Claim(
             "6", "Depth of field (rendered-depth range keeping in-focus resolution high) grows "
                  "with viewpoint density.",
@@ -373,6 +380,8 @@ def evaluate_claims(ds, dof_fraction: float | None = None) -> list[Claim]:
 
 __all__ = [
     "Claim",
+    "all_of",
+    "compare_bounds",
     "dof_D",
     "evaluate_claims",
     "aberrated",

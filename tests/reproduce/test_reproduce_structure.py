@@ -1,5 +1,5 @@
 """`lfjax.reproduce` and `lfjax.sweep` import their parts in one direction:
-config ← study ← alternatives/report/figures ← entry, and config ← compute ← … ← report.
+config ← study ← settling ← alternatives/report/figures ← entry, and config ← compute ← … ← report.
 
 Parsed with ``ast`` (nothing is imported or run). The rules for the whole package (layers,
 no circle, no deferred imports) are in ``tests/test_import_layers.py``; these are the finer
@@ -16,6 +16,7 @@ PACKAGE = LFJAX / "reproduce"
 LAYERS = {
     "config": 0,
     "study": 1,
+    "settling": 2,
     "alternatives": 3,
     "report": 3,
     "figures": 3,
