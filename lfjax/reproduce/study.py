@@ -166,7 +166,7 @@ def run_study_variants(
     Each layout's variants run as one batch (:func:`layout_through_focus_variants`: one
     compiled program over their stacked :class:`~lfjax.model.options.ModelParameters`); ``stage``
     is called once per layout and ``workers`` is :func:`run_study`'s. Each Dataset's
-    ``compute_seconds`` is the whole batch's (with several workers, the sum of its variants' calls)."""
+    ``compute_seconds`` is the whole batch's."""
     return _run_studies(config, dict(variants), stage, batched=True, workers=workers)
 
 
@@ -205,22 +205,18 @@ def layout_through_focus_variants(
             _layout_run_variants(eyes, layout, depths_D, config, options)]
 
 
-def _layout_run_variants(eyes, layout, depths_D, config, options, only=None):
+def _layout_run_variants(eyes, layout, depths_D, config, options):
     """:func:`layout_through_focus_variants`, each with the wavelengths (nm) it used: the
     first variant's (the planned spectrum is the baseline's, so every variant is measured
-    on the same wavelengths). ``only``: indices of the variants to compute (default all;
-    the spectrum is still the first variant's), so that one layout's variants can be
-    shared among threads."""
+    on the same wavelengths)."""
     first, wavelengths, weights = planned_sampling(eyes, layout, depths_D, config, options[0])
     rule = _rule_of(config, wavelengths, weights)
     if (config.accuracy == "claims"
             and layout.name not in {entry[0] for entry in config.wavelength_rules}):
         config = config.replace(wavelength_rules=tuple(config.wavelength_rules)
                                 + ((layout.name, *rule),))
-    only = list(range(len(options))) if only is None else list(only)
-    samplings = [first if i == 0 else planned_sampling(eyes, layout, depths_D, config, options[i])[0]
-                 for i in only]
-    options = [options[i] for i in only]
+    samplings = [first] + [planned_sampling(eyes, layout, depths_D, config, o)[0]
+                           for o in options[1:]]
 
     def run(samplings):
         return jax.block_until_ready(through_focus_variants(
@@ -243,12 +239,12 @@ def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool,
     layouts = paper_layouts(config.pupil_diameter_mm)
     depths = config.depths_D
 
-    def one_layout(name, only=None):
+    def one_layout(name):
         t0 = time.perf_counter()
         layout_depths = np.array([config.cdp_D]) if name == "natural" else depths
         if batched:
             results = _layout_run_variants(eyes, layouts[name], layout_depths, config,
-                                           list(variants.values()), only)
+                                           list(variants.values()))
         else:
             results = [_layout_run(eyes, layouts[name], layout_depths, config, None, o)
                        for o in variants.values()]
@@ -273,21 +269,12 @@ def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool,
             # one view, one depth) fill the end rather than one long layout running alone
             order = sorted(names, key=lambda n: -layouts[n].n_subapertures
                            * (1 if n == "natural" else len(depths)))
-            # several variants: one task per (layout, variant), so that a large layout's
-            # variants share the cores instead of one thread computing all of them while
-            # the other waits (the variants of a layout are one compiled program's calls)
-            per_variant = batched and len(variants) > 1
-            parts = {name: ([[i] for i in range(len(variants))] if per_variant else [None])
-                     for name in order}
-            futures = {name: [pool.submit(task, name, only) for only in parts[name]]
-                       for name in order}
+            futures = {name: pool.submit(task, name) for name in order}
             done = {}
             for name in order:
                 if stage is not None:
                     stage(name)
-                results = [f.result() for f in futures[name]]
-                done[name] = ([r for rs, _ in results for r in rs],
-                              sum(seconds for _, seconds in results))
+                done[name] = futures[name].result()
             for name in names:  # the Dataset keeps the configuration's order
                 gather(*done[name])
         except BaseException:

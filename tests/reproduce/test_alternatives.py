@@ -102,19 +102,3 @@ def test_layouts_in_threads_give_the_numbers_of_one_after_another():
         with pytest.raises(ParameterError, match="workers"):
             layout_workers(bad, 2)
 
-
-def test_variants_shared_among_threads_give_the_numbers_of_one_batch(study):
-    """With several workers, one layout's variants run as separate tasks (one per variant,
-    in threads): every number is the one-thread batch's, bit for bit, and each variant's
-    spectrum is still the first variant's."""
-    from lfjax.reproduce.study import run_study_variants
-
-    variants = {"a": CONFIG.options, "b": CONFIG.options.replace(lca_A=633.46),
-                "c": CONFIG.options.replace(sce="intensity")}
-    runs = {n: run_study_variants(CONFIG, variants, workers=n) for n in (1, 2)}
-    for name in variants:
-        assert runs[1][name].attrs["wavelengths_json"] == runs[2][name].attrs["wavelengths_json"]
-        for var in ("vsotf", "strehl", "predicted_accommodation_continuous", "cutoff_frequency"):
-            np.testing.assert_array_equal(runs[1][name][var].values, runs[2][name][var].values)
-    np.testing.assert_array_equal(runs[2]["a"].vsotf.values, study.vsotf.values)
-    assert not np.array_equal(runs[2]["b"].vsotf.values, runs[2]["a"].vsotf.values)
