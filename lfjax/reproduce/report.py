@@ -34,28 +34,30 @@ def prediction_table(ds):
     """Per eye × layout × depth × metric predictions (a pandas DataFrame, all finite)."""
     import pandas as pd
 
+    columns = dict(predicted_accommodation_D="predicted_accommodation",
+                   accommodation_error_D="accommodation_error",
+                   predicted_accommodation_parabolic_D="predicted_accommodation_parabolic",
+                   predicted_accommodation_continuous_D="predicted_accommodation_continuous",
+                   peak_value="peak_value", cutoff_cpd="cutoff_frequency")
+    # NumPy arrays (layout, eye, depth, metric): one xarray selection per cell took a second
+    values = {col: ds[var].transpose("layout", "eye", "depth", "metric").values
+              for col, var in columns.items()}
+    pred = values["predicted_accommodation_D"]
+    metric_index = [list(ds.metric.values).index(m) for m in METRICS]
+    eyes, is_avg = [str(e) for e in ds.eye.values], ds.is_average.values
+    depths, rel = ds.depth.values, ds.depth_rel_cdp.values
     rows = []
-    for layout in ds.layout.values:
-        sub = ds.sel(layout=layout)
+    for li, layout in enumerate(ds.layout.values):
         for di in range(ds.depth.size):
-            if not np.all(np.isfinite(sub.predicted_accommodation.isel(depth=di).values)):
+            if not np.all(np.isfinite(pred[li, :, di])):
                 continue  # natural view: the CDP only
-            for eye in ds.eye.values:
-                for metric in METRICS:
-                    cell = sub.isel(depth=di).sel(eye=eye, metric=metric)
+            for ei, eye in enumerate(eyes):
+                for metric, mi in zip(METRICS, metric_index):
                     rows.append(dict(
-                        eye=str(eye), is_average=bool(cell.is_average), layout=str(layout),
-                        depth_D=float(ds.depth[di]), depth_rel_cdp_D=float(ds.depth_rel_cdp[di]),
+                        eye=eye, is_average=bool(is_avg[ei]), layout=str(layout),
+                        depth_D=float(depths[di]), depth_rel_cdp_D=float(rel[di]),
                         metric=metric,
-                        predicted_accommodation_D=float(cell.predicted_accommodation),
-                        accommodation_error_D=float(cell.accommodation_error),
-                        predicted_accommodation_parabolic_D=float(
-                            cell.predicted_accommodation_parabolic),
-                        predicted_accommodation_continuous_D=float(
-                            cell.predicted_accommodation_continuous),
-                        peak_value=float(cell.peak_value),
-                        cutoff_cpd=float(cell.cutoff_frequency),
-                    ))
+                        **{col: float(v[li, ei, di, mi]) for col, v in values.items()}))
     return pd.DataFrame(rows)
 
 
