@@ -173,6 +173,9 @@ class StudyConfig(DepthGrid):
                              f"got {self.spectral_rule!r}")
         if not isinstance(self.settle_verdicts, (bool, np.bool_)):
             raise ValueError(f"settle_verdicts must be True or False, got {self.settle_verdicts!r}")
+        if self.settle_verdicts and self.accuracy == "vsotf":
+            raise ValueError("settle_verdicts needs accuracy='claims' (--accuracy claims): "
+                             "accuracy='vsotf' is the reference spectrum itself")
         for entry in self.wavelength_rules:
             if not _valid_rule(entry):
                 raise ValueError(
@@ -222,7 +225,7 @@ class StudyConfig(DepthGrid):
         set: its fixed wavelength grid and every peak refined (the reference that
         :mod:`lfjax.reproduce.settling` settles verdicts at). A reduced set's reference is the
         reduced set of the full configuration's reference: use ``full.reference().reduced()``."""
-        return dataclasses.replace(self, accuracy="vsotf", wavelength_rules=())
+        return dataclasses.replace(self, accuracy="vsotf", wavelength_rules=(), settle_verdicts=False)
 
     def replace(self, **changes) -> StudyConfig:
         return dataclasses.replace(self, **changes)

@@ -134,7 +134,9 @@ def test_mark_unsettled_leaves_the_reference_alone(recorder):
 def test_settle_verdicts_is_checked_and_reference_is_the_fixed_grid():
     with pytest.raises(ValueError, match="settle_verdicts"):
         StudyConfig(settle_verdicts="yes")
+    with pytest.raises(ValueError, match="settle_verdicts needs accuracy='claims'"):
+        StudyConfig(settle_verdicts=True, accuracy="vsotf")
     config = StudyConfig(wavelength_rules=(("2x2", "gauss", 5),), settle_verdicts=True)
     ref = config.reference()
-    assert ref.accuracy == "vsotf" and ref.wavelength_rules == ()
+    assert ref.accuracy == "vsotf" and ref.wavelength_rules == () and not ref.settle_verdicts
     assert ref.reduced().wavelengths_nm == (400.0, 700.0, 20.0)  # --accuracy vsotf's reduced set
