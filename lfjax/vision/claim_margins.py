@@ -50,8 +50,6 @@ class Resolution:
         One eye's Strehl ratio: a state within two steps of its Strehl peak whose value is
         within this of the peak's may be the reference's peak (measured: every Strehl peak
         that moved had a gap ≤ 0.016).
-    mean_strehl_peak_D : float, D
-        Mean Strehl grid peak over the eyes (measured ≤ 0.10 D).
     mtf_ratio : float
         Mean MTF over 0–60 cpd of the average eye divided by the aberrated eyes' mean, at
         the VSOTF peaks (measured ≤ 0.0037).
@@ -62,7 +60,6 @@ class Resolution:
     vertex_D: float = 0.02
     mean_peak_D: float = 0.005
     strehl_gap: float = 0.025
-    mean_strehl_peak_D: float = 0.15
     mtf_ratio: float = 0.005
     mean_cutoff_cpd: float = 0.12
 
@@ -257,37 +254,41 @@ def _claim3(s: _Study) -> set[str]:
     return _deciding(possible, verdict)
 
 
-def _claim4(s: _Study) -> set[str]:
-    if s.avg is None:
-        return set()
+def _cells(s: _Study, outcomes) -> list:
+    """(layout, possible outcomes) of every (layout, depth) cell of a claim counted over
+    cells; ``outcomes(li, di)`` gives a cell's set of possible outcomes, or None to skip it."""
     cells = []
     for name in s.layouts:
-        li = s.li(name)
         for di in range(s.rel.size):
-            av = s.vsotf_peaks(li, s.avg, di)
-            ab = [s.vsotf_peaks(li, e, di) for e in s.eyes]
-            if not av or any(not o for o in ab):
-                continue
-            m_lo, m_hi = _mean_range(ab)
-            d_min = max(0.0, min(av) - m_hi, m_lo - max(av))
-            d_max = max(abs(max(av) - m_lo), abs(m_hi - min(av)))
-            cells.append((name, {d_min <= 0.2 + 1e-9, d_max <= 0.2 + 1e-9}))
-    return _counted(cells, 0.9)
+            found = outcomes(s.li(name), di)
+            if found is not None:
+                cells.append((name, found))
+    return cells
+
+
+def _claim4(s: _Study) -> set[str]:
+    def within(li, di):  # |average eye's peak - mean of the eyes' peaks| <= 0.2 D
+        av = s.vsotf_peaks(li, s.avg, di)
+        ab = [s.vsotf_peaks(li, e, di) for e in s.eyes]
+        if not av or any(not o for o in ab):
+            return None
+        m_lo, m_hi = _mean_range(ab)
+        d_min = max(0.0, min(av) - m_hi, m_lo - max(av))
+        d_max = max(abs(max(av) - m_lo), abs(m_hi - min(av)))
+        return {d_min <= 0.2 + 1e-9, d_max <= 0.2 + 1e-9}
+
+    return set() if s.avg is None else _counted(_cells(s, within), 0.9)
 
 
 def _claim5(s: _Study) -> set[str]:
-    if s.avg is None:
-        return set()
-    cells = []
-    for name in s.layouts:
-        li = s.li(name)
-        for di in range(s.rel.size):
-            a = s.area[li, s.avg, di]
-            if not np.isfinite(a):
-                continue
-            ratio = a / float(np.mean(s.area[li, s.eyes, di]))
-            cells.append((name, {ratio - s.r.mtf_ratio > 1.0, ratio + s.r.mtf_ratio > 1.0}))
-    return _counted(cells, 0.9)
+    def better(li, di):  # the average eye's mean MTF above the eyes' mean
+        a = s.area[li, s.avg, di]
+        if not np.isfinite(a):
+            return None
+        ratio = a / float(np.mean(s.area[li, s.eyes, di]))
+        return {ratio - s.r.mtf_ratio > 1.0, ratio + s.r.mtf_ratio > 1.0}
+
+    return set() if s.avg is None else _counted(_cells(s, better), 0.9)
 
 
 def _mean_cutoffs(s: _Study, name: str) -> np.ndarray:
