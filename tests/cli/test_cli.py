@@ -175,7 +175,8 @@ def test_quick_run_report_states_every_claim(quick_run):
 def test_help_explains_every_option_with_units(capsys):
     code, out, _ = run_main(capsys, "reproduce", "--help")
     assert code == 0
-    for option in ("--out", "--eyes", "--seed", "--quick", "--force", "--accuracy"):
+    for option in ("--out", "--eyes", "--seed", "--quick", "--force", "--accuracy",
+                   "--settle-verdicts"):
         assert option in out
     for unit in (" D", "cpd", "nm", "mm"):
         assert unit in out
@@ -187,6 +188,8 @@ def test_help_explains_every_option_with_units(capsys):
     (["reproduce", "--eyes", "many"], "--eyes"),
     (["reproduce", "--seed", "-1"], "--seed"),
     (["reproduce", "--accuracy", "fast"], "--accuracy"),
+    (["reproduce", "--quick", "--settle-verdicts"], "settle_verdicts needs accuracy='claims'"),
+    (["reproduce", "--accuracy", "vsotf", "--settle-verdicts"], "--accuracy claims"),
     (["reproduce", "--bogus"], "unrecognized arguments"),
     (["frobnicate"], "invalid choice"),
 ])
@@ -198,6 +201,22 @@ def test_bad_arguments_one_line_exit_2(capsys, tmp_path, args, message):
     lines = stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "error" in lines[0]
     assert not out.exists()
+
+
+def test_settle_verdicts_reaches_the_configuration(capsys, tmp_path, monkeypatch):
+    import lfjax.cli.reproduce as cli_reproduce
+
+    seen = []
+
+    def capture(out, config, **kwargs):
+        seen.append(config)
+        raise KeyboardInterrupt  # stop before any work; the guard reports it
+
+    monkeypatch.setattr(cli_reproduce, "reproduce", capture)
+    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    for flags, want in (([], False), (["--settle-verdicts"], True)):
+        run_main(capsys, "reproduce", *flags, "--out", str(tmp_path / f"o{len(seen)}"))
+        assert seen[-1].settle_verdicts is want and seen[-1].accuracy == "claims"
 
 
 def test_non_empty_out_without_force_is_refused(capsys, tmp_path):
