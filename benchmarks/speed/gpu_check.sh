@@ -51,7 +51,8 @@
 # The steps' own outputs go to a temporary folder, removed at the end unless --keep (the
 # reproduce REPORT.md files and the fitted layout.json are copied into the record).
 #
-# PYTHON names the interpreter (default: python, else python3). Exit status 0 when every
+# PYTHON names the interpreter (default: python, else python3); LFJAX_COMMIT the commit
+# where the tree is a copy without its git folder. Exit status 0 when every
 # step ran and exited 0, 1 otherwise (one timed out, failed or had no time left), 2 on a
 # usage error (nothing is written then).
 set -u
@@ -153,7 +154,8 @@ RESERVE=$((GRACE + 5))
 MIN_STEP=2   # a step with less time than this is not started (recorded as not run)
 STEPS_LEFT=4
 
-COMMIT=$(git -C "$REPO" rev-parse HEAD 2>/dev/null || echo unknown)
+# LFJAX_COMMIT names the commit where the tree is a copy without git (a device machine's)
+COMMIT=$(git -C "$REPO" rev-parse HEAD 2>/dev/null || echo "${LFJAX_COMMIT:-unknown}")
 DIRTY=false
 [ -n "$(git -C "$REPO" status --porcelain --untracked-files=no 2>/dev/null)" ] && DIRTY=true
 STAMP=$(date +%Y-%m-%d-%H%M%S)
