@@ -161,10 +161,17 @@ def _md_escape(text: str) -> str:
 
 
 def _wavelength_step(layout_ds) -> str:
-    """A layout's wavelength step (nm) and count, or "not recorded"."""
-    if "wavelength_step_nm" not in layout_ds:
+    """A layout's spectral rule in words: "uniform, 20 nm steps (16 λ)", "V(λ)-weighted
+    Gauss rule (8 λ)", or "not recorded"."""
+    rule = str(layout_ds.spectral_rule.values) if "spectral_rule" in layout_ds else "uniform"
+    count = int(layout_ds.n_wavelengths) if "n_wavelengths" in layout_ds else None
+    nodes = f" ({count} λ)" if count is not None else ""
+    if rule == "gauss":  # a Gauss rule has no step: its nodes are not evenly spaced
+        return f"V(λ)-weighted Gauss rule{nodes}"
+    if "wavelength_step_nm" not in layout_ds or not np.isfinite(
+            float(layout_ds.wavelength_step_nm)):
         return "not recorded"
-    return f"{float(layout_ds.wavelength_step_nm):g} ({int(layout_ds.n_wavelengths)} λ)"
+    return f"uniform, {float(layout_ds.wavelength_step_nm):g} nm steps{nodes}"
 
 
 def _settling_note(claims: list[Claim], alternatives: dict) -> str:
@@ -316,7 +323,7 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
     add("## Settings")
     add("")
     add("| layout | subapertures | frequency step (cpd) | PSF field (arcmin) | FFT size | "
-        "PSF transform | wavelength step (nm) | time (s) |")
+        "PSF transform | wavelengths | time (s) |")
     add("|---|---|---|---|---|---|---|---|")
     # a Dataset assembled elsewhere (the sweep's study view) may record no sampling per layout
     samplings = json.loads(ds.attrs.get("sampling_json", "{}"))

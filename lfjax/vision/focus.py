@@ -380,11 +380,15 @@ def through_focus_variants(
         first = prepared[members[0]]
         parameters = stack_parameters([options[i].parameters() for i in members])
         rho_tables = np.stack([sce_rho_table(wl, options[i]) for i in members])
-        metrics, peaks = _metrics_and_peaks_variants(
-            eyes, first.scene, wl, weights, rho_tables, parameters, first.states.states_D,
-            first.states.index, jnp.asarray(pupil_diameter_mm, float), config,
-            first.states.allowed, continuous_peaks,
-            peak_method, refine_second_peaks, batch, float(peak_tolerance_D),
+        # exported once and reloaded by later processes, like through_focus's program: on
+        # an accelerator (batch "vmap") tracing it cost seconds per layout in every process
+        metrics, peaks = call_cached(
+            _metrics_and_peaks_variants_exportable, eyes, first.scene, wl, weights,
+            rho_tables, parameters, first.states.states_D, first.states.index,
+            jnp.asarray(pupil_diameter_mm, float), first.states.allowed, config=config,
+            peak_metrics=continuous_peaks, peak_method=peak_method,
+            refine_second=refine_second_peaks, batch=batch,
+            tolerance_D=float(peak_tolerance_D),
         )
         # sliced on the host: an eager x[k] per leaf and variant compiles a program each
         metrics, peaks = jax.device_get((metrics, peaks))
@@ -415,6 +419,19 @@ def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables
     if batch == "map":
         return jax.lax.map(lambda xs: one(*xs), (parameters, rho_tables))
     return jax.vmap(one)(parameters, rho_tables)
+
+
+def _metrics_and_peaks_variants_exportable(eyes, scene, wavelengths_nm, weights, rho_tables,
+                                           parameters, states_D, pair_index,
+                                           pupil_diameter_mm, allowed, *, config,
+                                           peak_metrics, peak_method, refine_second, batch,
+                                           tolerance_D):
+    """:func:`_metrics_and_peaks_variants` with its arrays first and its static choices by
+    keyword (:func:`lfjax.base.programs.call_cached`'s form)."""
+    return _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables,
+                                       parameters, states_D, pair_index, pupil_diameter_mm,
+                                       config, allowed, peak_metrics, peak_method,
+                                       refine_second, batch, tolerance_D)
 
 
 @eqx.filter_jit

@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import inspect
 import os
+import re
 import subprocess
 from pathlib import Path
 
@@ -167,6 +168,11 @@ def test_quick_run_report_states_every_claim(quick_run):
         assert f"\n| {i} | " in text
     assert "--quick" in text and "Modelling choices" in text
     assert "| 4x4 | 16 |" in text and "MFT (48 pupil samples)" in text
+    # every layout's spectrum in words (a Gauss rule has no step: it once printed "nan")
+    assert not re.search(r"\bnan\b", text, re.IGNORECASE), "a NaN reached REPORT.md"
+    settings = text.split("## Settings", 1)[1].split("\n\n", 2)[1]
+    rows = [r for r in settings.splitlines() if r.startswith("| ") and "layout" not in r]
+    assert len(rows) == 4 and all(("Gauss rule (" in r or "nm steps (" in r) for r in rows), rows
 
 
 # ------------------------------------------------------------------ bad input

@@ -207,3 +207,45 @@ def test_batched_variants_equal_the_variants_one_by_one(batch):
     with pytest.raises(ValueError, match="ModelOptions.vsotf_reference must agree"):
         through_focus_variants(eyes, layout, [2.0], [ModelOptions(),
                                ModelOptions(vsotf_reference="open_pupil")], **kw)
+
+
+@pytest.mark.parametrize("batch", ["vmap", "map"])
+def test_batched_variants_program_is_exported_and_reloaded(tmp_path, batch):
+    """The batched variants' program goes through the program cache like through_focus's: a
+    later process (here: the loaded programs forgotten) calls the exported form, without
+    tracing it again, and gets the same numbers (on an accelerator, where the variants are
+    vmapped, tracing it cost seconds per layout in every ``lfjax reproduce``)."""
+    from lfjax.base import programs
+    from lfjax.vision import focus
+
+    eyes = lfjax.sample_eyes(1, 1)
+    layout = lfjax.grid_layout(2, 3.0)
+    options = [ModelOptions(), ModelOptions(sce="intensity", lca_A=633.46)]
+    kw = dict(accommodation_D=[1.6, 2.0, 2.4], pupil_diameter_mm=3.0, cdp_D=2.0,
+              wavelengths_nm=[500.0, 600.0], samplings=[lfjax.Sampling(1.5)] * 2, batch=batch,
+              continuous_peaks=("vsotf",), peak_method="vertex")
+    kept = programs.program_cache_folder()
+    folder = programs.enable_program_cache(tmp_path / "programs")
+    programs.clear_loaded()
+    traced = []
+    original = focus._metrics_and_peaks_variants
+
+    def counting(*args, **kwargs):
+        traced.append(1)
+        return original(*args, **kwargs)
+
+    try:
+        focus._metrics_and_peaks_variants = counting
+        first = through_focus_variants(eyes, layout, [2.0, 2.4], options, **kw)
+        assert len(list(folder.glob("*.jaxexport"))) == 1 and traced == [1]
+        programs.clear_loaded()  # a new process
+        again = through_focus_variants(eyes, layout, [2.0, 2.4], options, **kw)
+        assert traced == [1]  # loaded from the file, not traced
+    finally:
+        focus._metrics_and_peaks_variants = original
+        programs.enable_program_cache(kept)
+        programs.clear_loaded()
+    for a, b in zip(first, again):
+        np.testing.assert_array_equal(np.asarray(a.vsotf), np.asarray(b.vsotf))
+        np.testing.assert_array_equal(np.asarray(a.continuous_accommodation_D()),
+                                      np.asarray(b.continuous_accommodation_D()))
