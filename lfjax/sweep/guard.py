@@ -91,6 +91,12 @@ class TaskSize:
     n_refined: int = 0  # states the continuous peaks add per eye (all depths)
 
 
+ACCELERATOR_CHUNK = 256
+"""Eyes per chunk measured on one GPU (an H200, benchmarks/RESULTS.md §34): 10,000 eyes of the
+paper's scene in 110 s; 1,024 per chunk took the same. The plan suggests it on an
+accelerator when ``run.chunk_size`` is smaller."""
+
+
 @dataclass
 class SweepEstimate:
     """Sizes of a sweep (bytes, seconds); ``tasks`` empty until the sampling is planned."""
@@ -110,6 +116,7 @@ class SweepEstimate:
     n_devices: int = 1
     complex_bytes: int = 16
     display_effects: tuple = ()  # display_effects(config): the display keys set
+    platform: str = "cpu"  # jax's backend: the time model is calibrated on the CPU only
 
     @property
     def device_chunk_bytes(self) -> float:
@@ -148,15 +155,25 @@ class SweepEstimate:
                          + (f" + {t.n_refined} peak states" if t.n_refined else ""))
         if not self.tasks:
             lines.append("sampling    planned when the sweep starts")
+        if self.platform == "cpu":
+            time_line = (f"time        ~{_duration(self.seconds)} estimated on {self.n_devices} "
+                         f"device(s) (calibrated on 2 CPU cores)")
+        else:  # no model of an accelerator: a CPU figure there misleads by orders of magnitude
+            time_line = (f"time        not modelled on {self.platform} (~{_duration(self.seconds)} "
+                         f"at 2 CPU cores' speed; one H200 ran 10,000 eyes of the paper's scene "
+                         f"in 110 s, benchmarks/RESULTS.md §34)")
         lines += [
-            f"time        ~{_duration(self.seconds)} estimated on {self.n_devices} device(s) "
-            f"(calibrated on 2 CPU cores)",
+            time_line,
             f"host memory ~{_bytes(self.host_setup_bytes + self.host_chunk_bytes)} "
             f"(setup {_bytes(self.host_setup_bytes)}, one chunk {_bytes(self.host_chunk_bytes)})",
             f"device mem  ~{_bytes(self.device_chunk_bytes)} per device for one chunk",
             f"store       ≤ {_bytes(self.store_bytes)} uncompressed"
             + (f" at {store}" if store is not None else ""),
         ]
+        if self.platform != "cpu" and self.chunk_size < ACCELERATOR_CHUNK:
+            lines.append(f"note        run.chunk_size {self.chunk_size}: one call per chunk; on "
+                         f"{self.platform} a chunk of a few hundred eyes keeps the device busy "
+                         f"({ACCELERATOR_CHUNK} took 110 s for 10,000 eyes on one H200)")
         return "\n".join(lines)
 
 
@@ -179,9 +196,12 @@ def _eye_bytes(config: SweepConfig, n_acc: float) -> float:
     ) + N_MODES * 8
 
 
-def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstimate:
+def estimate(config: SweepConfig, tasks=None, n_devices: int = 1,
+             platform: str | None = None) -> SweepEstimate:
     """Sizes of ``config``'s sweep; with its planned ``tasks`` (:func:`build_tasks`) also the
-    device memory and time. Computes nothing large (grids are counted, not built)."""
+    device memory and time. Computes nothing large (grids are counted, not built).
+    ``platform``: the devices' (default ``jax.default_backend()``); the time is modelled for
+    the CPU only, and the plan says so elsewhere."""
     n_acc = _count(0.0, config.accommodation_max_D, config.accommodation_step_D)
     if config.display_spectrum is None and not config.wavelength_step_planned:
         n_wl = _count(*config.wavelengths_nm)
@@ -224,7 +244,8 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1) -> SweepEstima
         n_wavelengths=int(min(n_wl, 2**62)), store_bytes=float(store),
         host_setup_bytes=float(setup), host_chunk_bytes=float(chunk), tasks=sizes,
         n_devices=int(n_devices), complex_bytes=complex_bytes,
-        display_effects=display_effects(config))
+        display_effects=display_effects(config),
+        platform=jax.default_backend() if platform is None else str(platform))
 
 
 DISPLAY_UNITS = {"D": "D", "mm": "mm", "um": "µm", "arcmin": "arcmin"}
@@ -339,6 +360,7 @@ def check_fits(est: SweepEstimate, store=None, host_bytes: float | None = None,
 
 
 __all__ = [
+    "ACCELERATOR_CHUNK",
     "display_effects",
     "SweepEstimate",
     "SweepTooLargeError",

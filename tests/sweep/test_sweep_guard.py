@@ -356,3 +356,21 @@ def test_transform_units_count_a_strips_narrow_window():
     assert narrow == pytest.approx(square * 64 / 256)
     both = transform_units(((0, 3, 256), (3, 5, 200, 80)))
     assert both == pytest.approx(square + 2 * 200 * 80 * math.log2(200))
+
+
+def test_the_plan_says_its_time_model_is_the_cpus():
+    """The time model is calibrated on 2 CPU cores: on an accelerator the plan says it is
+    not modelled (the CPU figure was 3.8 h where one H200 took 110 s, RESULTS §34) and
+    suggests a larger chunk when run.chunk_size is small."""
+    from lfjax.sweep.guard import ACCELERATOR_CHUNK
+
+    config = config_from_dict(one_eye())
+    cpu = estimate(config, platform="cpu").summary()
+    assert "(calibrated on 2 CPU cores)" in cpu and "not modelled" not in cpu
+    assert "note        run.chunk_size" not in cpu
+    gpu = estimate(config, platform="gpu").summary()
+    assert "time        not modelled on gpu" in gpu and "calibrated on 2 CPU" not in gpu
+    assert "note        run.chunk_size 1: one call per chunk" in gpu
+    big = config_from_dict(one_eye(run={"chunk_size": ACCELERATOR_CHUNK}))
+    assert "note        run.chunk_size" not in estimate(big, platform="gpu").summary()
+    assert estimate(config).platform == "cpu"  # this suite runs on the CPU backend
