@@ -3,7 +3,12 @@
 #
 # Install (a fresh machine with one NVIDIA GPU; nothing else is needed):
 #
-#   pip install -e '.[cuda]'        # lfjax with jax[cuda12] (pyproject.toml's `cuda` extra)
+#   pip install -e '.[cuda]'        # lfjax with jax[cuda12] (pyproject.toml's `cuda` extra;
+#                                   # `.[cuda13]` for CUDA 13, driver 580 or newer)
+#
+# A machine with no package index (as benchmarks/results/34-gpu-check-h200.md's was): put the
+# checkout and wheels of the packages its image lacks on PYTHONPATH instead; the steps run
+# lfjax.cli.main in-process, so no console script is needed.
 #
 # Run, from anywhere:
 #
