@@ -2,8 +2,26 @@
 outputs with it without importing the package's face (``lfjax/__init__.py``)."""
 
 from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+
+def _source_version() -> str:
+    """The version in ``pyproject.toml`` beside the package, for a checkout used without
+    installing it (on ``PYTHONPATH``, as on a machine with no package index); outputs are
+    then stamped with the checkout's version rather than a placeholder."""
+    import tomllib
+
+    try:
+        with open(Path(__file__).resolve().parents[1] / "pyproject.toml", "rb") as f:
+            project = tomllib.load(f).get("project", {})
+    except (OSError, ValueError):
+        return "0.0.0+unknown"
+    if project.get("name") != "lfjax" or "version" not in project:
+        return "0.0.0+unknown"
+    return f"{project['version']}+source"
+
 
 try:
     __version__ = version("lfjax")
-except PackageNotFoundError:  # pragma: no cover
-    __version__ = "0.0.0"
+except PackageNotFoundError:  # a checkout on PYTHONPATH (tests/base/test_version.py)
+    __version__ = _source_version()

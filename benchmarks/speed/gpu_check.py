@@ -79,6 +79,15 @@ def cmd_device(out: Path) -> int:
         lfjax_version = importlib.metadata.version("lfjax")
     except importlib.metadata.PackageNotFoundError:
         lfjax_version = "not installed"
+        if spec is not None:  # a checkout on PYTHONPATH: its pyproject.toml's version
+            version_file = Path(spec.origin).parent / "_version.py"
+            module = importlib.util.spec_from_file_location("_lfjax_version", version_file)
+            try:
+                loaded = importlib.util.module_from_spec(module)
+                module.loader.exec_module(loaded)
+                lfjax_version = f"{loaded._source_version()} (not installed)"
+            except Exception:  # noqa: BLE001 - a record, not a step: keep "not installed"
+                pass
 
     devices = [{"id": d.id, "platform": d.platform, "kind": getattr(d, "device_kind", ""),
                 "repr": str(d), "memory_stats": _device_memory(d)} for d in jax.devices()]

@@ -157,6 +157,10 @@ DEADLINE=$((START + LIMIT))
 if [ "$LIMIT" -ge 240 ]; then GRACE=15; else GRACE=3; fi
 RESERVE=$((GRACE + 5))
 MIN_STEP=2   # a step with less time than this is not started (recorded as not run)
+# STEP_OVERHEAD: what a step costs beyond its budget besides the kill's grace (the step's
+# record, written by a Python process, and the shell's bookkeeping): on busy cores it took
+# the last step's MIN_STEP away, and the step was not run
+STEP_OVERHEAD=2
 STEPS_LEFT=4
 
 # LFJAX_COMMIT names the commit where the tree is a copy without git (a device machine's)
@@ -232,9 +236,10 @@ run_step() {  # NAME CAP [KEY JSON]... -- LFJAX-ARGS...
     shift
     local cmd="lfjax $*"
     cmd=${cmd//"$WORK"/\$WORK}
-    # keep MIN_STEP (and a kill's grace) for each later step, so every step gets its turn
+    # keep MIN_STEP (and a kill's grace and a step's overhead) for each later step, so every
+    # step gets its turn
     STEPS_LEFT=$((STEPS_LEFT - 1))
-    budget=$(( $(left) - STEPS_LEFT * (MIN_STEP + GRACE) ))
+    budget=$(( $(left) - STEPS_LEFT * (MIN_STEP + GRACE + STEP_OVERHEAD) ))
     [ "$cap" -lt "$budget" ] && budget=$cap
     echo
     echo "== [$(clock)] $name: $cmd"
