@@ -1,6 +1,7 @@
 """The installed package's version, in a module of its own so that any layer can stamp its
 outputs with it without importing the package's face (``lfjax/__init__.py``)."""
 
+import tomllib
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
@@ -9,8 +10,6 @@ def _source_version() -> str:
     """The version in ``pyproject.toml`` beside the package, for a checkout used without
     installing it (on ``PYTHONPATH``, as on a machine with no package index); outputs are
     then stamped with the checkout's version rather than a placeholder."""
-    import tomllib
-
     try:
         with open(Path(__file__).resolve().parents[1] / "pyproject.toml", "rb") as f:
             project = tomllib.load(f).get("project", {})
