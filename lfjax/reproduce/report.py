@@ -160,7 +160,7 @@ def _md_escape(text: str) -> str:
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
-def _wavelength_step(layout_ds) -> str:
+def _spectral_rule_text(layout_ds) -> str:
     """A layout's spectral rule in words: "uniform, 20 nm steps (16 λ)", "V(λ)-weighted
     Gauss rule (8 λ)", or "not recorded"."""
     rule = str(layout_ds.spectral_rule.values) if "spectral_rule" in layout_ds else "uniform"
@@ -335,7 +335,7 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
                      else f"MFT ({sampling.get('mft_pupil_samples')} pupil samples)")
         add(f"| {name} | {int(s.n_subapertures)} | {float(s.freq_step_cpd):g} | "
             f"{60.0 / float(s.freq_step_cpd):.1f} | {int(s.n_fft)} | {transform} | "
-            f"{_wavelength_step(s)} | {float(s.compute_seconds):.1f} |")
+            f"{_spectral_rule_text(s)} | {float(s.compute_seconds):.1f} |")
     add("")
     add("Model options (`lfjax.ModelOptions`):")
     add("")

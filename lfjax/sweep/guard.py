@@ -92,9 +92,12 @@ class TaskSize:
 
 
 ACCELERATOR_CHUNK = 256
-"""Eyes per chunk measured on one GPU (an H200, benchmarks/RESULTS.md §34): 10,000 eyes of the
-paper's scene in 110 s; 1,024 per chunk took the same. The plan suggests it on an
-accelerator when ``run.chunk_size`` is smaller."""
+"""Eyes per chunk measured on one GPU (:data:`ACCELERATOR_MEASURED`; 1,024 per chunk took the
+same). The plan suggests it on an accelerator when ``run.chunk_size`` is smaller."""
+
+ACCELERATOR_MEASURED = ("one H200 ran 10,000 eyes of the paper's scene in 110 s in chunks of "
+                        f"{ACCELERATOR_CHUNK} (benchmarks/RESULTS.md §34)")
+"""What the plan says in place of a time on an accelerator: the time model is the CPU's."""
 
 
 @dataclass
@@ -160,8 +163,7 @@ class SweepEstimate:
                          f"device(s) (calibrated on 2 CPU cores)")
         else:  # no model of an accelerator: a CPU figure there misleads by orders of magnitude
             time_line = (f"time        not modelled on {self.platform} (~{_duration(self.seconds)} "
-                         f"at 2 CPU cores' speed; one H200 ran 10,000 eyes of the paper's scene "
-                         f"in 110 s, benchmarks/RESULTS.md §34)")
+                         f"at 2 CPU cores' speed; {ACCELERATOR_MEASURED})")
         lines += [
             time_line,
             f"host memory ~{_bytes(self.host_setup_bytes + self.host_chunk_bytes)} "
@@ -173,7 +175,7 @@ class SweepEstimate:
         if self.platform != "cpu" and self.chunk_size < ACCELERATOR_CHUNK:
             lines.append(f"note        run.chunk_size {self.chunk_size}: one call per chunk; on "
                          f"{self.platform} a chunk of a few hundred eyes keeps the device busy "
-                         f"({ACCELERATOR_CHUNK} took 110 s for 10,000 eyes on one H200)")
+                         f"(run.chunk_size = {ACCELERATOR_CHUNK} is what was measured)")
         return "\n".join(lines)
 
 
@@ -361,6 +363,7 @@ def check_fits(est: SweepEstimate, store=None, host_bytes: float | None = None,
 
 __all__ = [
     "ACCELERATOR_CHUNK",
+    "ACCELERATOR_MEASURED",
     "display_effects",
     "SweepEstimate",
     "SweepTooLargeError",

@@ -179,3 +179,19 @@ def test_resolution_refuses_a_negative_or_infinite_value():
         Resolution(mtf_ratio=-0.1)
     with pytest.raises(ValueError, match="vertex_D"):
         Resolution(vertex_D=float("inf"))
+
+
+@pytest.mark.parametrize("slope", [5.19, 4.8])
+def test_claim6_beyond_the_corner_limit_searches_a_subset(monkeypatch, slope):
+    """Beyond MAX_CORNER_DEPTHS depths claim 6 tries only the box's two uniform corners (of
+    2^n): what it flags is then a subset of what the full search flags, and a baseline far
+    from the threshold stays settled."""
+    from lfjax.vision import claim_margins
+
+    s = Study()
+    s.cutoff[s.li("3x3"), :, :, :] = (26.0 - slope * np.abs(REL))[None, :, None]
+    full = undecided_layouts(s.dataset()).get("6", ())
+    monkeypatch.setattr(claim_margins, "MAX_CORNER_DEPTHS", REL.size - 1)
+    capped = undecided_layouts(s.dataset()).get("6", ())
+    assert set(capped) <= set(full)
+    assert undecided_layouts(Study().dataset()) == {}
