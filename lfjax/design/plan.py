@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import jax
 
-from lfjax.kernel.pipeline import transform_units
+from lfjax.kernel.pipeline import held_elemental_planes, transform_units
 from lfjax.sweep.guard import SECONDS_PER_UNIT, host_memory_bytes
 from lfjax.base.units import format_bytes as _bytes
 from lfjax.base.units import format_duration as _duration
@@ -77,7 +77,9 @@ def evaluation_size(problem, n_views: int, states: int | None = None) -> tuple[f
     """(cost units, bytes) of one forward evaluation of one eye of ``problem`` (a
     :class:`~lfjax.layout_opt.LayoutProblem`) with ``n_views`` views on ``states``
     accommodation states (default its peak grid's): every state transforms every view at
-    every wavelength of each band; every (depth, state) pair renders every view."""
+    every wavelength of each band; every (depth, state) pair renders every view. The bytes
+    count the elemental OTFs the pipeline holds at once (:func:`lfjax.kernel.pipeline.held_elemental_planes`:
+    one view's when a large stack streams its views)."""
     config = problem.config
     grid = problem.peak_grid
     n_states = int(grid.states_D.shape[0]) if states is None else int(states)
@@ -86,7 +88,8 @@ def evaluation_size(problem, n_views: int, states: int | None = None) -> tuple[f
     n_fft = config.n_fft
     plane = n_fft * (n_fft // 2 + 1) * (16 if jax.config.jax_enable_x64 else 8)
     units = n_states * per_state + n_views * n_depth * n_k * n_fft * (n_fft // 2 + 1)
-    arrays = plane * (n_states * n_views + 2 * n_depth * n_k)
+    held = held_elemental_planes(n_states, n_views, n_depth * n_k, n_fft, config.sampling)
+    arrays = plane * (held + 2 * n_depth * n_k)
     return float(units), float(arrays)
 
 

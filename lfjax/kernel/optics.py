@@ -221,7 +221,7 @@ def _embed_half_plane(otf_half, n_fft: int):
 
 
 def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
-                   accommodation: Accommodation, bands, sampling: Sampling):
+                   accommodation: Accommodation, bands, sampling: Sampling, view_energy=None):
     """Spectrally weighted elemental OTFs of one eye (stages 1–5 of
     docs/design.md#the-model-stage-by-stage).
 
@@ -236,16 +236,22 @@ def elemental_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum:
     transmits (OTF(0) = ∫|P|² dA in mm²) or, with ``spectrum.unit_sum`` = 1, that energy
     divided by the energy all subapertures transmit at λ (each wavelength's PSF summed over
     the views then has unit volume, as ISETBio normalises; the views keep their ratios).
+
+    ``view_energy``: per band, the energy (mm²) all views of the whole layout transmit at
+    each of its wavelengths (:func:`view_energy_totals`), for a ``scene`` that holds only
+    some of the layout's views (:func:`lfjax.kernel.pipeline.rendered_otfs` streams them one
+    at a time); None: ``scene``'s views are the whole layout.
     """
     n_fft = max(b[2] for b in bands)
     if scene.display is not None:  # the views' common astigmatism (lfjax.display.lenticular)
         zernike_um = scene.display.beam_wavefront_um(zernike_um, measured_pupil_mm)
     total = None
-    for band in bands:
+    for i, band in enumerate(bands):
         start, stop, band_fft = band[:3]
         part = _elemental_otfs_band(zernike_um, measured_pupil_mm, scene, spectrum.band(start, stop),
                                     accommodation, band_fft, sampling,
-                                    band[3] if len(band) > 3 else None)
+                                    band[3] if len(band) > 3 else None,
+                                    None if view_energy is None else view_energy[i])
         part = _embed_half_plane(part, n_fft)
         total = part if total is None else total + part
     return total
@@ -279,7 +285,7 @@ def state_chunk(n_states: int, n_views: int, n_fft: int,
 
 def _elemental_otfs_band(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
                          accommodation: Accommodation, n_fft: int, sampling: Sampling,
-                         n_fft_x: int | None = None):
+                         n_fft_x: int | None = None, energy_total=None):
     """One band of :func:`elemental_otfs`, the states in chunks of :func:`state_chunk`
     (``lax.map``) when they do not fit the kernel's working memory together."""
     states_D = accommodation.states_D
@@ -288,7 +294,7 @@ def _elemental_otfs_band(zernike_um, measured_pupil_mm: float, scene: Scene, spe
 
     def states_band(states):
         return _elemental_otfs_states(zernike_um, measured_pupil_mm, scene, spectrum, accommodation,
-                                      states, n_fft, sampling, n_fft_x)
+                                      states, n_fft, sampling, n_fft_x, energy_total)
 
     if chunk >= n_states:
         return states_band(states_D)
@@ -299,9 +305,46 @@ def _elemental_otfs_band(zernike_um, measured_pupil_mm: float, scene: Scene, spe
     return otf.reshape((n_chunks * chunk,) + otf.shape[2:])[:n_states]
 
 
+def _window_x(n_fft: int, n_fft_x: int | None, n_pupil: int, sampling: Sampling) -> tuple[int, int]:
+    """(FFT columns, pupil columns) of a band's window: a strip band's narrower ones along
+    x (FFT transform only), else the square window's."""
+    n_fft_x = n_fft if (n_fft_x is None or sampling.transform == "mft") else int(n_fft_x)
+    return n_fft_x, (n_pupil if n_fft_x == n_fft else pupil_window_size(n_fft_x, sampling))
+
+
+def view_energy_totals(scene: Scene, spectrum: Spectrum, bands, sampling: Sampling) -> tuple:
+    """Per band of ``bands``, the energy (mm², (n_wavelengths_in_band,)) all of ``scene``'s
+    views transmit at each wavelength, summed over the views on the FFT path's pupil grids:
+    what ``spectrum.unit_sum`` divides each wavelength's weight by in :func:`elemental_otfs`,
+    computed once for a layout whose views are then transformed one at a time."""
+    if sampling.transform != "fft":
+        raise ValueError("view_energy_totals follows the FFT path's pupil grids; the MFT's "
+                         "grid spans the largest view, so its views cannot be taken one at a time")
+    real = jnp.result_type(float)
+    df_rad = sampling.freq_step_cpd * DEGREES_PER_RADIAN
+    totals = []
+    for band in bands:
+        start, stop, band_fft = band[:3]
+        n_pupil = pupil_window_size(band_fft, sampling)
+        _, n_pupil_x = _window_x(band_fft, band[3] if len(band) > 3 else None, n_pupil, sampling)
+        part = spectrum.band(start, stop)
+
+        def one_wavelength(xs, n_pupil=n_pupil, n_pupil_x=n_pupil_x):
+            wl_nm, rho = xs
+            wl_mm = wl_nm * 1e-6
+            dx = (wl_mm * df_rad).astype(real)
+            energy = jax.vmap(lambda c, d: _pupil_parts(
+                scene.pupil_diameter_mm, c, d, dx, rho, n_pupil, sampling.edge_width_samples,
+                wl_mm, scene.display, n_pupil_x)[1])(scene.centres_mm, scene.diameters_mm)
+            return jnp.sum(energy)
+
+        totals.append(jax.lax.map(one_wavelength, (part.wavelengths_nm, part.sce_rho_per_mm2)))
+    return tuple(totals)
+
+
 def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
                            accommodation: Accommodation, accommodation_D, n_fft: int,
-                           sampling: Sampling, n_fft_x: int | None = None):
+                           sampling: Sampling, n_fft_x: int | None = None, energy_total=None):
     """One band of :func:`elemental_otfs` for the accommodation states ``accommodation_D``
     (n_states,) D: every wavelength's PSFs lie on the same angular grid (the pupil step is
     λ·Δf), so the band's weighted PSFs are summed first and transformed once (the transform
@@ -332,13 +375,12 @@ def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, s
         local = (jnp.arange(n_pupil, dtype=real) - n_pupil // 2) * dx_mft
     else:
         n_pupil = pupil_window_size(n_fft, sampling)
-    n_fft_x = n_fft if (n_fft_x is None or use_mft) else int(n_fft_x)
-    n_pupil_x = n_pupil if n_fft_x == n_fft else pupil_window_size(n_fft_x, sampling)
+    n_fft_x, n_pupil_x = _window_x(n_fft, n_fft_x, n_pupil, sampling)
     c40 = (accommodation.sa_c40_um_per_D * accommodation_D).astype(real)
 
     def one_wavelength(carry, xs):
         psf_total, energy_total = carry
-        wl_nm, weight, lca_D, rho = xs
+        wl_nm, weight, lca_D, rho, views_energy = xs
         wl_mm = wl_nm * 1e-6
         dx = dx_mft if use_mft else (wl_mm * df_rad).astype(real)
         parts = jax.vmap(
@@ -350,7 +392,9 @@ def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, s
         amp, energy = parts  # (n_sub, n_pupil, n_pupil_x) and (n_sub,)
         # ModelOptions.wavelength_normalisation as data: unit_sum = 1 divides by the energy
         # all views transmit at this wavelength, 0 leaves the weight as it is
-        weight = weight * jnp.power(jnp.sum(energy), -spectrum.unit_sum)
+        if views_energy is None:
+            views_energy = jnp.sum(energy)
+        weight = weight * jnp.power(views_energy, -spectrum.unit_sum)
         c20 = dioptres_to_c20_um(accommodation_D - cdp_D + lca_D, pupil_diameter_mm)
         offsets = (jnp.arange(n_pupil, dtype=real) - n_pupil // 2) * dx
         offsets_x = offsets if n_pupil_x == n_pupil else (jnp.arange(n_pupil_x, dtype=real) - n_pupil_x // 2) * dx
@@ -388,7 +432,8 @@ def _elemental_otfs_states(zernike_um, measured_pupil_mm: float, scene: Scene, s
 
     n_acc, n_sub = accommodation_D.shape[0], centres_mm.shape[0]
     init = (jnp.zeros((n_acc, n_sub, n_fft, n_fft_x), real), jnp.zeros((n_sub,), real))
-    xs = (spectrum.wavelengths_nm, spectrum.weights, spectrum.lca_D, spectrum.sce_rho_per_mm2)
+    xs = (spectrum.wavelengths_nm, spectrum.weights, spectrum.lca_D, spectrum.sce_rho_per_mm2,
+          energy_total)
     # Reverse mode keeps each wavelength's pupil spectrum and recomputes the cheap pupil
     # fields instead of stacking every intermediate over the scan (jax.checkpoint): 1.6x
     # faster than stacking, 1.13x faster than recomputing the transform too; the forward
@@ -536,6 +581,7 @@ def psf_from_otf(otf_half, n_fft: int, freq_step_cpd: float):
 
 __all__ = [
     "elemental_otfs",
+    "view_energy_totals",
     "pupil_window_size",
     "full_plane",
     "psf_from_otf",

@@ -40,7 +40,7 @@ from jaxtyping import Array, Float
 from lfjax.display.lenslets import DisplayOptics, pixel_transfer
 from lfjax.model.eyes import Eyes
 from lfjax.kernel.metrics import ncsf_half_plane, psf_peak, radial_mtf, vsotf_numerator
-from lfjax.kernel.optics import elemental_otfs
+from lfjax.kernel.optics import elemental_otfs, view_energy_totals
 from lfjax.model.options import ModelOptions
 from lfjax.base.sampling import Sampling, frequencies_cpd, half_frequencies_cpd, wavelength_bands
 from lfjax.kernel.scene import Accommodation, Scene
@@ -212,6 +212,98 @@ def eye_coefficients(eyes: Eyes, config: PipelineConfig):
     return z.at[..., :3].set(0.0) if config.zero_piston_tilt else z
 
 
+ELEMENTAL_STACK_BYTES = 512 * 2**20
+"""Largest stack of one eye's elemental OTFs (n_states × n_views half planes) the pipeline
+holds at once. Above it :func:`rendered_otfs` transforms the views one at a time and adds
+each into the rendered OTFs as it comes (the same transforms, in a different order), so that
+a scene with many views, states and a large window (the phone panel's 4×4 design: 2.1 GB of
+elemental OTFs per eye) needs one view's states, not the product. Below it (every paper
+study and default sweep) the whole stack is transformed together, which batches better."""
+
+
+def streams_views(n_states: int, n_views: int, n_fft: int, sampling: Sampling,
+                  stack_bytes: int | None = None) -> bool:
+    """Whether :func:`rendered_otfs` takes the views one at a time: more than one view, the
+    FFT transform (the MFT's pupil grid spans the largest view, so it needs all of them),
+    and an elemental stack (complex half planes) above ``stack_bytes`` (default
+    :data:`ELEMENTAL_STACK_BYTES`)."""
+    budget = ELEMENTAL_STACK_BYTES if stack_bytes is None else int(stack_bytes)
+    complex_bytes = 16 if jax.config.jax_enable_x64 else 8
+    stack = n_states * n_views * n_fft * (n_fft // 2 + 1) * complex_bytes
+    return n_views > 1 and sampling.transform == "fft" and stack > budget
+
+
+def held_elemental_planes(n_states: int, n_views: int, n_pairs: int, n_fft: int,
+                          sampling: Sampling) -> int:
+    """Half planes of one eye's elemental OTFs the pipeline holds at once (for memory
+    estimates): the whole stack (n_states × n_views), or, streamed (:func:`streams_views`),
+    one view's states and its contribution to the ``n_pairs`` rendered pairs."""
+    if streams_views(n_states, n_views, n_fft, sampling):
+        return n_states + n_pairs
+    return n_states * n_views
+
+
+def rendered_otfs(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Spectrum,
+                  accommodation: Accommodation, bands, sampling: Sampling, stack_bytes: int | None = None):
+    """One eye's rendered OTFs of every (depth, k) pair, (n_depth, n_k, L, L//2+1) half planes,
+    OTF(0) = 1 (stages 1–7): :func:`elemental_otfs` then :func:`render`, or, when the
+    elemental stack would exceed ``stack_bytes`` (:func:`streams_views`), one view at a time,
+    each view's states transformed and added into the pairs before the next view's. The two
+    orders compute the same sums; the streamed one's reverse pass recomputes each view's
+    transforms (``jax.checkpoint``) instead of keeping them."""
+    n_fft, df = max(b[2] for b in bands), sampling.freq_step_cpd
+    n_states, n_views = accommodation.states_D.shape[0], scene.centres_mm.shape[0]
+    if not streams_views(n_states, n_views, n_fft, sampling, stack_bytes):
+        elemental = elemental_otfs(zernike_um, measured_pupil_mm, scene, spectrum, accommodation,
+                                   bands, sampling)
+        return render(elemental, scene, accommodation.pair_index, n_fft, df)
+    view_energy = view_energy_totals(scene, spectrum, bands, sampling)
+    fy_rad, fx_rad, ramp_y, ramp_x = _view_ramps(scene, n_fft, df)
+    mixing = None if scene.display is None else scene.display.view_mixing
+    ramps = None if mixing is None else ramp_y[..., :, None] * ramp_x[..., None, :]
+    pair_index = accommodation.pair_index
+
+    @jax.checkpoint
+    def view_contribution(view):
+        centre, diameter, ry, rx, k_n = view
+        one = Scene(centre[None], diameter[None], scene.cdp_D, scene.depths_D,
+                    scene.pupil_diameter_mm, scene.display)
+        elemental_n = elemental_otfs(zernike_um, measured_pupil_mm, one, spectrum, accommodation,
+                                     bands, sampling, view_energy)[:, 0]  # (n_states, L, Lx)
+        if k_n is None:
+            ramp = ry[:, None, :, None] * rx[:, None, None, :]
+        else:
+            ramp = jnp.sum(k_n.astype(ramps.real.dtype)[None, :, None, None] * ramps, axis=1)[:, None]
+        return ramp * elemental_n[pair_index], jnp.real(elemental_n[:, 0, 0])
+
+    def add_view(carry, view):
+        total, energy = carry
+        otf, energy_n = view_contribution(view)
+        return (total + otf, energy + energy_n), None
+
+    real = jnp.result_type(float)
+    complex_dtype = jnp.result_type(real, jnp.complex64)
+    init = (jnp.zeros(pair_index.shape + (n_fft, n_fft // 2 + 1), complex_dtype),
+            jnp.zeros((n_states,), real))
+    views = (scene.centres_mm, scene.diameters_mm, jnp.moveaxis(ramp_y, 1, 0),
+             jnp.moveaxis(ramp_x, 1, 0), mixing)
+    (otf, energy), _ = jax.lax.scan(add_view, init, views)
+    if scene.display is not None:
+        otf = otf * pixel_transfer(fx_rad, fy_rad, scene.display)
+    return otf / energy[pair_index][..., None, None]
+
+
+def _view_ramps(scene: Scene, n_fft: int, freq_step_cpd: float):
+    """Frequencies (rad⁻¹: fy (L,), fx (L//2+1,)) and each view's displacement ramps
+    exp(−2πi f·Δθ_n) along y (n_depth, n_sub, L) and x (n_depth, n_sub, L//2+1)."""
+    fy_rad = frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
+    fx_rad = half_frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
+    shift_rad = (scene.depths_D - scene.cdp_D)[:, None, None] * scene.centres_mm[None] * 1e-3
+    ramp_x = jnp.exp(-2j * jnp.pi * shift_rad[..., 0:1] * fx_rad)  # (n_depth, n_sub, Lx)
+    ramp_y = jnp.exp(-2j * jnp.pi * shift_rad[..., 1:2] * fy_rad)  # (n_depth, n_sub, L)
+    return fy_rad, fx_rad, ramp_y, ramp_x
+
+
 def render(elemental, scene: Scene, pair_index, n_fft: int, freq_step_cpd: float):
     """Rendered polychromatic OTFs of every (depth, k) pair, (n_depth, n_k, L, L//2+1), OTF(0) = 1.
 
@@ -220,11 +312,7 @@ def render(elemental, scene: Scene, pair_index, n_fft: int, freq_step_cpd: float
     OTFs of state ``pair_index[d, k]`` (stages 6–7). Finite pixels (``scene.display``)
     blur every view alike: the sum is multiplied by the emitter's transfer function.
     """
-    fy_rad = frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
-    fx_rad = half_frequencies_cpd(n_fft, freq_step_cpd) * DEGREES_PER_RADIAN
-    shift_rad = (scene.depths_D - scene.cdp_D)[:, None, None] * scene.centres_mm[None] * 1e-3
-    ramp_x = jnp.exp(-2j * jnp.pi * shift_rad[..., 0:1] * fx_rad)  # (n_depth, n_sub, Lx)
-    ramp_y = jnp.exp(-2j * jnp.pi * shift_rad[..., 1:2] * fy_rad)  # (n_depth, n_sub, L)
+    fy_rad, fx_rad, ramp_y, ramp_x = _view_ramps(scene, n_fft, freq_step_cpd)
 
     def add_view(total, view):
         elemental_n, ry, rx = view  # (n_states, L, Lx), (n_depth, L), (n_depth, Lx)
@@ -311,9 +399,8 @@ def otf_stack(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation: Accom
         eyes, scene, accommodation = checked_inputs(eyes, scene, accommodation)
 
     def one_eye(zernike_um):
-        elemental = elemental_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum,
-                                   accommodation, config.bands, config.sampling)
-        return render(elemental, scene, accommodation.pair_index, config.n_fft, config.freq_step_cpd)
+        return rendered_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum, accommodation,
+                             config.bands, config.sampling)
 
     return jax.lax.map(one_eye, eye_coefficients(eyes, config), batch_size=config.eye_chunk)
 
@@ -348,9 +435,8 @@ def retinal_metrics(eyes: Eyes, scene: Scene, spectrum: Spectrum, accommodation:
     weighted_ncsf = ncsf_half_plane(n_fft, df, config.ncsf)
 
     def one_eye(zernike_um):
-        elemental = elemental_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum,
-                                   accommodation, config.bands, config.sampling)
-        otf = render(elemental, scene, accommodation.pair_index, n_fft, df)
+        otf = rendered_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum, accommodation,
+                            config.bands, config.sampling)
         return RetinalMetrics(
             vsotf=vsotf_numerator(otf, weighted_ncsf) / reference_vsotf,
             strehl=psf_peak(otf, n_fft, df) / reference_peak,
@@ -371,9 +457,8 @@ def pair_metric(zernike_um, measured_pupil_mm: float, scene: Scene, spectrum: Sp
     and tilt already dropped); ``reference`` from :func:`reference_normalisers`.
     """
     n_fft, df = config.n_fft, config.freq_step_cpd
-    elemental = elemental_otfs(zernike_um, measured_pupil_mm, scene, spectrum, accommodation,
-                               config.bands, config.sampling)
-    otf = render(elemental, scene, accommodation.pair_index, n_fft, df)
+    otf = rendered_otfs(zernike_um, measured_pupil_mm, scene, spectrum, accommodation,
+                        config.bands, config.sampling)
     if metric == "vsotf":
         return vsotf_numerator(otf, ncsf_half_plane(n_fft, df, config.ncsf)) / reference[0]
     return psf_peak(otf, n_fft, df) / reference[1]
@@ -395,6 +480,10 @@ __all__ = [
     "PipelineConfig",
     "RetinalMetrics",
     "retinal_metrics",
+    "rendered_otfs",
+    "streams_views",
+    "held_elemental_planes",
+    "ELEMENTAL_STACK_BYTES",
     "pair_metric",
     "vsotf_and_strehl",
     "otf_stack",

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import jax
 
-from lfjax.kernel.pipeline import transform_units
+from lfjax.kernel.pipeline import held_elemental_planes, transform_units
 from lfjax.vision.peaks import METRICS, STATE_COST, TYPICAL_REFINED_FRACTION, resolved_method
 from lfjax.base.grids import grid_size
 from lfjax.base.sampling import EYE_BLOCK
@@ -228,7 +228,7 @@ def estimate(config: SweepConfig, tasks=None, n_devices: int = 1,
         n_sub = int(task.layout.n_subapertures)
         n_depth = len(task.depth_slots)
         plane = n_fft * (n_fft // 2 + 1) * complex_bytes
-        elemental = n_states * n_sub * plane
+        elemental = held_elemental_planes(n_states, n_sub, n_depth * n_k, n_fft, pc.sampling) * plane
         rendered = n_depth * n_k * plane
         device = DEVICE_ALLOWANCE * (elemental + 2 * rendered)
         per_state = n_sub * transform_units(pc.bands)  # a strip's narrow window counted

@@ -24,8 +24,7 @@ import numpy as np
 from lfjax.display.lenslets import DisplayOptics
 from lfjax.display.lenticular import check_display_for_layout
 from lfjax.kernel.metrics import cutoff_frequency, half_plane_frequencies, ncsf_half_plane, vsotf_numerator
-from lfjax.kernel.optics import elemental_otfs
-from lfjax.kernel.pipeline import eye_coefficients, reference_otf, render
+from lfjax.kernel.pipeline import eye_coefficients, reference_otf, rendered_otfs
 from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout
 from lfjax.model.options import ModelOptions
@@ -113,9 +112,8 @@ def _band_metrics(eyes, scene, spectrum, accommodation, config):
     n_half = n_fft // 2 + 1
 
     def one_eye(zernike_um):
-        elemental = elemental_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum,
-                                   accommodation, config.bands, config.sampling)
-        otf = render(elemental, scene, accommodation.pair_index, n_fft, df)
+        otf = rendered_otfs(zernike_um, eyes.measured_pupil_mm, scene, spectrum, accommodation,
+                            config.bands, config.sampling)
         num = jnp.stack([vsotf_numerator(otf, w) for w in weights])
         return num / den[:, None, None], jnp.abs(otf[..., 0, :n_half]), jnp.abs(otf[..., :n_half, 0])
 
