@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import jax
 
-from lfjax.kernel.pipeline import held_elemental_planes, transform_units
+from lfjax.kernel.pipeline import held_elemental_planes, streams_views, transform_units
 from lfjax.sweep.guard import SECONDS_PER_UNIT, host_memory_bytes
 from lfjax.base.units import format_bytes as _bytes
 from lfjax.base.units import format_duration as _duration
@@ -58,6 +58,15 @@ reverse) over the same arrays of one eye: the phone preset's 3x3 fit, one eye pe
 peaked at 3.93 GB with 0.46 GB of them (RESULTS §21; all at once it kept 2.1 GB per
 training eye, §15)."""
 
+STREAMED_FORWARD_ALLOWANCE = 1.5
+""":data:`FORWARD_ALLOWANCE` where the views stream (:func:`lfjax.kernel.pipeline.streams_views`):
+the phone preset's 4x4 report of one eye peaked at 2.79 GiB, 1.2 times its arrays over the
+process's base (RESULTS §36; 3.0 when the same evaluation held the whole stack)."""
+
+STREAMED_REVERSE_ALLOWANCE = 3.0
+""":data:`REVERSE_ALLOWANCE` where the views stream: the phone preset's 4x4 fit gradient of
+one eye peaked at 2.08 GiB, 2.45 times its arrays over the base (RESULTS §36)."""
+
 SCREEN_MARGIN = 0.25
 """With ``report_counts="chosen"`` (:func:`lfjax.design.fit_design`), a count is reported
 beside the first count to pass when its training loss (the fit's last, on the fit's setting)
@@ -73,8 +82,8 @@ BASE_BYTES = 0.8e9
 compiled programs and the host arrays (measured 0.5–0.8 GB)."""
 
 
-def evaluation_size(problem, n_views: int, states: int | None = None) -> tuple[float, float]:
-    """(cost units, bytes) of one forward evaluation of one eye of ``problem`` (a
+def evaluation_size(problem, n_views: int, states: int | None = None) -> tuple[float, float, bool]:
+    """(cost units, bytes, whether the views stream) of one forward evaluation of one eye of ``problem`` (a
     :class:`~lfjax.layout_opt.LayoutProblem`) with ``n_views`` views on ``states``
     accommodation states (default its peak grid's): every state transforms every view at
     every wavelength of each band; every (depth, state) pair renders every view. The bytes
@@ -90,7 +99,7 @@ def evaluation_size(problem, n_views: int, states: int | None = None) -> tuple[f
     units = n_states * per_state + n_views * n_depth * n_k * n_fft * (n_fft // 2 + 1)
     held = held_elemental_planes(n_states, n_views, n_depth * n_k, n_fft, config.sampling)
     arrays = plane * (held + 2 * n_depth * n_k)
-    return float(units), float(arrays)
+    return float(units), float(arrays), streams_views(n_states, n_views, n_fft, config.sampling)
 
 
 @dataclass
@@ -205,11 +214,13 @@ def count_plan(n_per_side: int, fit_problem, report_problem, train_eyes: int, re
     (:func:`lfjax.design.fit.design_problem`, :func:`lfjax.design.fit.report_problem`);
     ``report_refined_states``: the states a refined peak adds per (eye, depth)."""
     views = n_per_side * n_per_side
-    fit_units, fit_arrays = evaluation_size(fit_problem, views)
+    fit_units, fit_arrays, fit_streams = evaluation_size(fit_problem, views)
     n_peak_depths = int(report_problem.peak_grid.pair_index.shape[0])
     grid = report_problem.values_grid if report_problem.values_grid is not None else report_problem.peak_grid
     report_states = int(grid.states_D.shape[0]) + n_peak_depths * int(report_refined_states)
-    report_units, report_arrays = evaluation_size(report_problem, views, report_states)
+    report_units, report_arrays, report_streams = evaluation_size(report_problem, views, report_states)
+    reverse = STREAMED_REVERSE_ALLOWANCE if fit_streams else REVERSE_ALLOWANCE
+    forward = STREAMED_FORWARD_ALLOWANCE if report_streams else FORWARD_ALLOWANCE
     evaluations = 1 + EVALUATIONS_PER_STEP * steps if steps > 0 else 0
     typical = 1 + EVALUATIONS_PER_STEP * min(steps, TYPICAL_STEPS) if steps > 0 else 0
     per_evaluation = GRADIENT_COST * fit_units * train_eyes * SECONDS_PER_UNIT
@@ -224,8 +235,8 @@ def count_plan(n_per_side: int, fit_problem, report_problem, train_eyes: int, re
         fit_seconds=0.0 if steps == 0 else evaluations * per_evaluation + COMPILE_SECONDS,
         fit_seconds_typical=0.0 if steps == 0 else typical * per_evaluation + COMPILE_SECONDS,
         report_seconds=2 * REPORT_PASSES * report_units * report_eyes * SECONDS_PER_UNIT,
-        fit_bytes=0.0 if steps == 0 else REVERSE_ALLOWANCE * fit_arrays * eye_chunk,
-        report_bytes=FORWARD_ALLOWANCE * report_arrays)
+        fit_bytes=0.0 if steps == 0 else reverse * fit_arrays * eye_chunk,
+        report_bytes=forward * report_arrays)
 
 
 __all__ = ["SCREEN_MARGIN", "TYPICAL_STEPS", "CountPlan", "DesignPlan", "count_plan", "evaluation_size"]
