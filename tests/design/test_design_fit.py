@@ -547,3 +547,32 @@ def test_a_lens_form_puts_the_lenslets_aberration_into_the_design_loss():
         DesignConstraints(lens_form="meniscus")
     with pytest.raises(ParameterError, match=r"refractive_index must be finite and in \(1, 4\]"):
         DesignConstraints(refractive_index=0.9)
+
+
+@pytest.mark.parametrize("flat_step, most_steps", [(None, 1), (2.2e-9, 10)])
+def test_the_fit_stops_on_a_step_the_float32_loss_cannot_resolve(monkeypatch, flat_step, most_steps):
+    """On a plateau whose wiggles are below the float32 loss's resolution (a loss of 100
+    moving by 4e-5, with a gradient above ``tol``) the fit stops after the first step that
+    lowers the loss by less than FLAT_STEP of it; SciPy's default ftol (2.2e-9) would walk
+    the wiggles for every allowed step, each with its line search."""
+    import jax.numpy as jnp
+
+    from lfjax.design import fit
+
+    if flat_step is not None:
+        monkeypatch.setattr(fit, "FLAT_STEP", flat_step)
+    calls = []
+
+    def plateau(x, *args):
+        calls.append(1)
+        value = 100.0 + 2e-5 * jnp.cos(40.0 * x[0]) + 2e-5 * jnp.cos(37.0 * x[1])
+        grad = jnp.stack([-8e-4 * jnp.sin(40.0 * x[0]), -7.4e-4 * jnp.sin(37.0 * x[1])])
+        return value, grad
+
+    monkeypatch.setattr(fit, "_chunked_value_and_grad", plateau)
+    _, history = fit._solve(jnp.asarray([0.31, 0.62]), None, None, 2, None, 10, 1e-4, 1)
+    assert 2 <= len(history) <= most_steps + 1
+    if flat_step is None:  # FLAT_STEP stops at once: one step, then the flat test
+        assert len(history) == 2
+    else:
+        assert len(history) > 3
