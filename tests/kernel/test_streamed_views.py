@@ -86,7 +86,7 @@ def test_views_one_at_a_time_render_what_all_views_together_do(display_name, nor
 
 
 def test_streamed_gradients_match_and_one_view_or_the_mft_never_streams():
-    """The reverse pass through the streamed views (each view's transforms recomputed, not
+    """Under jax.vmap the streamed views give each eye's OTFs; the reverse pass through the streamed views (each view's transforms recomputed, not
     kept) gives the gradient of the whole stack, for the eye and for the views' geometry."""
     z, scene, spectrum, acc, cfg = _inputs("diffraction", "unit_sum")
     shape = (3, 2, cfg.n_fft, cfg.n_fft // 2 + 1)
@@ -103,6 +103,12 @@ def test_streamed_gradients_match_and_one_view_or_the_mft_never_streams():
         a, b = np.asarray(a), np.asarray(b)
         assert np.all(np.isfinite(b)) and np.max(np.abs(a)) > 0
         np.testing.assert_allclose(b, a, rtol=2e-4, atol=2e-4 * np.max(np.abs(a)))
+    # vmapped from outside over eyes: each eye's streamed OTFs, as one at a time
+    eyes = jnp.stack([z, 0.5 * z])
+    batched = jax.vmap(lambda c: _otfs(0, c, scene, spectrum, acc, cfg))(eyes)
+    for i in range(2):
+        np.testing.assert_allclose(np.asarray(batched[i]), np.asarray(_otfs(2**40, eyes[i], scene, spectrum, acc, cfg)),
+                                   atol=2e-6)
     assert not streams_views(10, 1, 4096, SAMPLING, 0)
     assert not streams_views(10, 9, 4096, lfjax.Sampling(2.5, transform="mft"), 0)
     assert ELEMENTAL_STACK_BYTES >= 64 * 2**20
