@@ -62,7 +62,7 @@ from lfjax.vision.focus import ThroughFocus as ThroughFocus
 from lfjax.vision.focus import metrics_at as metrics_at
 from lfjax.vision.focus import through_focus as through_focus
 from lfjax.vision.focus import through_focus_variants as through_focus_variants
-from lfjax.vision.peaks import PeakOptions as PeakOptions
+from lfjax.vision.peak_options import PeakOptions as PeakOptions
 from lfjax.vision.peaks import Peaks as Peaks
 from lfjax.vision.peaks import accommodation_peaks as accommodation_peaks
 from lfjax.vision.prepare import States as States

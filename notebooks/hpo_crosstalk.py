@@ -64,8 +64,9 @@ cases = {
     f"1x{N} lenticular phone": (strips, strip_display(strips, y_defocus_D=phone.y_defocus_D)),
     f"{N}x{N}": (lfjax.grid_layout(N, 3.0), None),
 }
-results = {name: orientation_through_focus(EYES, layout, DEPTHS, ACC, spectrum=SPECTRUM,
-                                           sampling=SAMPLING, display=optics)
+results = {name: orientation_through_focus(EYES, layout, lfjax.States.grid(ACC, DEPTHS),
+                                           lfjax.Viewing(display=optics), spectrum=SPECTRUM,
+                                           sampling=SAMPLING)
            for name, (layout, optics) in cases.items()}
 rows = ["| display | band | " + " | ".join(f"depth {d:g} D" for d in DEPTHS) + " |",
         "|---|---|" + "---|" * len(DEPTHS)]
@@ -98,8 +99,9 @@ plt.show()
 
 # %%
 for w in (0.0, 0.5, 1.0):
-    r = orientation_through_focus(EYES, strips, DEPTHS, ACC, spectrum=SPECTRUM, sampling=SAMPLING,
-                                  display=strip_display(strips, leakage_weight=w))
+    r = orientation_through_focus(EYES, strips, lfjax.States.grid(ACC, DEPTHS),
+                                  lfjax.Viewing(display=strip_display(strips, leakage_weight=w)),
+                                  spectrum=SPECTRUM, sampling=SAMPLING)
     peaks = ", ".join(f"{v:.2f}" for v in r.peak_D("x").mean(0))
     cutoffs = ", ".join(f"{v:.1f}" for v in r.cutoff_cpd("x").mean(0))
     print(f"w = {w:g}: x-band peaks {peaks} D, x cut-off at the peak {cutoffs} cpd")

@@ -92,9 +92,10 @@ sampling, rows = SAMPLING, ["| lenslets | " + " | ".join(f"depth {d:.2f} D" for 
                         "|---|" + "---|" * len(DEPTHS)]
 for name in reversed(list(cases)):  # the most aberrated first: its sampling holds the others
     display_optics = panel.optics().with_aberration(cases[name])
-    tf = lfjax.through_focus(EYES, layout, DEPTHS, pupil_diameter_mm=panel.pupil_diameter_mm, cdp_D=cdp,
-                             spectrum=spectrum, sampling=sampling, accommodation_offsets_D=OFFSETS,
-                             display=display_optics, continuous_peaks=("vsotf",))
+    tf = lfjax.through_focus(EYES, layout, lfjax.States.around(DEPTHS, OFFSETS),
+                             lfjax.Viewing(pupil_diameter_mm=panel.pupil_diameter_mm, cdp_D=cdp, display=display_optics),
+                             spectrum=spectrum, sampling=sampling,
+                             peaks=lfjax.PeakOptions(metrics=("vsotf",)))
     sampling = tf.sampling
     acc = np.asarray(tf.continuous_accommodation_D()).mean(0)
     cut = np.asarray(perceivable_cutoff_at_peak(tf, panel), float).mean(0)

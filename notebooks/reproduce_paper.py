@@ -116,11 +116,10 @@ for key, fig in figures.items():
 # %%
 layout = lfjax.model.layouts.grid_layout(3, config.pupil_diameter_mm)
 depth = config.cdp_D + 1.0
-stack = lfjax.polychromatic_otf(
-    lfjax.average_eye(), accommodation_D=[depth, config.cdp_D], layout=layout,
-    depths_D=[depth], sampling=reproduce.study_sampling(ds, "3x3"),
-    spectrum=lfjax.make_spectrum(config.wavelength_grid_nm),
-)
+stack = lfjax.polychromatic_otf(lfjax.average_eye(), [depth, config.cdp_D], layout=layout,
+                                depths_D=[depth],
+                                spectrum=lfjax.make_spectrum(config.wavelength_grid_nm),
+                                sampling=reproduce.study_sampling(ds, "3x3"))
 letter = snellen_e(10.0, pixel_arcmin=0.25)
 seen = np.asarray(retinal_image(letter, 0.25, stack.otf[0, 0], stack.freq_step_cpd))
 print("letter", letter.shape, "retinal images", seen.shape,

@@ -60,7 +60,8 @@ import lfjax  # noqa: E402
 from lfjax.vision.focus import through_focus  # noqa: E402
 
 import helpers as H  # noqa: E402
-
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 @pytest.fixture(scope="session")
 def dl_convergence():
@@ -76,7 +77,12 @@ def dl_convergence():
     out = {"stacks": {}}
     for d in (3.0, 1.5, 0.75):
         stack = lfjax.polychromatic_otf(
-            H.marechal_eyes(), [2.0], d, 2.0, H.spectrum_550_plain(), sampling, H.PLAIN,
+            H.marechal_eyes(),
+            [2.0],
+            lfjax.Viewing(pupil_diameter_mm=d, cdp_D=2.0),
+            spectrum=H.spectrum_550_plain(),
+            sampling=sampling,
+            options=H.PLAIN,
         )
         otf = np.asarray(stack.full_plane())[0, 0, 0]
         out["stacks"][d] = np.asarray(stack.otf)
@@ -96,9 +102,13 @@ def natural_tf():
     spectrum = lfjax.make_spectrum([550.0], options)
     offsets = np.round(np.arange(-6, 7) * 0.2, 9)
     return through_focus(
-        H.defocus_eyes(), None, [0.0, 2.0], pupil_diameter_mm=3.0, cdp_D=2.0,
-        spectrum=spectrum, sampling=lfjax.Sampling(1.5), options=options,
-        accommodation_offsets_D=offsets,
+        H.defocus_eyes(),
+        None,
+        States.around([0.0, 2.0], offsets),
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        spectrum=spectrum,
+        sampling=lfjax.Sampling(1.5),
+        options=options,
     )
 
 
@@ -109,9 +119,12 @@ def _physics_tf(n):
     options = lfjax.ModelOptions()
     grid = np.round(np.arange(0, 22) * 0.2, 9)
     return through_focus(
-        lfjax.model.eyes.aberration_free_eye(), lfjax.grid_layout(n, 3.0), [0.0, 2.0, 4.0],
-        accommodation_D=grid, window_D=2.2, pupil_diameter_mm=3.0, cdp_D=2.0,
-        spectrum=lfjax.make_spectrum([550.0], options), sampling=lfjax.Sampling(1.25),
+        lfjax.model.eyes.aberration_free_eye(),
+        lfjax.grid_layout(n, 3.0),
+        States.grid(grid, depths_D=[0.0, 2.0, 4.0], window_D=2.2),
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        spectrum=lfjax.make_spectrum([550.0], options),
+        sampling=lfjax.Sampling(1.25),
         options=options,
     )
 

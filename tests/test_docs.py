@@ -424,11 +424,12 @@ def test_page_reference_check_sees_a_dead_reference():
 
 # The modules of the package's face whose docstrings carry runnable examples, and the calls
 # that must have one (through-focus, metrics at a point, peaks through through_focus's
-# continuous_peaks, planning, eyes, layouts, the panel).
+# PeakOptions, planning, eyes, layouts, the panel, the option objects).
 EXAMPLE_MODULES = ("lfjax.vision.focus", "lfjax.planner.plan", "lfjax.model.eyes",
-                   "lfjax.model.layouts", "lfjax.display.panel")
+                   "lfjax.model.layouts", "lfjax.display.panel", "lfjax.vision.viewing",
+                   "lfjax.vision.peak_options")
 MUST_HAVE_EXAMPLES = ("through_focus", "metrics_at", "plan_sampling", "sample_eyes",
-                      "average_eye", "grid_layout", "Panel")
+                      "average_eye", "grid_layout", "Panel", "Viewing", "PeakOptions")
 
 
 def _docstring_examples():

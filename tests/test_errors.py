@@ -10,25 +10,39 @@ import lfjax
 from lfjax.model import layouts
 from lfjax.base import zernike
 from lfjax.vision.focus import metrics_at, through_focus
+from lfjax.vision.viewing import Viewing
 
 SPEC = H.spectrum_550_plain
 SAMPLING = lfjax.Sampling(2.0)
 LAYOUT_2X2 = lfjax.grid_layout(2, 3.0)
 
 
+def _viewing(args) -> Viewing:
+    """The Viewing of a case's pupil and CDP (a bad value is refused here, where it is built)."""
+    return Viewing(pupil_diameter_mm=args.pop("pupil_diameter_mm"), cdp_D=args.pop("cdp_D"))
+
+
 def _otf(**kw):
     args = dict(eyes=H.dl_eye(), accommodation_D=[2.0], pupil_diameter_mm=3.0, cdp_D=2.0,
                 spectrum=SPEC(), sampling=SAMPLING, options=H.PLAIN)
     args.update(kw)
-    return lfjax.polychromatic_otf(**args)
+    return lfjax.polychromatic_otf(viewing=_viewing(args), **args)
 
 
 def _tf(**kw):
+    """through_focus of one case: ``accommodation_D`` (a grid for every depth) or
+    ``accommodation_offsets_D`` (states around each depth) build its States."""
     args = dict(eyes=H.dl_eye(), layout=LAYOUT_2X2, depths_D=[2.0], accommodation_D=[2.0],
                 pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=SPEC(), sampling=SAMPLING,
                 options=H.PLAIN)
     args.update(kw)
-    return through_focus(**args)
+    viewing = _viewing(args)
+    depths, grid = args.pop("depths_D"), args.pop("accommodation_D")
+    offsets = args.pop("accommodation_offsets_D", None)
+    window = args.pop("window_D", None)
+    states = (lfjax.States.grid(grid, depths, window) if grid is not None
+              else lfjax.States.around(depths, offsets))
+    return through_focus(args.pop("eyes"), args.pop("layout"), states, viewing, **args)
 
 
 # ----------------------------------------------------------------------------- pupil
@@ -36,9 +50,9 @@ def _tf(**kw):
 
 @pytest.mark.parametrize("pupil", [0.0, -1.0, np.nan])
 def test_non_positive_pupil_with_layout(pupil):
-    with pytest.raises(ValueError, match="pupil_diameter_mm must be > 0"):
+    with pytest.raises(ValueError, match=r"Viewing.pupil_diameter_mm must lie in \(0, 10\] mm"):
         _otf(pupil_diameter_mm=pupil, layout=lfjax.open_pupil(3.0))
-    with pytest.raises(ValueError, match="pupil_diameter_mm must be > 0"):
+    with pytest.raises(ValueError, match=r"Viewing.pupil_diameter_mm must lie in \(0, 10\] mm"):
         _tf(pupil_diameter_mm=pupil)
     with pytest.raises(ValueError, match="pupil_diameter_mm must be > 0"):
         lfjax.monochromatic_psf(np.zeros(6), 3.0, pupil, 550.0, 0.1, 16)
@@ -58,8 +72,16 @@ def test_pupil_larger_than_measured():
     with pytest.raises(ValueError, match="pupil_diameter_mm=3.5 exceeds"):
         _tf(pupil_diameter_mm=3.5, layout=None)
     with pytest.raises(ValueError, match="pupil_diameter_mm=3.5 exceeds"):
-        metrics_at(H.dl_eye(), LAYOUT_2X2, np.array([2.0]), np.array([[2.0]]),
-                   pupil_diameter_mm=3.5, spectrum=SPEC(), sampling=SAMPLING, options=H.PLAIN)
+        metrics_at(
+            H.dl_eye(),
+            LAYOUT_2X2,
+            np.array([2.0]),
+            np.array([[2.0]]),
+            Viewing(pupil_diameter_mm=3.5),
+            spectrum=SPEC(),
+            sampling=SAMPLING,
+            options=H.PLAIN,
+        )
     with pytest.raises(ValueError, match="exceeds"):
         lfjax.monochromatic_psf(np.zeros(6), 3.0, 3.2, 550.0, 0.1, 16)
     # equal to the measured pupil is fine (validated on the host, nothing compiled)
@@ -125,8 +147,15 @@ def test_sampling_too_coarse_for_the_defocus():
         _tf(depths_D=[0.0, 4.0], accommodation_D=[0.0, 4.0], layout=LAYOUT_2X2,
             sampling=lfjax.Sampling(1.5))  # display shifts of 2×2 views, 4 D apart
     with pytest.raises(ValueError, match="aliasing"):
-        metrics_at(H.dl_eye(), LAYOUT_2X2, np.array([2.0]), np.array([[5.0]]),
-                   spectrum=SPEC(), sampling=coarse, options=H.PLAIN)
+        metrics_at(
+            H.dl_eye(),
+            LAYOUT_2X2,
+            np.array([2.0]),
+            np.array([[5.0]]),
+            spectrum=SPEC(),
+            sampling=coarse,
+            options=H.PLAIN,
+        )
 
 
 def test_bad_sampling_values():
@@ -174,7 +203,7 @@ def test_rendered_depth_beyond_infinity_through_focus():
         _tf(depths_D=[1.0, -0.1], accommodation_D=None, accommodation_offsets_D=[0.0, 0.2])
     with pytest.raises(ValueError, match="depths_D"):
         _tf(depths_D=[np.nan])
-    with pytest.raises(ValueError, match="cdp_D must be >= 0"):
+    with pytest.raises(ValueError, match="cdp_D: every CDP must lie in the model's range"):
         _tf(cdp_D=-0.5)
 
 
@@ -191,8 +220,9 @@ def test_accommodation_grids_without_allowed_states():
         _tf(depths_D=[0.2], accommodation_D=[-0.6, -0.4], cdp_D=0.5)
     with pytest.raises(ValueError, match="window_D"):
         _tf(depths_D=[0.2, 3.0], accommodation_D=[0.0, 0.2], window_D=0.5, cdp_D=0.5)
-    with pytest.raises(ValueError, match="accommodation_D or accommodation_offsets_D"):
-        _tf(accommodation_offsets_D=[0.0])
+    with pytest.raises(ValueError, match="states must be lfjax.States built by States.grid or "
+                                         "States.around"):
+        through_focus(H.dl_eye(), LAYOUT_2X2, lfjax.States.every([2.0], [2.0]))
     with pytest.raises(ValueError, match="accommodation_D must be a 1-D grid"):
         _tf(accommodation_D=np.zeros((2, 2)))
 

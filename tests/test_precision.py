@@ -20,6 +20,7 @@ from lfjax.vision.images import psf_on_grid
 from lfjax.kernel.metrics import radial_mtf
 from lfjax.vision.peaks import accommodation_peaks
 from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
+from lfjax.vision.peak_options import PeakOptions
 
 HIGHEST = (jax.lax.Precision.HIGHEST, jax.lax.Precision.HIGHEST)
 
@@ -69,9 +70,17 @@ def test_local_peak_fit_and_radial_mtf_are_full_precision():
     eyes = lfjax.sample_eyes(0, 2)
     spectrum, config, scene, accommodation = _scene(lfjax.grid_layout(2))
     _assert_full_precision(
-        lambda z: accommodation_peaks(lfjax.Eyes(z, 6.0), scene, spectrum, accommodation,
-                                      config, "vsotf", "local").accommodation_D,
-        eyes.zernike_um)
+        lambda z: accommodation_peaks(
+            lfjax.Eyes(z, 6.0),
+            scene,
+            spectrum,
+            accommodation,
+            config,
+            metric="vsotf",
+            peaks=PeakOptions(method="local"),
+        ).accommodation_D,
+        eyes.zernike_um,
+    )
     # the ring average gathers and sums (O(L²) memory, no O(L³) binning matrix): it has no
     # matrix product whose precision a GPU or TPU could lower
     jaxpr = jax.make_jaxpr(lambda otf: radial_mtf(otf, 16, 1.0)[0])(

@@ -13,8 +13,9 @@ from lfjax.vision import peaks
 from lfjax.vision import psf
 from lfjax.vision import focus as through_focus
 
+# through_focus takes no arrays of its own: its depths and states arrive in a States, which
+# checks their shapes when it is built (tests/vision/test_prepare.py)
 ENTRY_POINTS = (
-    through_focus.through_focus,
     through_focus.metrics_at,
     psf.monochromatic_psf,
     psf.polychromatic_otf,

@@ -22,6 +22,8 @@ from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, otf_stac
 from lfjax.vision.focus import metrics_at
 
 import helpers as H
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 # n_fft fixed (120 on the 3 mm pupil: 60 on the 1.5 mm subapertures, the size the planner
 # gives 520 nm): both wavelengths in one band, so each transformed program holds one copy
@@ -104,7 +106,7 @@ def _bump(a, centre):
 
 def peak_vs_centre(centre):
     """refine_peak (the peak finder's solver, Newton) against the curve's centre, D."""
-    from lfjax.vision.peaks import refine_peak
+    from lfjax.vision.peak_refinement import refine_peak
 
     return refine_peak(_bump, 1.0, 1.4, 1.2, centre).accommodation_D
 
@@ -243,9 +245,17 @@ def test_array_likes_are_converted_on_construction_and_default_sampling_is_plann
                                                    s.sce_rho_per_mm2)))
     acc = np.round(np.arange(0, 26) * 0.2, 9)
     with pytest.raises(ValueError, match="aliasing"):  # the old default refuses this scene
-        through_focus(eyes, layout, [0.0, 4.0], acc, cdp_D=2.0, spectrum=spectrum,
-                      sampling=lfjax.Sampling())
-    tf = through_focus(eyes, layout, [0.0, 4.0], acc, cdp_D=2.0, spectrum=spectrum)
+        through_focus(
+            eyes,
+            layout,
+            States.grid(acc, depths_D=[0.0, 4.0]),
+            Viewing(cdp_D=2.0),
+            spectrum=spectrum,
+            sampling=lfjax.Sampling(),
+        )
+    tf = through_focus(
+        eyes, layout, States.grid(acc, depths_D=[0.0, 4.0]), Viewing(cdp_D=2.0), spectrum=spectrum
+    )
     assert tf.sampling is not None and tf.sampling.freq_step_cpd < 1.0
     field_check(eyes.zernike_um, 3.0, 3.0, 2.0, acc, [0.0, 4.0], layout, spectrum, tf.sampling)
     assert np.all(np.isfinite(np.asarray(tf.vsotf)))

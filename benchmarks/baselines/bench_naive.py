@@ -54,6 +54,8 @@ from isetbio_style import (  # noqa: E402
     through_focus_isetbio,
 )
 from naive_pipeline import NaiveConfig, through_focus_naive, zernike_ansi  # noqa: E402
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 DEPTHS = [2.0, 2.3, 2.6]
 STATES = np.round(np.arange(2.0, 3.01, 0.2), 9)
@@ -163,8 +165,14 @@ def main(argv=None):
           f"{700e-6 / (n_grid * dx) * 3437.75:.3f} arcmin from 400 to 700 nm), cubic-spline resampling")
 
     def run_lfjax(df=DF):
-        return through_focus(eye, layout, depths_D=DEPTHS, accommodation_D=STATES, pupil_diameter_mm=3.0,
-                             cdp_D=2.0, spectrum=spec, sampling=lfjax.Sampling(df))
+        return through_focus(
+            eye,
+            layout,
+            States.grid(STATES, depths_D=DEPTHS),
+            Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spec,
+            sampling=lfjax.Sampling(df),
+        )
 
     def run_naive():
         cfg.timers = {k: 0.0 for k in cfg.timers}
@@ -370,8 +378,14 @@ def main(argv=None):
         lay_l = (np.asarray(lay.centres_mm), np.asarray(lay.diameters_mm))
 
         def lf_run(df, lay=lay):
-            return through_focus(eye, lay, depths_D=DEPTHS, accommodation_D=STATES, pupil_diameter_mm=3.0,
-                                 cdp_D=2.0, spectrum=spec, sampling=lfjax.Sampling(df))
+            return through_focus(
+                eye,
+                lay,
+                States.grid(STATES, depths_D=DEPTHS),
+                Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+                spectrum=spec,
+                sampling=lfjax.Sampling(df),
+            )
 
         df_l = passing_freq_step(lf_run, start=DF)
         t_lf = min(timed(lf_run, df_l)[0] for _ in range(2))
@@ -451,8 +465,14 @@ def main(argv=None):
                   np.asarray(spec31.sce_rho_per_mm2), spectrum_np[4])
 
     def lf_study(df):
-        return through_focus(eye, layout, depths_D=depths, accommodation_D=acc_grid, window_D=1.0,
-                             pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=spec31, sampling=lfjax.Sampling(df))
+        return through_focus(
+            eye,
+            layout,
+            States.grid(acc_grid, depths_D=depths, window_D=1.0),
+            Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spec31,
+            sampling=lfjax.Sampling(df),
+        )
 
     df_s = passing_freq_step(lf_study, start=0.9)
     t_lf_s, r_s = min((timed(lf_study, df_s) for _ in range(2)), key=lambda x: x[0])
@@ -550,8 +570,14 @@ def study_eye(args):
 
     def lfjax_run(e, lay, df=None):
         s = lfjax.Sampling(df) if df is not None else sampling
-        return through_focus(e, lay, depths_D=depths, accommodation_D=acc, window_D=window,
-                             pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=spec, sampling=s)
+        return through_focus(
+            e,
+            lay,
+            States.grid(acc, depths_D=depths, window_D=window),
+            Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spec,
+            sampling=s,
+        )
 
     rows, tot_l1, tot_n1, tot_l11, tot_ref = [], 0.0, 0.0, 0.0, 0.0
     for name, lay in paper_layouts(3.0).items():

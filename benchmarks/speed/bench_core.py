@@ -109,7 +109,11 @@ def main(argv=None):
 
     def run_lfjax():
         return lfjax.polychromatic_otf(
-            eye, acc, pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=spectrum, sampling=sampling,
+            eye,
+            acc,
+            lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spectrum,
+            sampling=sampling,
             check_aliasing=True,
         ).otf
 

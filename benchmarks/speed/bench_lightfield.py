@@ -38,6 +38,8 @@ sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _co
 from _common import (  # noqa: E402
     fmt_s, header, interleaved_min, markdown_table, passing_freq_step, timed, timed_first,
 )
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 LAYOUT_ORDER = ("natural", "2x2", "3x3", "4x4")
 ACC = np.round(np.arange(0.0, 5.01, 0.2), 9)
@@ -124,14 +126,24 @@ def main(argv=None):
     eyes11 = eleven_eyes()
 
     def curve(layout, df):
-        return through_focus(eye, layout, depths_D=[CURVE_DEPTH_D], accommodation_D=ACC,
-                             pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=spectrum,
-                             sampling=lfjax.Sampling(df))
+        return through_focus(
+            eye,
+            layout,
+            States.grid(ACC, depths_D=[CURVE_DEPTH_D]),
+            Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spectrum,
+            sampling=lfjax.Sampling(df),
+        )
 
     def grid(layout, df):
-        return through_focus(eyes11, layout, depths_D=GRID_DEPTHS, accommodation_D=ACC,
-                             window_D=1.0, pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=spectrum,
-                             sampling=lfjax.Sampling(df))
+        return through_focus(
+            eyes11,
+            layout,
+            States.grid(ACC, depths_D=GRID_DEPTHS, window_D=1.0),
+            Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spectrum,
+            sampling=lfjax.Sampling(df),
+        )
 
     # The guard runs on the host before any compilation, so probing with the real call is
     # cheap when it raises; a passing probe is a compile+run we then count as the warm-up.

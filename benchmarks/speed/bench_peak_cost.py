@@ -23,7 +23,8 @@ from lfjax.vision.focus import through_focus
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common
 
 from _common import header  # noqa: E402
-
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
 
 def main():
     header("continuous-peak cost in through_focus")
@@ -37,9 +38,13 @@ def main():
         times = []
         for _ in range(2):
             t0 = time.perf_counter()
-            tf = through_focus(eyes, lfjax.grid_layout(3), [0.0, 0.5, 1.0, 2.5, 3.0], grid,
-                               window_D=1.0, spectrum=spectrum, continuous_peaks=("vsotf",),
-                               peak_method=method, refine_second_peaks=False)
+            tf = through_focus(
+                eyes,
+                lfjax.grid_layout(3),
+                States.grid(grid, depths_D=[0.0, 0.5, 1.0, 2.5, 3.0], window_D=1.0),
+                spectrum=spectrum,
+                peaks=PeakOptions(metrics=("vsotf",), method=method, second_peaks=False),
+            )
             jax.block_until_ready(tf.vsotf)
             times.append(time.perf_counter() - t0)
         peaks[method] = tf.continuous_accommodation_D()

@@ -75,7 +75,7 @@ def _band_floor(eyes_n: int, n_states: int, n_sub: int, bands, mft_samples=None)
 
 PEAK_STATES = 3
 """States each (eye, depth)'s continuous peak evaluates beyond the grid: ``lfjax reproduce``
-refines its VSOTF peaks with ``"local"`` (lfjax.vision.peaks.LOCAL_OFFSETS_D)."""
+refines its VSOTF peaks with ``"local"`` (lfjax.vision.peak_refinement.LOCAL_OFFSETS_D)."""
 
 
 def _study_floor(config, label: str, repeat: int = 1, peaks: bool = True

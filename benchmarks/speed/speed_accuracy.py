@@ -46,15 +46,16 @@ def run_case(df: float, wl_step: float, x64: bool, edge: float, check: bool = Tr
     spectrum = lfjax.make_spectrum(np.arange(400.0, 700.1, wl_step))
     sampling = lfjax.Sampling(df, edge_width_samples=edge, transform=transform,
                               mft_pupil_samples=mft_samples)
-    kwargs = dict(window_D=1.0, spectrum=spectrum, sampling=sampling, check_aliasing=check)
+    states = lfjax.States.grid(acc, depths, window_D=1.0)
+    kwargs = dict(spectrum=spectrum, sampling=sampling, check_aliasing=check)
     t0 = time.perf_counter()
-    tf = through_focus(eyes, layout, depths, acc, **kwargs)
+    tf = through_focus(eyes, layout, states, **kwargs)
     tf.vsotf.block_until_ready()
     compile_s = time.perf_counter() - t0
     times = []
     for _ in range(2):
         t0 = time.perf_counter()
-        tf = through_focus(eyes, layout, depths, acc, **kwargs)
+        tf = through_focus(eyes, layout, states, **kwargs)
         tf.vsotf.block_until_ready()
         times.append(time.perf_counter() - t0)
     return (

@@ -26,15 +26,15 @@ DEPTHS_D = np.round(2.0 + np.arange(-2, 2.01, 0.5), 9)
 ACCOMMODATION_D = np.round(np.arange(0, 5.001, 0.2), 9)
 SPECTRUM = lfjax.make_spectrum(np.arange(400, 700.1, 10.0))
 SAMPLING = lfjax.Sampling(0.8408964152537145)
-LOCAL = dict(continuous_peaks=("vsotf",), peak_method="local", refine_second_peaks=False)
+LOCAL = lfjax.PeakOptions(metrics=("vsotf",), method="local", second_peaks=False)
 
 
-def seconds(**peaks) -> float:
+def seconds(peaks: lfjax.PeakOptions = lfjax.PeakOptions()) -> float:
     """Wall time (s) of one through_focus call, results ready."""
     t0 = time.perf_counter()
-    tf = through_focus(EYES, LAYOUT, DEPTHS_D, accommodation_D=ACCOMMODATION_D, window_D=2.0,
-                       pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=SPECTRUM, sampling=SAMPLING,
-                       **peaks)
+    tf = through_focus(EYES, LAYOUT, lfjax.States.grid(ACCOMMODATION_D, DEPTHS_D, window_D=2.0),
+                       lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0), spectrum=SPECTRUM,
+                       sampling=SAMPLING, peaks=peaks)
     jax.block_until_ready(tf.vsotf)
     return time.perf_counter() - t0
 
@@ -42,7 +42,7 @@ def seconds(**peaks) -> float:
 if __name__ == "__main__":
     grid_cold = seconds()
     grid_warm = min(seconds() for _ in range(2))
-    local_cold = seconds(**LOCAL)
-    local_warm = min(seconds(**LOCAL) for _ in range(2))
+    local_cold = seconds(LOCAL)
+    local_warm = min(seconds(LOCAL) for _ in range(2))
     print(f"grid: cold {grid_cold:.1f} warm {grid_warm:.2f} | "
           f"local: cold {local_cold:.1f} warm {local_warm:.2f}")

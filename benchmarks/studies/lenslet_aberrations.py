@@ -58,6 +58,8 @@ from lfjax.sweep.run import peak_rss_mb  # noqa: E402
 from lfjax.vision.focus import through_focus  # noqa: E402
 from lfjax.vision.prepare import States, default_sampling  # noqa: E402
 from lfjax.vision.resolution import perceivable_cutoff_at_peak  # noqa: E402
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.viewing import Viewing
 
 HERE = Path(__file__).resolve().parent
 SA_SCAN_UM = (0.0, 0.1, 0.25, 0.5, 1.0)
@@ -100,9 +102,21 @@ def _case_samplings(panel, layout, cases, eyes, depths, offsets, spectrum, sampl
     guard's for that case alone (lfjax.vision.prepare.default_sampling, milliseconds), so no
     case runs coarser than its own plan."""
     states = States.around(depths, offsets)
-    own = [default_sampling(eyes, layout, states, pupil_diameter_mm=panel.pupil_diameter_mm,
-                            cdp_D=float(panel.cdp_D), spectrum=spectrum, options=ModelOptions(),
-                            display=panel.optics().with_aberration(c["aberration"])) for c in cases]
+    own = [
+        default_sampling(
+            eyes,
+            layout,
+            states,
+            Viewing(
+                pupil_diameter_mm=panel.pupil_diameter_mm,
+                cdp_D=float(panel.cdp_D),
+                display=panel.optics().with_aberration(c["aberration"]),
+            ),
+            spectrum=spectrum,
+            options=ModelOptions(),
+        )
+        for c in cases
+    ]
     steps = [s.freq_step_cpd for s in own]
     groups = [list(range(len(cases)))] if sampling_mode == "common" else _buckets(steps)
     chosen = [None] * len(cases)
@@ -135,9 +149,15 @@ def run_aberrations(panels, n_eyes: int, out: Path, sampling_mode: str = "bucket
                 sampling = samplings[i]
                 t0 = time.time()
                 display = panel.optics().with_aberration(case["aberration"])
-                tf = through_focus(eyes, layout, depths, pupil_diameter_mm=panel.pupil_diameter_mm, cdp_D=cdp,
-                                   spectrum=spectrum, sampling=sampling, accommodation_offsets_D=offsets,
-                                   display=display, continuous_peaks=("vsotf",), peak_method=peak_method)
+                tf = through_focus(
+                    eyes,
+                    layout,
+                    States.around(depths, offsets),
+                    Viewing(pupil_diameter_mm=panel.pupil_diameter_mm, cdp_D=cdp, display=display),
+                    spectrum=spectrum,
+                    sampling=sampling,
+                    peaks=PeakOptions(metrics=("vsotf",), method=peak_method),
+                )
                 acc = tf.continuous_accommodation_D()
                 perceivable = np.asarray(perceivable_cutoff_at_peak(tf, panel), float)
                 optical = np.asarray(tf.cutoff_cpd(), float)

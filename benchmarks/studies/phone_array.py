@@ -22,6 +22,9 @@ from lfjax.studies.array_views import array_views, idealisation_gap
 from lfjax.studies.tradeoff import panel_for_views, views_in_pupil
 from lfjax.sweep.run import peak_rss_mb
 from lfjax.vision.focus import through_focus
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 GRID_D = np.arange(0.0, 6.0001, 0.25)
 DEPTHS_D = (1.0, 2.0)
@@ -57,9 +60,14 @@ def run_phone(n_eyes: int, out: Path, peak_method: str = "adaptive") -> dict:
         cdp = float(panel.cdp_D)
         # the n×n idealisation, widened to 0–6 D
         t0 = time.time()
-        tf = through_focus(eyes, views_in_pupil(panel, n), list(DEPTHS_D), GRID_D,
-                           pupil_diameter_mm=panel.pupil_diameter_mm, cdp_D=cdp, spectrum=spectrum,
-                           display=optics, continuous_peaks=("vsotf",), peak_method=peak_method)
+        tf = through_focus(
+            eyes,
+            views_in_pupil(panel, n),
+            States.grid(GRID_D, depths_D=list(DEPTHS_D)),
+            Viewing(pupil_diameter_mm=panel.pupil_diameter_mm, cdp_D=cdp, display=optics),
+            spectrum=spectrum,
+            peaks=PeakOptions(metrics=("vsotf",), method=peak_method),
+        )
         peaks = tf.continuous_accommodation_D()
         vs = np.asarray(tf.vsotf)
         for k, d in enumerate(DEPTHS_D):
@@ -82,9 +90,14 @@ def run_phone(n_eyes: int, out: Path, peak_method: str = "adaptive") -> dict:
                 print(f"phone {n}x{n} array at {d:g} D: no lit beam reaches the pupil", flush=True)
                 continue
             t0 = time.time()
-            tfa = through_focus(eyes[:1], views.layout(), [d], GRID_D, pupil_diameter_mm=panel.pupil_diameter_mm,
-                                cdp_D=cdp, spectrum=spectrum, display=optics, continuous_peaks=("vsotf",),
-                                peak_method=peak_method)
+            tfa = through_focus(
+                eyes[:1],
+                views.layout(),
+                States.grid(GRID_D, depths_D=[d]),
+                Viewing(pupil_diameter_mm=panel.pupil_diameter_mm, cdp_D=cdp, display=optics),
+                spectrum=spectrum,
+                peaks=PeakOptions(metrics=("vsotf",), method=peak_method),
+            )
             va = np.asarray(tfa.vsotf)[0, 0]
             curves[("array", n, d)] = va[None]
             pa = float(tfa.continuous_accommodation_D()[0, 0])

@@ -28,7 +28,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 def _sweep_panel(distance_mm: float):
     from lfjax.display.lenslets import lenslets_for_layout
@@ -105,9 +106,14 @@ def part2(eyes, names, depths, acc):
     out = {}
     for label, options in variants.items():
         t0 = time.perf_counter()
-        tf = through_focus(stack, panel.layout(2), depths, acc, 3.0, float(panel.cdp_D),
-                           spectrum=make_spectrum(np.arange(400.0, 700.1, 20.0), options),
-                           options=options, display=panel.optics())
+        tf = through_focus(
+            stack,
+            panel.layout(2),
+            States.grid(acc, depths_D=depths),
+            Viewing(pupil_diameter_mm=3.0, cdp_D=float(panel.cdp_D), display=panel.optics()),
+            spectrum=make_spectrum(np.arange(400.0, 700.1, 20.0), options),
+            options=options,
+        )
         out[label] = np.asarray(tf.vsotf)
         print(f"two peaks, {label}: {time.perf_counter() - t0:.0f} s", flush=True)
     return panel, out

@@ -17,7 +17,8 @@ import argparse
 import sys
 
 import numpy as np
-
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -42,10 +43,16 @@ def main(argv=None) -> int:
                              config.options)
     cutoffs, peaks = {}, {}
     for df in args.steps:
-        tf = through_focus(eyes, layout, depths, accommodation_D=config.accommodation_D,
-                           window_D=config.window_D, pupil_diameter_mm=config.pupil_diameter_mm,
-                           cdp_D=config.cdp_D, spectrum=spectrum, sampling=Sampling(df),
-                           options=config.options, check_aliasing=False)
+        tf = through_focus(
+            eyes,
+            layout,
+            States.grid(config.accommodation_D, depths_D=depths, window_D=config.window_D),
+            Viewing(pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D),
+            spectrum=spectrum,
+            sampling=Sampling(df),
+            options=config.options,
+            check_aliasing=False,
+        )
         cutoffs[df] = np.asarray(tf.cutoff_cpd("vsotf", config.cutoff_threshold), float)
         peaks[df] = np.asarray(tf.peak_index("vsotf"))
     ref = args.steps[-1]

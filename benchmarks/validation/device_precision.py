@@ -22,6 +22,8 @@ import numpy as np
 
 import lfjax
 from lfjax.vision.focus import through_focus
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
 
 LAYOUTS = ("natural", "2x2", "4x4")
 
@@ -35,9 +37,13 @@ def compute() -> dict[str, np.ndarray]:
     for name in LAYOUTS:
         depths = [2.0] if name == "natural" else [0.5, 1.0, 2.0, 3.0, 3.5]
         t0 = time.perf_counter()
-        tf = through_focus(eyes, layouts[name], depths, grid, window_D=1.0, spectrum=spectrum,
-                           continuous_peaks=("vsotf",), peak_method="local",
-                           refine_second_peaks=False)
+        tf = through_focus(
+            eyes,
+            layouts[name],
+            States.grid(grid, depths_D=depths, window_D=1.0),
+            spectrum=spectrum,
+            peaks=PeakOptions(metrics=("vsotf",), method="local", second_peaks=False),
+        )
         out[f"{name}_vsotf"] = np.asarray(tf.vsotf)
         out[f"{name}_strehl"] = np.asarray(tf.strehl)
         out[f"{name}_peak_D"] = np.asarray(tf.peaks["vsotf"].accommodation_D)

@@ -34,6 +34,8 @@ from lfjax.model.layouts import grid_layout, make_layout  # noqa: E402
 from lfjax.model.spectral import gauss_spectrum, make_spectrum  # noqa: E402
 from lfjax.model.strips import strip_layout  # noqa: E402
 from lfjax.vision.orientation import BANDS, orientation_through_focus  # noqa: E402
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 HPO_GRID = tuple(np.round(np.arange(0.0, 4.51, 0.25), 6))
 
@@ -60,9 +62,15 @@ def run(eyes, layout, display, depths, grid, spectrum, step=0.75):
     for _ in range(8):
         try:
             t = time.perf_counter()
-            r = orientation_through_focus(eyes, layout, list(depths), list(grid), pupil_diameter_mm=3.0,
-                                          cdp_D=2.0, spectrum=spectrum, sampling=Sampling(step),
-                                          display=display, eye_chunk=4)
+            r = orientation_through_focus(
+                eyes,
+                layout,
+                States.grid(list(grid), list(depths)),
+                Viewing(pupil_diameter_mm=3.0, cdp_D=2.0, display=display),
+                spectrum=spectrum,
+                sampling=Sampling(step),
+                eye_chunk=4,
+            )
             jax.block_until_ready(r.vsotf)
             return r, time.perf_counter() - t, step
         except AliasingError as err:

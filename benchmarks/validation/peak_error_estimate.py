@@ -1,6 +1,6 @@
 """Does the grid's own error estimate bound the error of a grid-located peak? (issue #36, item 1)
 
-``lfjax.vision.peaks.grid_peak_estimate`` locates each through-focus maximum from the grid
+``lfjax.vision.peak_refinement.grid_peak_estimate`` locates each through-focus maximum from the grid
 values alone (polynomials through the logarithms of five or seven samples) and estimates
 its own error from the distance between two interpolants of different order. The
 ``"adaptive"`` peak method spends refinement states only where that estimate exceeds the
@@ -109,7 +109,7 @@ def collect(part: str, n_eyes: int, layouts) -> None:
 def analyse(n_eyes: int, layouts) -> list[dict]:
     import jax.numpy as jnp
 
-    from lfjax.vision.peaks import grid_peak_estimate
+    from lfjax.vision.peak_refinement import grid_peak_estimate
 
     rows = []
     for name in layouts:

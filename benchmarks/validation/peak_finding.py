@@ -8,7 +8,7 @@ Which way of finding the through-focus peak is accurate, robust and cheap? Metho
 * ``golden``    optimistix golden section inside the grid bracket
 * ``newton``    optimistix Newton on dV/da inside the grid bracket (lfjax's default)
 * ``bfgs``      optimistix BFGS from the grid peak (as implemented in lfjax.vision.peaks)
-* ``bfgs_cdp``  ``lfjax.vision.peaks.refine_peak(method="bfgs")`` with no grid: bracket = the whole
+* ``bfgs_cdp``  ``lfjax.vision.peak_refinement.refine_peak(method="bfgs")`` with no grid: bracket = the whole
                 ±1 D window, start at the CDP (2 D)
 * ``bfgs_depth`` the same, started at the rendered depth
 * ``newton_depth`` (``--extra``) Newton with no grid: whole window, started at the depth
@@ -59,6 +59,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from lfjax.vision.peak_options import PeakOptions
 
 HERE = Path(__file__).resolve().parent
 CACHE = HERE.parent / "_cache" / "peak_finding"  # benchmarks/_cache, not committed
@@ -326,7 +327,8 @@ def _direct_fn():
     import equinox as eqx
     import jax
     import jax.numpy as jnp
-    from lfjax.vision.peaks import refine_peak, single_state_metric
+    from lfjax.vision.peak_refinement import refine_peak
+    from lfjax.vision.peaks import single_state_metric
     from lfjax.kernel.pipeline import eye_coefficients, reference_normalisers
 
     @eqx.filter_jit
@@ -359,8 +361,16 @@ def call_method(method, metric, setup, g, eyes, direct):
         acc = g["dense"] if dense else g["coarse"]
         allowed = g["dense_allowed"] if dense else g["coarse_allowed"]
         m = {"grid0.2": "grid", "grid0.01": "grid"}.get(method, method)
-        return lambda: accommodation_peaks(eyes, g["scene"], spec, acc, cfg, metric=metric,
-                                               method=m, allowed=allowed)
+        return lambda: accommodation_peaks(
+            eyes,
+            g["scene"],
+            spec,
+            acc,
+            cfg,
+            metric=metric,
+            peaks=PeakOptions(method=m),
+            allowed=allowed,
+        )
     depths = np.asarray(g["scene"].depths_D)
     lower = np.maximum(depths - WINDOW_D, 0.0)
     upper = np.minimum(depths + WINDOW_D, GRID_D[-1])
@@ -524,7 +534,7 @@ def pct(x, q):
 
 
 def load_all(args):
-    import lfjax.vision.peaks as P
+    import lfjax.vision.peak_refinement as P
 
     runs = []
     for name in args.layouts:
@@ -547,7 +557,7 @@ def load_all(args):
 
 
 def summarise(runs):
-    import lfjax.vision.peaks as P
+    import lfjax.vision.peak_refinement as P
 
     rows = []
     for metric in METRICS:
@@ -641,7 +651,7 @@ def describe(r, e, d, seed, n_eyes, zernike_um):
     on = allowed & np.isclose(np.round(s / 0.2) * 0.2, s, atol=1e-6)
     info["curve_0.2D_f64"] = {f"{x:.1f}": round(float(v), 5) for x, v in zip(s[on], r["curves"][e, d][on])}
     per = {}
-    import lfjax.vision.peaks as P
+    import lfjax.vision.peak_refinement as P
     for m in r["methods"]:
         npz = r["npz"]
         if e >= int(npz[f"{m}|n_eyes"]):

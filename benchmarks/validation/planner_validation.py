@@ -24,18 +24,38 @@ from lfjax.planner import PlanScene, Targets, plan_sampling
 from lfjax.vision.focus import through_focus
 from lfjax.kernel.optics import psf_from_otf
 from lfjax.vision.psf import polychromatic_otf
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
+
 WL=[450.,550.,650.]
 sp=lfjax.make_spectrum(WL)
 
 def vs(eye, lay, depths, acc, win, s, pupil):
-    tf=through_focus(eye, lay, depths, acc, window_D=win, pupil_diameter_mm=pupil, spectrum=sp, sampling=s, check_aliasing=False)
+    tf = through_focus(
+        eye,
+        lay,
+        States.grid(acc, depths_D=depths, window_D=win),
+        Viewing(pupil_diameter_mm=pupil),
+        spectrum=sp,
+        sampling=s,
+        check_aliasing=False,
+    )
     return np.asarray(tf.vsotf), np.asarray(tf.allowed)
 
 def wrap(eye, lay, depths, acc, win, df, pupil):
     worst=0
     for d in depths:
         a=[x for x in acc if abs(x-d)<=win+1e-9]
-        o=polychromatic_otf(eye, a, pupil, 2.0, sp, lfjax.Sampling(df/2), layout=lay, depths_D=[d], check_aliasing=False)
+        o = polychromatic_otf(
+            eye,
+            a,
+            Viewing(pupil_diameter_mm=pupil, cdp_D=2.0),
+            layout=lay,
+            depths_D=[d],
+            spectrum=sp,
+            sampling=lfjax.Sampling(df / 2),
+            check_aliasing=False,
+        )
         P=np.asarray(psf_from_otf(o.otf, o.n_fft, df/2))[0,0]
         L=P.shape[-1]; h=L//2
         F=P+np.roll(P,h,-1)+np.roll(P,h,-2)+np.roll(np.roll(P,h,-1),h,-2)

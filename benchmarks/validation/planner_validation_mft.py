@@ -19,6 +19,8 @@ from _common import header  # noqa: E402
 import lfjax
 from lfjax.planner import Overrides, PlanScene, Targets, plan_sampling
 from lfjax.vision.focus import through_focus
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 WL = [450.0, 550.0, 650.0]
 SPECTRUM = lfjax.make_spectrum(WL)
@@ -31,8 +33,15 @@ SCENES = {
 
 
 def vsotf(eye, layout, depths, window, sampling, pupil):
-    tf = through_focus(eye, layout, depths, ACC, window_D=window, pupil_diameter_mm=pupil,
-                       spectrum=SPECTRUM, sampling=sampling, check_aliasing=False)
+    tf = through_focus(
+        eye,
+        layout,
+        States.grid(ACC, depths_D=depths, window_D=window),
+        Viewing(pupil_diameter_mm=pupil),
+        spectrum=SPECTRUM,
+        sampling=sampling,
+        check_aliasing=False,
+    )
     return np.asarray(tf.vsotf), np.asarray(tf.allowed)
 
 

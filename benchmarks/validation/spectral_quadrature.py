@@ -29,6 +29,9 @@ import numpy as np
 import lfjax
 from lfjax.model.spectral import luminous_efficiency, make_spectrum
 from lfjax.vision.focus import _cutoff_at_index, through_focus
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 UNIFORM_STEPS_NM = (25.0, 30.0)
 GAUSS_NODES = (5, 6, 7, 8, 9)
@@ -60,9 +63,15 @@ def compare(layout_name: str, n_eyes: int = 6) -> None:
     grid = np.round(np.arange(0.0, 5.01, 0.2), 9)
 
     def run(spectrum, sampling):
-        return through_focus(eyes, layout, depths, grid, 3.0, 2.0, spectrum=spectrum,
-                             sampling=sampling, window_D=2.0, continuous_peaks=("vsotf",),
-                             peak_method="local", refine_second_peaks=False)
+        return through_focus(
+            eyes,
+            layout,
+            States.grid(grid, depths_D=depths, window_D=2.0),
+            Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spectrum,
+            sampling=sampling,
+            peaks=PeakOptions(metrics=("vsotf",), method="local", second_peaks=False),
+        )
 
     reference = run(make_spectrum(np.arange(400.0, 701.0, 5.0)), None)
     sampling = reference.sampling  # every rule on the reference's frequency grid

@@ -36,6 +36,9 @@ from lfjax.planner.plan import Overrides, Targets, plan_sampling
 from lfjax.planner.scene import PlanScene
 from lfjax.reproduce.config import StudyConfig, study_eyes
 from lfjax.vision.focus import _cutoff_at_index, through_focus
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 PEAK_TARGET_D = 0.01
 CUTOFF_TARGET_CPD = 0.25
@@ -70,11 +73,16 @@ def compare(name: str, eyes, config: StudyConfig) -> dict:
     sampling = plans["auto"].sampling
 
     def run(spectrum):
-        return through_focus(eyes, layout, depths, grid,
-                             config.pupil_diameter_mm, config.cdp_D, spectrum=spectrum,
-                             sampling=sampling, window_D=config.window_D,
-                             continuous_peaks=("vsotf",), peak_method="local",
-                             refine_second_peaks=False, options=config.options)
+        return through_focus(
+            eyes,
+            layout,
+            States.grid(grid, depths_D=depths, window_D=config.window_D),
+            Viewing(pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D),
+            spectrum=spectrum,
+            sampling=sampling,
+            options=config.options,
+            peaks=PeakOptions(metrics=("vsotf",), method="local", second_peaks=False),
+        )
 
     t0 = time.perf_counter()
     reference = run(make_spectrum(np.arange(400.0, 701.0, 5.0), config.options))

@@ -34,7 +34,8 @@ from lfjax.model.eyes import sample_eyes  # noqa: E402
 from lfjax.model.spectral import make_spectrum  # noqa: E402
 from lfjax.model.strips import strip_layout  # noqa: E402
 from lfjax.vision.orientation import BANDS, orientation_through_focus  # noqa: E402
-
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 @contextlib.contextmanager
 def square_windows():
@@ -72,10 +73,15 @@ def main(argv=None) -> int:
             with square_windows() if kind == "square" else contextlib.nullcontext():
                 for _ in range(2):  # the first call compiles
                     t = time.perf_counter()
-                    r = orientation_through_focus(eyes, layout, [1.0, 2.0, 3.0], grid,
-                                                  pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=spectrum,
-                                                  sampling=Sampling(0.6), display=display,
-                                                  eye_chunk=4)
+                    r = orientation_through_focus(
+                        eyes,
+                        layout,
+                        States.grid(grid, [1.0, 2.0, 3.0]),
+                        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0, display=display),
+                        spectrum=spectrum,
+                        sampling=Sampling(0.6),
+                        eye_chunk=4,
+                    )
                     jax.block_until_ready(r.vsotf)
                     seconds[kind] = time.perf_counter() - t
             out[kind] = r

@@ -15,6 +15,9 @@ from matplotlib.figure import Figure
 
 import lfjax
 from lfjax.vision.focus import through_focus
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 OUT = Path(__file__).resolve().parents[1] / "figures" / "getting_started_through_focus.png"
 
@@ -24,9 +27,12 @@ def main() -> None:
     layout = lfjax.grid_layout(2, pupil_diameter_mm=3.0)
     depths = [0.0, 2.0, 4.0]
     tf = through_focus(
-        eyes, layout, depths_D=depths, accommodation_D=np.round(np.arange(0, 5.01, 0.2), 9),
-        window_D=1.0, pupil_diameter_mm=3.0, cdp_D=2.0, options=lfjax.ModelOptions(),
-        continuous_peaks=("vsotf",),
+        eyes,
+        layout,
+        States.grid(np.round(np.arange(0, 5.01, 0.2), 9), depths_D=depths, window_D=1.0),
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        options=lfjax.ModelOptions(),
+        peaks=PeakOptions(metrics=("vsotf",)),
     )
     states = np.asarray(tf.accommodation_D)
     vsotf = np.asarray(tf.vsotf)

@@ -73,6 +73,8 @@ from lfjax.model.layout_plots import draw_layout
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import make_spectrum
 from lfjax.vision.orientation import BANDS, orientation_through_focus
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 LENTICULAR_FORMAT = "lfjax-design-lenticular/1"
 
@@ -152,10 +154,16 @@ def _through_focus(eyes, layout, display, depths, grid, pupil, cdp, spectrum, sa
     """Orientation through-focus; without ``sampling`` the step is refined until the field
     holds. Returns (result, frequency step cpd)."""
     if sampling is not None:
-        return orientation_through_focus(eyes, layout, list(depths), list(grid), pupil_diameter_mm=pupil,
-                                         cdp_D=cdp, spectrum=spectrum, sampling=sampling,
-                                         options=ModelOptions(vsotf_reference="open_pupil"),
-                                         display=display, eye_chunk=EYE_CHUNK), float(sampling.freq_step_cpd)
+        return orientation_through_focus(
+            eyes,
+            layout,
+            States.grid(list(grid), list(depths)),
+            Viewing(pupil_diameter_mm=pupil, cdp_D=cdp, display=display),
+            spectrum=spectrum,
+            sampling=sampling,
+            options=ModelOptions(vsotf_reference="open_pupil"),
+            eye_chunk=EYE_CHUNK,
+        ), float(sampling.freq_step_cpd)
     step = FIRST_FREQ_STEP_CPD
     for _ in range(8):
         try:

@@ -30,6 +30,7 @@ from lfjax.layout_opt._objectives import (
     combine,
     correct_focus_metrics,
     predicted_peaks,
+    problem_peak_options,
     soft_cutoff_cpd,
 )
 from lfjax.layout_opt._params import as_free, free_params, lattice_sites, tangent_lattice
@@ -76,8 +77,7 @@ def _values_jit(layout, problem: LayoutProblem):
                                problem.config, problem.reference)
         peaks = peaks_from_grid(both.vsotf[..., :-1], problem.eyes, scene, problem.spectrum,
                                 problem.peak_grid, problem.config, problem.reference, "vsotf",
-                                problem.peak_method, problem.peak_allowed,
-                                refine_second=problem.peak_method in ("vertex", "grid"))
+                                problem_peak_options(problem), problem.peak_allowed)
         vsotf, radial_mtf = both.vsotf[:, :-1, -1], both.radial_mtf[:, :-1, -1, :]
     o = problem.objective
     depth = lambda x: x[:, :-1]  # noqa: E731 - the last column is the CDP's

@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 
 from lfjax.base.apertures import safe_sqrt
+from lfjax.vision.peak_options import PeakOptions
 from lfjax.vision.peaks import Peaks, peaks_from_grid
 from lfjax.kernel.pipeline import (
     RetinalMetrics,
@@ -67,8 +68,14 @@ def predicted_peaks(layout, problem: LayoutProblem) -> Peaks:
     values = retinal_metrics(problem.eyes, scene, problem.spectrum, grid, problem.config,
                              problem.reference).vsotf
     return peaks_from_grid(values, problem.eyes, scene, problem.spectrum, grid, problem.config,
-                           problem.reference, "vsotf", problem.peak_method, problem.peak_allowed,
-                           refine_second=problem.peak_method in ("vertex", "grid"))
+                           problem.reference, "vsotf", problem_peak_options(problem), problem.peak_allowed)
+
+
+def problem_peak_options(problem: LayoutProblem) -> PeakOptions:
+    """The problem's refinement; a second peak is refined only where that costs nothing
+    (the grid's own methods)."""
+    return PeakOptions(method=problem.peak_method,
+                       second_peaks=problem.peak_method in ("vertex", "grid"))
 
 
 def _errors(peak_D, problem: LayoutProblem):

@@ -21,7 +21,7 @@ from lfjax.display.lenslets import DisplayOptics
 from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout, make_layout
 from lfjax.model.options import ModelOptions
-from lfjax.vision.peaks import PEAK_METHODS
+from lfjax.vision.peak_options import PEAK_METHODS
 from lfjax.kernel.pipeline import (
     Accommodation,
     PipelineConfig,

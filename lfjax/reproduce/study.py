@@ -39,8 +39,10 @@ from lfjax.vision.psf import polychromatic_otf
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import gauss_spectrum, make_spectrum
 from lfjax.vision.focus import ThroughFocus, through_focus, through_focus_variants
-from lfjax.vision.prepare import with_aliasing_retry
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States, with_aliasing_retry
 from lfjax.reproduce.config import METRICS, StudyConfig, planned_sampling, study_eyes
+from lfjax.vision.viewing import Viewing
 
 # ----------------------------------------------------------------------------- one layout
 
@@ -71,11 +73,8 @@ def _layout_run(eyes, layout, depths_D, config, spectrum=None, options=None):
 
     def run(sampling):
         return jax.block_until_ready(through_focus(
-            eyes, layout, np.asarray(depths_D, float),
-            accommodation_D=config.accommodation_D, window_D=config.window_D,
-            pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
-            spectrum=spectrum, sampling=sampling, options=options,
-            continuous_peaks=("vsotf",), refine_second_peaks=False, **peak_settings(config),
+            eyes, layout, study_states(config, depths_D), study_viewing(config),
+            spectrum=spectrum, sampling=sampling, options=options, peaks=peak_settings(config),
         ))
 
     tf, sampling = with_aliasing_retry(run, sampling, what=f"layout {layout.name}")
@@ -92,7 +91,7 @@ def _rule_of(config, wavelengths, weights) -> tuple[str, float]:
     return "uniform", float(config.wavelengths_nm[1] - config.wavelengths_nm[0])
 
 
-def peak_settings(config: StudyConfig) -> dict:
+def peak_settings(config: StudyConfig) -> PeakOptions:
     """How the study refines its continuous VSOTF peaks (claim 2 reads the global peak;
     second peaks stay grid-located).
 
@@ -103,8 +102,20 @@ def peak_settings(config: StudyConfig) -> dict:
     the grid, where Newton's loop added ~25 s per layout).
     """
     if config.accuracy == "claims":
-        return dict(peak_method="adaptive", peak_tolerance_D=0.5 * config.peak_tolerance_D)
-    return dict(peak_method="local")
+        return PeakOptions(("vsotf",), "adaptive", 0.5 * config.peak_tolerance_D,
+                           second_peaks=False)
+    return PeakOptions(("vsotf",), "local", second_peaks=False)
+
+
+def study_states(config: StudyConfig, depths_D) -> States:
+    """The study's states for ``depths_D`` (D): its absolute accommodation grid, within
+    ±``config.window_D`` of each depth."""
+    return States.grid(config.accommodation_D, np.asarray(depths_D, float), config.window_D)
+
+
+def study_viewing(config: StudyConfig) -> Viewing:
+    """The study's viewing conditions: its calculation pupil and CDP, the ideal display."""
+    return Viewing(pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D)
 
 
 # ----------------------------------------------------------------------------- study
@@ -220,11 +231,9 @@ def _layout_run_variants(eyes, layout, depths_D, config, options):
 
     def run(samplings):
         return jax.block_until_ready(through_focus_variants(
-            eyes, layout, np.asarray(depths_D, float), options,
-            accommodation_D=config.accommodation_D, window_D=config.window_D,
-            pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
+            eyes, layout, study_states(config, depths_D), options, study_viewing(config),
             wavelengths_nm=wavelengths, samplings=samplings, spectral_weights=weights,
-            continuous_peaks=("vsotf",), refine_second_peaks=False, **peak_settings(config),
+            peaks=peak_settings(config),
         ))
 
     tfs, samplings = with_aliasing_retry(run, samplings, what=f"layout {layout.name}")
@@ -523,10 +532,7 @@ def _dataset_attrs(config: StudyConfig, options: ModelOptions, eyes: Eyes) -> di
     return attrs
 
 
-
 # ----------------------------------------------------------------------------- the Dataset's eyes
-
-
 
 
 # ----------------------------------------------------------------------------- examples
@@ -577,8 +583,15 @@ def compute_examples(ds, config: StudyConfig = StudyConfig(), stage=None):  # no
         jnp.concatenate([eyes.zernike_um[:1], zero.zernike_um.astype(eyes.zernike_um.dtype)]),
         eyes.measured_pupil_mm,
     )
-    stack = polychromatic_otf(pair, states, config.pupil_diameter_mm, cdp, spectrum,
-                              natural, options, open_pupil(config.pupil_diameter_mm))
+    stack = polychromatic_otf(
+        pair,
+        states,
+        Viewing(pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=cdp),
+        layout=open_pupil(config.pupil_diameter_mm),
+        spectrum=spectrum,
+        sampling=natural,
+        options=options,
+    )
     L, df = stack.n_fft, stack.freq_step_cpd
     otf_half = stack.otf[:, 0]  # (2, n_states, L, Lx)
     # PSFs (pixel-integrated) on a ±8 arcmin grid
@@ -622,8 +635,16 @@ def compute_examples(ds, config: StudyConfig = StudyConfig(), stage=None):  # no
         ei = int(np.argmax(contrast)) if np.any(contrast > 0) else 0
         two = np.array([float(vs_pred[ei]), cdp])
         layout = grid_layout(2, config.pupil_diameter_mm)
-        st2 = polychromatic_otf(eyes[ei], two, config.pupil_diameter_mm, cdp, layout_spectrum("2x2"),
-                                study_sampling(ds, "2x2"), options, layout, depths_D=[depth])
+        st2 = polychromatic_otf(
+            eyes[ei],
+            two,
+            Viewing(pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=cdp),
+            layout=layout,
+            depths_D=[depth],
+            spectrum=layout_spectrum("2x2"),
+            sampling=study_sampling(ds, "2x2"),
+            options=options,
+        )
         otf2 = st2.otf[0, 0]  # (2, L, Lx)
         pix = 0.25
         n_psf = 97

@@ -57,6 +57,8 @@ from lfjax.kernel.scene import sa_parameters
 from lfjax.model.spectral import lca_dioptres, make_spectrum
 from lfjax.sweep.guard import host_memory_bytes
 from lfjax.vision.focus import through_focus
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 from lfjax.base.errors import ParameterError
 from lfjax.base.types import finite_scalar
 from lfjax.base.units import (
@@ -244,7 +246,8 @@ def array_through_focus(eyes, panel: Panel, depths_D, accommodation_D, *, diffra
     :func:`lfjax.vision.focus.through_focus` per rendered depth, each with the layout of
     :func:`array_views` (the lenslets whose footprints overlap the pupil, at the lit
     pixels' positions) and the panel's optics (``diffraction`` overrides its mode).
-    ``kwargs`` go to ``through_focus`` (``spectrum``, ``sampling``, ``options``, …). The
+    ``accommodation_D`` (n_acc,) D is every depth's absolute grid; ``kwargs`` go to
+    ``through_focus`` (``spectrum``, ``sampling``, ``options``, ``peaks``, …). The
     beams' tilts ε_k are not in these images (module docstring). Returns a list of
     (ArrayViews, ThroughFocus), one per depth."""
 
@@ -252,8 +255,10 @@ def array_through_focus(eyes, panel: Panel, depths_D, accommodation_D, *, diffra
     out = []
     for depth in np.atleast_1d(np.asarray(depths_D, float)):
         views = array_views(panel, float(depth), pixel_offset_mm=pixel_offset_mm)
-        tf = through_focus(eyes, views.layout(), np.array([depth]), accommodation_D,
-                           panel.pupil_diameter_mm, float(panel.cdp_D), display=optics, **kwargs)
+        viewing = Viewing(pupil_diameter_mm=panel.pupil_diameter_mm, cdp_D=float(panel.cdp_D),
+                          display=optics)
+        tf = through_focus(eyes, views.layout(), States.grid(accommodation_D, [depth]), viewing,
+                           **kwargs)
         out.append((views, tf))
     return out
 

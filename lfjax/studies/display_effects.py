@@ -39,12 +39,14 @@ from lfjax.display.spectra import display_spectrum
 from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import grid_layout
 from lfjax.model.options import ModelOptions
-from lfjax.vision.peaks import PEAK_METHODS
+from lfjax.vision.peak_options import PEAK_METHODS
 from lfjax.planner.plan import plan_sampling
 from lfjax.planner.scene import PlanScene
 from lfjax.model.spectral import make_spectrum
 from lfjax.vision.focus import through_focus
 from lfjax.vision.prepare import States
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.viewing import Viewing
 
 STEPS = ("ideal", "+diffraction", "+pixels", "+spectrum")
 LAYOUT_SIZES = {"2x2": 2, "3x3": 3, "4x4": 4}
@@ -176,12 +178,20 @@ def shared_sampling(eyes: Eyes, config: DisplayStudyConfig, layout, display, *sp
 
 def _evaluate(eyes: Eyes, config: DisplayStudyConfig, layout, spectrum, display, sampling=None,
               window_D: float | None = None):
-    tf = through_focus(eyes, layout, config.depths_D, config.accommodation_D,
-                       config.pupil_diameter_mm, config.cdp_D, spectrum=spectrum,
-                       sampling=sampling, options=config.options,
-                       window_D=config.window_D if window_D is None else window_D,
-                       continuous_peaks=("vsotf",), peak_method=config.peak_method,
-                       display=display)
+    tf = through_focus(
+        eyes,
+        layout,
+        States.grid(
+            config.accommodation_D,
+            depths_D=config.depths_D,
+            window_D=config.window_D if window_D is None else window_D,
+        ),
+        Viewing(pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D, display=display),
+        spectrum=spectrum,
+        sampling=sampling,
+        options=config.options,
+        peaks=PeakOptions(metrics=("vsotf",), method=config.peak_method),
+    )
     peaks = tf.peaks["vsotf"]
     predicted = np.asarray(peaks.accommodation_D, float)
     return dict(

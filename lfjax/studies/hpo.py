@@ -38,7 +38,8 @@ from lfjax.model.layouts import grid_layout, make_layout
 from lfjax.model.spectral import GAUSS_MAX_NODES, gauss_spectrum, make_spectrum
 from lfjax.model.strips import strip_layout
 from lfjax.vision.orientation import BANDS, orientation_through_focus
-
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 @dataclass(frozen=True)
 class HpoConfig:
@@ -144,11 +145,22 @@ def _run(eyes, layout, display, depths, config: HpoConfig, spectrum):
     grid = config.accommodation_D
     for _ in range(8):
         try:
-            return orientation_through_focus(
-                eyes, layout, list(depths), list(grid),
-                pupil_diameter_mm=config.pupil_diameter_mm, cdp_D=config.cdp_D,
-                spectrum=spectrum, sampling=Sampling(step), display=display,
-                eye_chunk=config.eye_chunk), step
+            return (
+                orientation_through_focus(
+                    eyes,
+                    layout,
+                    States.grid(list(grid), list(depths)),
+                    Viewing(
+                        pupil_diameter_mm=config.pupil_diameter_mm,
+                        cdp_D=config.cdp_D,
+                        display=display,
+                    ),
+                    spectrum=spectrum,
+                    sampling=Sampling(step),
+                    eye_chunk=config.eye_chunk,
+                ),
+                step,
+            )
         except AliasingError as err:
             step = finer_step(err, step)
     raise RuntimeError("no frequency step held the field")

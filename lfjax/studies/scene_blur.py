@@ -25,6 +25,9 @@ from lfjax.model.options import ModelOptions
 from lfjax.vision.focus import through_focus
 from lfjax.display.spectra import display_spectrum
 from lfjax.vision.scene_blur import rest_of_scene
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 DISPLAYS = ("natural", "2x2", "3x3", "4x4", "phone", "near-eye")
 """The paper's layouts (CDP ``cdp_D``) and the panel presets (their own CDP, lenslet
@@ -96,11 +99,19 @@ def run_scene_blur(eyes: Eyes, config: SceneBlurConfig = SceneBlurConfig(),
         # at its CDP, whatever depth it is given)
         # The search reaches from the fixated depth down past the CDP: a display whose views
         # drive accommodation weakly (lenslet diffraction) leaves the eye near its CDP.
-        tf = through_focus(eyes, layout, [config.fixation_D], None, config.pupil_diameter_mm,
-                           config.fixation_D if layout is None else cdp,
-                           spectrum=white, options=options,
-                           accommodation_offsets_D=config.accommodation_offsets_D,
-                           continuous_peaks=("vsotf",), display=optics)
+        tf = through_focus(
+            eyes,
+            layout,
+            States.grid(None, depths_D=[config.fixation_D]),
+            Viewing(
+                pupil_diameter_mm=config.pupil_diameter_mm,
+                cdp_D=config.fixation_D if layout is None else cdp,
+                display=optics,
+            ),
+            spectrum=white,
+            options=options,
+            peaks=PeakOptions(metrics=("vsotf",)),
+        )
         a = np.asarray(tf.continuous_accommodation_D()[:, 0], float)
         grid_a = np.asarray(tf.predicted_accommodation_D()[:, 0], float)
         acc[i] = np.where(np.isfinite(a), a, grid_a)

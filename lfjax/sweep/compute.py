@@ -30,7 +30,9 @@ from lfjax.model.layout_files import load_layout_json
 from lfjax.model.layouts import Layout, paper_layouts
 from lfjax.kernel.metrics import cutoff_frequency
 from lfjax.kernel.optics import validate_coefficients
-from lfjax.vision.peaks import METRICS, peaks_from_grid
+from lfjax.vision.peak_options import METRICS, PeakOptions
+from lfjax.vision.peaks import peaks_from_grid
+from lfjax.vision.viewing import Viewing
 from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
 from lfjax.planner.cache import cached_plan_sampling
 from lfjax.planner.plan import Overrides, Plan, Targets
@@ -237,11 +239,11 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
             # the next process (a resumed sweep, another host)
             def prepared_at(sampling, check_aliasing=True, layout=layout, states=states,
                             pupil=pupil, spectrum=task_spectrum, entry=entry):
-                return prepare(eyes, layout, states, pupil_diameter_mm=pupil,
-                               cdp_D=config.cdp_D, spectrum=spectrum, options=config.options,
-                               sampling=sampling, check_aliasing=check_aliasing,
-                               display=config.display_optics(entry, layout),
-                               traced_checks=False)
+                viewing = Viewing(pupil_diameter_mm=pupil, cdp_D=config.cdp_D,
+                                  display=config.display_optics(entry, layout))
+                return prepare(eyes, layout, states, viewing, spectrum=spectrum,
+                               options=config.options, sampling=sampling,
+                               check_aliasing=check_aliasing, traced_checks=False)
 
             if samplings is not None and (pi, li) in samplings:
                 prepared = prepared_at(samplings[(pi, li)], check_aliasing=False)
@@ -261,10 +263,16 @@ def build_tasks(config: SweepConfig, eyes: Eyes, spectrum: Spectrum | None = Non
 # --------------------------------------------------------------------------- one chunk
 
 
+def sweep_peaks(config) -> PeakOptions:
+    """How a sweep refines its peaks: ``config``'s metrics, method and tolerance; second
+    peaks stay grid-located (a sweep stores the global peak)."""
+    return PeakOptions(metrics=tuple(config.continuous_peaks), method=config.peak_method,
+                       tolerance_D=float(config.peak_tolerance_D), second_peaks=False)
+
+
 def _chunk_metrics(zernike_um, scene: Scene, spectrum: Spectrum, accommodation: Accommodation, *,
                    config: PipelineConfig, measured_pupil_mm: float, allowed: np.ndarray,
-                   continuous: tuple[str, ...], peak_method: str, cutoff_threshold: float,
-                   peak_tolerance_D: float):
+                   peaks: PeakOptions, cutoff_threshold: float):
     """Everything a sweep stores for a batch of eyes of one (pupil, layout), as arrays with
     the eye axis first. Pure; the caller jits (and shards) it."""
     eyes = Eyes(zernike_um, measured_pupil_mm)
@@ -292,12 +300,11 @@ def _chunk_metrics(zernike_um, scene: Scene, spectrum: Spectrum, accommodation: 
     out["mtf_at_peak"] = jnp.stack(mtfs, -2)
     cont_acc, cont_ok = [], []
     for name in METRICS:
-        if name in continuous:
-            peaks = peaks_from_grid(getattr(metrics, name), eyes, scene, spectrum, accommodation,
-                                    config, reference, name, peak_method, mask,
-                                    refine_second=False, tolerance_D=peak_tolerance_D)
-            cont_acc.append(peaks.accommodation_D)
-            cont_ok.append(peaks.success)
+        if name in peaks.metrics:
+            found = peaks_from_grid(getattr(metrics, name), eyes, scene, spectrum, accommodation,
+                                    config, reference, name, peaks, mask)
+            cont_acc.append(found.accommodation_D)
+            cont_ok.append(found.success)
         else:
             cont_acc.append(jnp.full(metrics.vsotf.shape[:2], jnp.nan, metrics.vsotf.dtype))
             cont_ok.append(jnp.zeros(metrics.vsotf.shape[:2], bool))
@@ -324,14 +331,11 @@ TRACES: dict[tuple, int] = {}
 
 @functools.lru_cache(maxsize=64)
 def _chunk_function(config: PipelineConfig, measured_pupil_mm: float, allowed: tuple,
-                    continuous: tuple[str, ...], peak_method: str, cutoff_threshold: float,
-                    peak_tolerance_D: float, devices: tuple):
-    key = (config, measured_pupil_mm, allowed, continuous, peak_method, cutoff_threshold,
-           peak_tolerance_D, devices)
+                    peaks: PeakOptions, cutoff_threshold: float, devices: tuple):
+    key = (config, measured_pupil_mm, allowed, peaks, cutoff_threshold, devices)
     body = functools.partial(
         _chunk_metrics, config=config, measured_pupil_mm=measured_pupil_mm,
-        allowed=np.asarray(allowed, bool), continuous=continuous, peak_method=peak_method,
-        cutoff_threshold=cutoff_threshold, peak_tolerance_D=peak_tolerance_D)
+        allowed=np.asarray(allowed, bool), peaks=peaks, cutoff_threshold=cutoff_threshold)
 
     def counted(zernike_um, scene, spectrum, accommodation):
         TRACES[key] = TRACES.get(key, 0) + 1
@@ -372,8 +376,7 @@ class ChunkEvaluator:
         key, function = _chunk_function(
             task.pipeline_config, self.measured_pupil_mm,
             tuple(map(tuple, np.asarray(task.allowed, bool).tolist())),
-            tuple(self.config.continuous_peaks), self.config.peak_method,
-            float(self.config.cutoff_threshold), float(self.config.peak_tolerance_D),
+            sweep_peaks(self.config), float(self.config.cutoff_threshold),
             self.devices)
         self._start.setdefault(task.key, TRACES.get(key, 0))
         return key, function

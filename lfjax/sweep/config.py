@@ -47,7 +47,7 @@ from lfjax.model.layout_files import load_layout_json
 from lfjax.model.layouts import Layout, PAPER_LAYOUTS, check_views_in_pupil
 from lfjax.model.strips import neighbour_matrix
 from lfjax.model.options import ModelOptions
-from lfjax.vision.peaks import METRICS, PEAK_METHODS
+from lfjax.vision.peak_options import METRICS, PEAK_METHODS
 
 CONFIG_FORMAT = "lfjax-sweep/1"
 
@@ -411,7 +411,7 @@ class SweepConfig(DepthGrid):
         "metrics", "metrics whose peak is refined off the grid (lfjax.vision.peaks)",
         OneOf(METRICS)))
     peak_method: str = field(default="adaptive", metadata=_key(
-        "metrics", "how a peak is refined (lfjax.vision.peaks.PEAK_METHODS)",
+        "metrics", "how a peak is refined (lfjax.vision.peak_options.PEAK_METHODS)",
         OneOf(PEAK_METHODS)))
     cutoff_threshold: float = field(default=0.05, metadata=_key(
         "metrics", "MTF value defining the cut-off frequency",

@@ -25,7 +25,8 @@ from pathlib import Path
 import jax
 
 from lfjax.kernel.pipeline import held_elemental_planes, transform_units
-from lfjax.vision.peaks import METRICS, STATE_COST, TYPICAL_REFINED_FRACTION, resolved_method
+from lfjax.vision.peak_options import METRICS, resolved_method
+from lfjax.vision.peak_refinement import STATE_COST, TYPICAL_REFINED_FRACTION
 from lfjax.base.grids import grid_size
 from lfjax.base.sampling import EYE_BLOCK
 from lfjax.sweep.compute import sweep_spectra
@@ -57,7 +58,7 @@ the local stencil's one on the fraction of peaks it refines."""
 REFINEMENT_STATES = {method: STATE_COST[method] * TYPICAL_STEPS.get(method, 1)
                      for method in STATE_COST} | {"vertex": 0, "grid": 0}
 """Accommodation states one continuous peak costs beyond the grid, per (eye, depth), by
-method: each step's states (:data:`lfjax.vision.peaks.STATE_COST`: ``local``'s three-point
+method: each step's states (:data:`lfjax.vision.peak_refinement.STATE_COST`: ``local``'s three-point
 stencil, Newton's value and two forward derivatives, …) times its typical steps; ``vertex``
 and ``grid`` evaluate nothing beyond the grid. Each state transforms every view at every
 wavelength, as a grid state does."""

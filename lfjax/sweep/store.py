@@ -37,7 +37,7 @@ import numpy as np
 from lfjax.base.files import (owned_temp_dir, pid_alive, register_emergency_cleanup,
                               remove_orphans, unregister_emergency_cleanup)
 from lfjax._version import __version__
-from lfjax.vision.peaks import METRICS
+from lfjax.vision.peak_options import METRICS
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import make_spectrum
 from lfjax.sweep.compute import (FREQUENCIES_CPD, Task, layout_name, spectral_plans,

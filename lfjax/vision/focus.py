@@ -17,21 +17,14 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Real
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.types import shape_checked
-from lfjax.display.lenslets import DisplayOptics
 from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout
 from lfjax.kernel.metrics import cutoff_frequency
-from lfjax.kernel.optics import validate_states
 from lfjax.model.options import STATIC_CHOICES, ModelOptions, stack_parameters
-from lfjax.vision.peaks import (
-    DEFAULT_TOLERANCE_D,
-    METRICS,
-    PEAK_METHODS,
-    Peaks,
-    check_tolerance,
-    peaks_from_grid,
-)
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.peaks import Peaks, peaks_from_grid
 from lfjax.kernel.pipeline import (
     Accommodation,
     PipelineConfig,
@@ -42,6 +35,7 @@ from lfjax.kernel.pipeline import (
 from lfjax.base.programs import call_cached
 from lfjax.base.sampling import AliasingError, Sampling
 from lfjax.vision.prepare import Prepared, States, prepare
+from lfjax.vision.viewing import Viewing, check_viewing
 from lfjax.model.spectral import Spectrum, make_spectrum, model_spectrum, sce_rho_table
 
 
@@ -61,7 +55,7 @@ class ThroughFocus(eqx.Module):
     layout_name : str
     sampling : the Sampling used (planned by the field guard when none was given)
     peaks : {metric: :class:`lfjax.vision.peaks.Peaks`} continuous peaks refined from the grid
-        (``through_focus(continuous_peaks=...)``)
+        (``through_focus(peaks=PeakOptions(metrics=...))``)
     """
 
     vsotf: Float[Array, "n_eyes n_depth n_acc"]
@@ -108,7 +102,7 @@ class ThroughFocus(eqx.Module):
         if metric not in self.peaks:
             raise ValueError(
                 f"no continuous peaks of {metric!r} were computed (have {sorted(self.peaks)}); "
-                f"pass continuous_peaks=({metric!r},) to through_focus"
+                f"pass peaks=PeakOptions(metrics=({metric!r},)) to through_focus"
             )
         return self.peaks[metric]
 
@@ -142,26 +136,19 @@ def _cutoff_at_index(radial_mtf, index, frequencies_cpd, threshold: float):
     return cutoff_frequency(_mtf_at_index(radial_mtf, index), frequencies_cpd, threshold)
 
 
-@shape_checked
+# No shape check: its shaped inputs arrive checked inside States and Viewing.
 def through_focus(
     eyes: Eyes,
     layout: Layout | None = None,
-    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None = None,
-    accommodation_D: Real[ArrayLike, " n_acc"] | Sequence[float] | None = None,
-    pupil_diameter_mm: float = 3.0,
-    cdp_D: float = 2.0,
+    states: States | None = None,
+    viewing: Viewing = Viewing(),  # noqa: B008 - frozen, checked once
+    *,
     spectrum: Spectrum | None = None,
     sampling: Sampling | None = None,
     options: ModelOptions = ModelOptions(),
-    accommodation_offsets_D: Real[ArrayLike, " n_acc"] | float | Sequence[float] | None = None,
-    window_D: float | None = None,
+    peaks: PeakOptions = PeakOptions(),  # noqa: B008 - frozen, checked once
     eye_chunk: int | None = None,
     check_aliasing: bool = True,
-    continuous_peaks: tuple = (),
-    peak_method: str = "auto",
-    refine_second_peaks: bool = True,
-    display: DisplayOptics | None = None,
-    peak_tolerance_D: float = DEFAULT_TOLERANCE_D,
 ) -> ThroughFocus:
     """VSOTF, Strehl and radial MTF through focus for eyes × depths × accommodation states.
 
@@ -170,35 +157,27 @@ def through_focus(
     eyes : Eyes (n_eyes batch)
     layout : Layout, default open pupil (natural view); every view must reach into the
         calculation pupil (:func:`lfjax.model.layouts.check_views_in_pupil`)
-    depths_D : (n_depth,) rendered depths, D, in the model's range [0, 10] D
-        (:func:`lfjax.base.units.check_dioptres`, as the CDP and every state); default [cdp_D]
-    accommodation_D : (n_acc,) absolute accommodation states shared by all depths, D ≥ 0
-        (hyperopic limit). Mutually exclusive with ``accommodation_offsets_D``.
-    accommodation_offsets_D : (n_acc,) states relative to each rendered depth, D (the
-        paper's through-focus); states below 0 D absolute are marked not ``allowed``.
-        Default when neither is given: offsets −1 … +1 D in 0.2 D steps.
-    window_D : float, D, optional
-        With ``accommodation_D``: evaluate only states within ±window_D of each rendered
-        depth (others are not ``allowed``), e.g. the paper's 0–5 D grid with a ±1 D window.
-    pupil_diameter_mm : calculation pupil, mm (≤ eyes.measured_pupil_mm)
-    cdp_D : central depth plane of the display, D
+    states : :class:`~lfjax.vision.prepare.States`, the (rendered depth, accommodation)
+        pairs, D, built by :meth:`~lfjax.vision.prepare.States.grid` (one absolute grid for
+        every depth, optionally within ±``window_D`` of each) or
+        :meth:`~lfjax.vision.prepare.States.around` (states relative to each depth: the
+        paper's through-focus; states below 0 D are not ``allowed``). Default
+        ``States.around([viewing.cdp_D])``: offsets −1 … +1 D in 0.2 D steps around the CDP.
+    viewing : :class:`~lfjax.vision.viewing.Viewing`: calculation pupil (mm, ≤
+        ``eyes.measured_pupil_mm``), the display's central depth plane (D) and its optics
+        (lenslet diffraction and finite pixels of a real display; default the paper's ideal
+        display — the VSOTF and Strehl reference stays the ideal display's, so values
+        compare across displays)
     spectrum, options : see :func:`lfjax.vision.psf.polychromatic_otf`
     sampling : Sampling, optional
         Default: the planner's field guard for this scene (the largest frequency step whose
         PSF field holds every blur and display shift; milliseconds,
         :func:`lfjax.vision.prepare.default_sampling`). The result's ``sampling`` says what
         was used.
-    continuous_peaks : metrics ("vsotf", "strehl") whose continuous peak is refined from
-        the grid in the same compiled call (:mod:`lfjax.vision.peaks`; ``()`` for grid peaks only)
-    peak_method : refinement, one of :data:`lfjax.vision.peaks.PEAK_METHODS` ("auto": Newton for
-        VSOTF, golden section for the Strehl ratio)
-    refine_second_peaks : refine second local maxima too (default; see
-        :func:`lfjax.vision.peaks.accommodation_peaks`); False halves the refinement's cost
-    peak_tolerance_D : with ``peak_method="adaptive"``: refine only the peaks whose grid
-        estimate may lie further than this from the true maximum, D (default 0.01 D)
-    display : :class:`lfjax.display.lenslets.DisplayOptics`, optional — lenslet diffraction and
-        finite pixels of a real display (default: the paper's ideal display). The VSOTF and
-        Strehl reference stays the ideal display's, so values compare across displays.
+    peaks : :class:`~lfjax.vision.peak_options.PeakOptions`: the metrics whose continuous peak is
+        refined from the grid in the same compiled call (default none: grid peaks only), the
+        method, its tolerance and whether second peaks are refined
+    eye_chunk : eyes evaluated together inside the pipeline's map (None: one at a time)
 
     Elemental OTFs are computed once per distinct absolute state and reused by every depth.
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
@@ -212,9 +191,10 @@ def through_focus(
     >>> import lfjax
     >>> from lfjax.model.spectral import monochromatic_spectrum
     >>> tf = lfjax.through_focus(
-    ...     lfjax.average_eye(3.0), lfjax.grid_layout(2), depths_D=[1.0],
-    ...     accommodation_D=[0.6, 0.8, 1.0, 1.2, 1.4], spectrum=monochromatic_spectrum(550.0),
-    ...     continuous_peaks=("vsotf",), peak_method="vertex")
+    ...     lfjax.average_eye(3.0), lfjax.grid_layout(2),
+    ...     lfjax.States.grid([0.6, 0.8, 1.0, 1.2, 1.4], depths_D=[1.0]),
+    ...     spectrum=monochromatic_spectrum(550.0),
+    ...     peaks=lfjax.PeakOptions(metrics=("vsotf",), method="vertex"))
     >>> tf.vsotf.shape  # (n_eyes, n_depth, n_acc)
     (1, 1, 5)
     >>> float(tf.predicted_accommodation_D()[0, 0])
@@ -223,42 +203,38 @@ def through_focus(
     0.95
     """
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
-    _check_peak_options(continuous_peaks, peak_method, peak_tolerance_D)
-    prepared = prepare(eyes, layout, _through_focus_states(depths_D, accommodation_D, cdp_D,
-                                                           accommodation_offsets_D, window_D),
-                       pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, spectrum=spectrum,
-                       options=options, sampling=sampling, check_aliasing=check_aliasing,
-                       eye_chunk=eye_chunk, display=display, traced_checks=False)
+    states = _through_focus_states(states, viewing)
+    _check_peak_options(peaks)
+    prepared = prepare(eyes, layout, states, viewing, spectrum=spectrum, options=options,
+                       sampling=sampling, check_aliasing=check_aliasing, eye_chunk=eye_chunk,
+                       traced_checks=False)
     # exported once and reloaded by later processes when the program cache is on (the
     # command line's): tracing this program costs seconds per layout in every new process
-    metrics, peaks = call_cached(
-        _metrics_and_peaks_exportable, eyes, prepared.scene, spectrum, prepared.accommodation(options),
-        prepared.states.allowed, config=prepared.config, peak_metrics=tuple(continuous_peaks),
-        peak_method=peak_method, refine_second=refine_second_peaks,
-        tolerance_D=float(peak_tolerance_D),
+    metrics, found = call_cached(
+        _metrics_and_peaks, eyes, prepared.scene, spectrum, prepared.accommodation(options),
+        prepared.states.allowed, config=prepared.config, peaks=peaks,
     )
-    return _result(prepared, metrics, peaks)
+    return _result(prepared, metrics, found)
 
 
-def _check_peak_options(continuous_peaks, peak_method, peak_tolerance_D) -> None:
-    for name in continuous_peaks:
-        if name not in METRICS:
-            raise ValueError(f"continuous_peaks must name metrics in {METRICS}, got {name!r}")
-    if peak_method not in PEAK_METHODS:
-        raise ValueError(f"peak_method must be one of {PEAK_METHODS}, got {peak_method!r}")
-    check_tolerance(peak_tolerance_D)
+def _check_peak_options(peaks) -> None:
+    if not isinstance(peaks, PeakOptions):
+        raise ParameterError("peaks", "{peaks} must be lfjax.PeakOptions (metrics, method, "
+                             "tolerance, second peaks), got {got}", got=type(peaks).__name__)
 
 
-def _through_focus_states(depths_D, accommodation_D, cdp_D, accommodation_offsets_D,
-                          window_D) -> States:
-    """The :class:`~lfjax.vision.prepare.States` of :func:`through_focus`'s arguments."""
-    validate_states(None, None, cdp_D)  # the default depth is the CDP: its own message first
-    depths = np.atleast_1d(np.asarray(cdp_D if depths_D is None else depths_D, float))
-    if accommodation_D is not None and accommodation_offsets_D is not None:
-        raise ValueError("give accommodation_D or accommodation_offsets_D, not both")
-    if accommodation_D is not None:
-        return States.grid(accommodation_D, depths, window_D)
-    return States.around(depths, accommodation_offsets_D)
+def _through_focus_states(states, viewing) -> States:
+    """The :class:`~lfjax.vision.prepare.States` :func:`through_focus` evaluates: ``states``,
+    or by default the paper's offsets around the CDP."""
+    check_viewing(viewing)
+    if states is None:
+        return States.around([float(viewing.cdp_D)])
+    if not isinstance(states, States) or states.kind not in ("grid", "around"):
+        raise ParameterError(
+            "states", "{states} must be lfjax.States built by States.grid or States.around (a "
+            "grid per depth with its allowed entries), got {got}",
+            got=getattr(states, "kind", type(states).__name__))
+    return states
 
 
 def _result(prepared: Prepared, metrics, peaks) -> ThroughFocus:
@@ -290,24 +266,17 @@ def _each_variant(variants, fn) -> list:
 def through_focus_variants(
     eyes: Eyes,
     layout: Layout | None,
-    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None,
+    states: States | None,
     options: Sequence[ModelOptions],
-    accommodation_D: Real[ArrayLike, " n_acc"] | Sequence[float] | None = None,
-    pupil_diameter_mm: float = 3.0,
-    cdp_D: float = 2.0,
+    viewing: Viewing = Viewing(),  # noqa: B008 - frozen, checked once
+    *,
     wavelengths_nm=None,
     samplings: Sequence[Sampling | None] | None = None,
     spectral_weights=None,
-    accommodation_offsets_D=None,
-    window_D: float | None = None,
+    peaks: PeakOptions = PeakOptions(),  # noqa: B008 - frozen, checked once
     eye_chunk: int | None = None,
     check_aliasing: bool = True,
-    continuous_peaks: tuple = (),
-    peak_method: str = "auto",
-    refine_second_peaks: bool = True,
-    display: DisplayOptics | None = None,
     batch: str = "auto",
-    peak_tolerance_D: float = DEFAULT_TOLERANCE_D,
 ) -> list[ThroughFocus]:
     """:func:`through_focus` under several :class:`~lfjax.ModelOptions` at once: one compiled
     program over their stacked :class:`~lfjax.model.options.ModelParameters` per sampling.
@@ -355,21 +324,17 @@ def through_focus_variants(
     if len(samplings) != len(options):
         raise ValueError(f"samplings must hold one entry per variant ({len(options)}), "
                          f"got {len(samplings)}")
-    continuous_peaks = tuple(continuous_peaks)
+    _check_peak_options(peaks)
+    states = _through_focus_states(states, viewing)
     spectra = [make_spectrum(wavelengths_nm, o, weights=spectral_weights) for o in options]
     variants = list(zip(options, spectra, samplings))
     if batch == "loop":
         return _each_variant(variants, lambda o, spectrum, sampling: through_focus(
-            eyes, layout, depths_D, accommodation_D, pupil_diameter_mm, cdp_D, spectrum,
-            sampling, o, accommodation_offsets_D, window_D, eye_chunk, check_aliasing,
-            continuous_peaks, peak_method, refine_second_peaks, display, peak_tolerance_D))
-    _check_peak_options(continuous_peaks, peak_method, peak_tolerance_D)
-    states = _through_focus_states(depths_D, accommodation_D, cdp_D, accommodation_offsets_D,
-                                   window_D)
+            eyes, layout, states, viewing, spectrum=spectrum, sampling=sampling, options=o,
+            peaks=peaks, eye_chunk=eye_chunk, check_aliasing=check_aliasing))
     prepared = _each_variant(variants, lambda o, spectrum, sampling: prepare(
-        eyes, layout, states, pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D,
-        spectrum=spectrum, options=o, sampling=sampling, check_aliasing=check_aliasing,
-        eye_chunk=eye_chunk, display=display, traced_checks=False))
+        eyes, layout, states, viewing, spectrum=spectrum, options=o, sampling=sampling,
+        check_aliasing=check_aliasing, eye_chunk=eye_chunk, traced_checks=False))
     groups: dict[PipelineConfig, list[int]] = {}
     for i, p in enumerate(prepared):
         groups.setdefault(p.config, []).append(i)
@@ -382,18 +347,16 @@ def through_focus_variants(
         rho_tables = np.stack([sce_rho_table(wl, options[i]) for i in members])
         # exported once and reloaded by later processes, like through_focus's program: on
         # an accelerator (batch "vmap") tracing it cost seconds per layout in every process
-        metrics, peaks = call_cached(
-            _metrics_and_peaks_variants_exportable, eyes, first.scene, wl, weights,
-            rho_tables, parameters, first.states.states_D, first.states.index,
-            jnp.asarray(pupil_diameter_mm, float), first.states.allowed, config=config,
-            peak_metrics=continuous_peaks, peak_method=peak_method,
-            refine_second=refine_second_peaks, batch=batch,
-            tolerance_D=float(peak_tolerance_D),
+        metrics, found = call_cached(
+            _metrics_and_peaks_variants, eyes, first.scene, wl, weights, rho_tables,
+            parameters, first.states.states_D, first.states.index,
+            jnp.asarray(viewing.pupil_diameter_mm, float), first.states.allowed, config=config,
+            peaks=peaks, batch=batch,
         )
         # sliced on the host: an eager x[k] per leaf and variant compiles a program each
-        metrics, peaks = jax.device_get((metrics, peaks))
+        metrics, found = jax.device_get((metrics, found))
         for k, i in enumerate(members):
-            one = jax.tree_util.tree_map(lambda x, k=k: jnp.asarray(x[k]), (metrics, peaks))
+            one = jax.tree_util.tree_map(lambda x, k=k: jnp.asarray(x[k]), (metrics, found))
             results[i] = _result(prepared[i], *one)
     return results
 
@@ -401,11 +364,12 @@ def through_focus_variants(
 VARIANT_BATCHES = ("auto", "vmap", "map", "loop")
 
 
+# Arrays first, static choices by keyword: the form lfjax.base.programs.call_cached exports
+# and reloads, so each program has one definition.
 @eqx.filter_jit
 def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables, parameters,
-                                states_D, pair_index, pupil_diameter_mm, config, allowed,
-                                peak_metrics, peak_method, refine_second, batch="vmap",
-                                tolerance_D=DEFAULT_TOLERANCE_D):
+                                states_D, pair_index, pupil_diameter_mm, allowed, *, config,
+                                peaks: PeakOptions, batch: str = "vmap"):
     """:func:`_metrics_and_peaks` over stacked ModelParameters (leading axis) and their ρ(λ)
     tables (n_variants, n_wavelengths), vmapped or mapped (``batch``): one compiled program
     for them all."""
@@ -413,48 +377,27 @@ def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables
     def one(p, rho_table):
         spectrum = model_spectrum(wavelengths_nm, weights, rho_table, p)
         accommodation = Accommodation.shared(states_D, pair_index, p, pupil_diameter_mm)
-        return _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed,
-                                  peak_metrics, peak_method, refine_second, tolerance_D)
+        return _metrics_and_peaks(eyes, scene, spectrum, accommodation, allowed, config=config,
+                                  peaks=peaks)
 
     if batch == "map":
         return jax.lax.map(lambda xs: one(*xs), (parameters, rho_tables))
     return jax.vmap(one)(parameters, rho_tables)
 
 
-def _metrics_and_peaks_variants_exportable(eyes, scene, wavelengths_nm, weights, rho_tables,
-                                           parameters, states_D, pair_index,
-                                           pupil_diameter_mm, allowed, *, config,
-                                           peak_metrics, peak_method, refine_second, batch,
-                                           tolerance_D):
-    """:func:`_metrics_and_peaks_variants` with its arrays first and its static choices by
-    keyword (:func:`lfjax.base.programs.call_cached`'s form)."""
-    return _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables,
-                                       parameters, states_D, pair_index, pupil_diameter_mm,
-                                       config, allowed, peak_metrics, peak_method,
-                                       refine_second, batch, tolerance_D)
-
-
 @eqx.filter_jit
-def _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed, peak_metrics,
-                       peak_method, refine_second, tolerance_D=DEFAULT_TOLERANCE_D):
-    """Grid metrics and the continuous peaks refined from them, in one compiled call."""
+def _metrics_and_peaks(eyes, scene, spectrum, accommodation, allowed, *, config,
+                       peaks: PeakOptions):
+    """Grid metrics and the continuous peaks of ``peaks.metrics`` refined from them, in one
+    compiled call."""
     reference = reference_normalisers(scene, spectrum, accommodation, config)
     metrics = retinal_metrics(eyes, scene, spectrum, accommodation, config, reference)
-    peaks = {
+    found = {
         name: peaks_from_grid(getattr(metrics, name), eyes, scene, spectrum, accommodation,
-                              config, reference, name, peak_method, allowed,
-                              refine_second=refine_second, tolerance_D=tolerance_D)
-        for name in peak_metrics
+                              config, reference, name, peaks, allowed)
+        for name in peaks.metrics
     }
-    return metrics, peaks
-
-
-def _metrics_and_peaks_exportable(eyes, scene, spectrum, accommodation, allowed, *, config,
-                                  peak_metrics, peak_method, refine_second, tolerance_D):
-    """:func:`_metrics_and_peaks` with its arrays first and its static choices by keyword
-    (:func:`lfjax.base.programs.call_cached`'s form)."""
-    return _metrics_and_peaks(eyes, scene, spectrum, accommodation, config, allowed,
-                              peak_metrics, peak_method, refine_second, tolerance_D)
+    return metrics, found
 
 
 @shape_checked
@@ -463,23 +406,21 @@ def metrics_at(
     layout: Layout,
     depths_D: Real[ArrayLike, " n_depth"] | Sequence[float],
     accommodation_D: Real[ArrayLike, "n_depth n_acc"] | Sequence[Sequence[float]],
-    pupil_diameter_mm=3.0,
-    cdp_D=2.0,
+    viewing: Viewing = Viewing(),  # noqa: B008 - frozen, checked once
     spectrum: Spectrum | None = None,
     sampling: Sampling | None = None,
     options: ModelOptions = ModelOptions(),
-    display: DisplayOptics | None = None,
 ) -> tuple[Float[Array, "n_eyes n_depth n_acc"], Float[Array, "n_eyes n_depth n_acc"]]:
     """VSOTF and Strehl at given (depth, accommodation) pairs — differentiable in everything.
 
     Unlike :func:`through_focus` (a host-side grid with the hyperopic limit), this is a pure
     function of arrays: ``jax.jit``, ``jax.vmap`` and ``jax.grad`` apply from outside, and
-    gradients flow to the eyes' Zernike coefficients, ``depths_D``, ``accommodation_D``,
-    ``pupil_diameter_mm``, ``cdp_D``, the layout's centres and diameters and the display's
-    optics (``display``: Fresnel distance, pixel width; see :mod:`lfjax.display.lenslets`) — the
-    building block of peak finders and layout optimisers. Window sizes are static: they come from
-    ``layout.window_diameter_mm`` and, when ``pupil_diameter_mm`` is traced, the eyes'
-    measured pupil. Concrete inputs are checked on the host (values, aliasing); traced ones
+    gradients flow to the eyes' Zernike coefficients, ``depths_D``, ``accommodation_D``, the
+    ``viewing``'s pupil, CDP and display optics (Fresnel distance, pixel width; see
+    :mod:`lfjax.display.lenslets`; build the :class:`~lfjax.vision.viewing.Viewing` inside the
+    differentiated function) and the layout's centres and diameters — the building block of
+    peak finders and layout optimisers. Window sizes are static: they come from
+    ``layout.window_diameter_mm`` and, when the pupil is traced, the eyes' measured pupil. Concrete inputs are checked on the host (values, aliasing); traced ones
     inside the pipeline (``eqx.error_if``).
 
     Parameters
@@ -506,9 +447,8 @@ def metrics_at(
     0.61
     """
     spectrum = make_spectrum(options=options) if spectrum is None else spectrum
-    prepared = prepare(eyes, layout, States.per_depth(accommodation_D, depths_D),
-                       pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, spectrum=spectrum,
-                       options=options, sampling=sampling, display=display)
+    prepared = prepare(eyes, layout, States.per_depth(accommodation_D, depths_D), viewing,
+                       spectrum=spectrum, options=options, sampling=sampling)
     return vsotf_and_strehl(eyes, prepared.scene, spectrum, prepared.accommodation(options),
                             prepared.config)
 

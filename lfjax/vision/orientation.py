@@ -21,14 +21,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lfjax.display.lenslets import DisplayOptics
-from lfjax.display.lenticular import check_display_for_layout
+from lfjax.base.errors import ParameterError
 from lfjax.kernel.metrics import cutoff_frequency, half_plane_frequencies, ncsf_half_plane, vsotf_numerator
 from lfjax.kernel.pipeline import eye_coefficients, reference_otf, rendered_otfs
 from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout
 from lfjax.model.options import ModelOptions
 from lfjax.vision.prepare import States, prepare
+from lfjax.vision.viewing import Viewing
 
 BANDS = ("whole", "x", "y")
 """The VSOTF bands: the whole plane, vertical structure (f_x axis, cos²φ), horizontal
@@ -120,22 +120,22 @@ def _band_metrics(eyes, scene, spectrum, accommodation, config):
     return jax.lax.map(one_eye, eye_coefficients(eyes, config), batch_size=config.eye_chunk)
 
 
-def orientation_through_focus(eyes: Eyes, layout: Layout | None, depths_D, accommodation_D, *,
-                              pupil_diameter_mm: float = 3.0, cdp_D: float = 2.0, spectrum=None,
-                              sampling=None, options: ModelOptions = ModelOptions(),
-                              display: DisplayOptics | None = None,
+def orientation_through_focus(eyes: Eyes, layout: Layout | None, states: States,
+                              viewing: Viewing = Viewing(),  # noqa: B008 - frozen, checked
+                              *, spectrum=None, sampling=None,
+                              options: ModelOptions = ModelOptions(),
                               eye_chunk: int | None = None) -> OrientationFocus:
     """VSOTF of the whole plane and of each orientation band, and the MTF along each axis,
-    for ``eyes`` × ``depths_D`` (n_depth,) D × one absolute grid ``accommodation_D``
-    (n_acc,) D, strictly increasing, ≥ 0 D; the other arguments as
-    :func:`lfjax.vision.focus.through_focus`'s (``display``: e.g. a strip display,
+    for ``eyes`` × the ``states``' depths × their one absolute grid (a
+    :meth:`~lfjax.vision.prepare.States.grid` without a window: every state for every
+    depth); the other arguments as :func:`lfjax.vision.focus.through_focus`'s (the
+    ``viewing``'s display: e.g. a strip display,
     :func:`lfjax.display.lenticular.strip_display`). Inputs are checked before any work."""
-    states = States.grid(accommodation_D, depths_D)
-    if layout is not None:
-        check_display_for_layout(display, layout)
-    prepared = prepare(eyes, layout, states, pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D,
-                       spectrum=spectrum, options=options, sampling=sampling,
-                       eye_chunk=eye_chunk, display=display)
+    if not isinstance(states, States) or states.kind != "grid" or not np.all(states.allowed):
+        raise ParameterError("states", "{states} must be lfjax.States.grid(accommodation_D, "
+                             "depths_D) without a window (every state for every depth)")
+    prepared = prepare(eyes, layout, states, viewing, spectrum=spectrum, options=options,
+                       sampling=sampling, eye_chunk=eye_chunk)
     vsotf, mtf_x, mtf_y = _band_metrics(eyes, prepared.scene, prepared.spectrum,
                                         prepared.accommodation(options), prepared.config)
     n_half = prepared.config.n_fft // 2 + 1

@@ -37,7 +37,7 @@ import numpy as np
 from lfjax.base.sampling import AliasingError, Sampling, finer_step
 from lfjax.base.types import is_concrete
 from lfjax.base.units import check_dioptres
-from lfjax.display.lenslets import DisplayOptics
+from lfjax.display.lenticular import check_display_for_layout
 from lfjax.kernel.optics import field_check, validate_coefficients, validate_pupil, validate_states
 from lfjax.kernel.pipeline import PipelineConfig
 from lfjax.kernel.scene import Accommodation, Scene
@@ -47,6 +47,7 @@ from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import Spectrum, make_spectrum
 from lfjax.planner.plan import plan_sampling
 from lfjax.planner.scene import PlanScene
+from lfjax.vision.viewing import Viewing, check_viewing
 
 DEFAULT_OFFSETS_D = np.round(np.arange(-5, 6) * 0.2, 9)
 """The paper's through-focus: states −1 … +1 D around each rendered depth in 0.2 D steps."""
@@ -270,11 +271,11 @@ class States:
 # ----------------------------------------------------------------------------- sampling
 
 
-def default_sampling(eyes: Eyes, layout: Layout, states: States, *, pupil_diameter_mm,
-                     cdp_D, spectrum: Spectrum, options: ModelOptions,
-                     display: DisplayOptics | None = None) -> Sampling:
+def default_sampling(eyes: Eyes, layout: Layout, states: States, viewing: Viewing, *,
+                     spectrum: Spectrum, options: ModelOptions) -> Sampling:
     """The sampling a computation uses when none is given: the planner's field guard for
-    this scene (milliseconds; no accuracy proxy).
+    this scene (milliseconds; no accuracy proxy). ``viewing``: a concrete
+    :class:`~lfjax.vision.viewing.Viewing`.
 
     One rule for every entry point: the guard covers the pairs asked for *and* the default
     through-focus neighbourhood of every rendered depth (:data:`PLANNED_NEIGHBOURHOOD_D`,
@@ -291,12 +292,14 @@ def default_sampling(eyes: Eyes, layout: Layout, states: States, *, pupil_diamet
              np.concatenate([np.asarray(pairs[1], float).ravel(),
                              np.broadcast_to(depths[:, None], around.shape)[keep]]))
     scene = PlanScene(
-        layout=layout, pupil_diameter_mm=float(pupil_diameter_mm), cdp_D=float(cdp_D),
+        layout=layout, pupil_diameter_mm=float(viewing.pupil_diameter_mm),
+        cdp_D=float(viewing.cdp_D),
         depths_D=np.asarray(depths, float), accommodation_D=np.unique(np.asarray(pairs[0], float)),
         accommodation_window_D=None,
         pairs=(np.asarray(pairs[0], float), np.asarray(pairs[1], float)),
         wavelengths_nm=np.asarray(spectrum.wavelengths_nm),
-        spectral_weights=np.asarray(spectrum.weights), eyes=eyes, options=options, display=display,
+        spectral_weights=np.asarray(spectrum.weights), eyes=eyes, options=options,
+        display=viewing.display,
     )
     return plan_sampling(scene, estimate_accuracy=False).sampling
 
@@ -383,15 +386,13 @@ def prepare(
     eyes: Eyes,
     layout: Layout | None,
     states: States,
+    viewing: Viewing = Viewing(),  # noqa: B008 - frozen, checked once
     *,
-    pupil_diameter_mm=3.0,
-    cdp_D=2.0,
     spectrum: Spectrum | None = None,
     options: ModelOptions = ModelOptions(),
     sampling: Sampling | None = None,
     check_aliasing: bool = True,
     eye_chunk: int | None = None,
-    display: DisplayOptics | None = None,
     traced_checks: bool | None = None,
 ) -> Prepared:
     """Check, sample, configure and build the scene of one computation (module docstring).
@@ -401,16 +402,16 @@ def prepare(
     eyes : :class:`~lfjax.model.eyes.Eyes`
     layout : the display's views, mm; None: the open pupil (natural viewing)
     states : the (depth, accommodation) pairs, a :class:`States`
-    pupil_diameter_mm : calculation pupil, mm, ≤ ``eyes.measured_pupil_mm`` (may be traced:
-        the windows are then sized for the measured pupil)
-    cdp_D : the display's central depth plane, D (may be traced)
+    viewing : :class:`~lfjax.vision.viewing.Viewing`: the calculation pupil (mm, ≤
+        ``eyes.measured_pupil_mm``; may be traced: the windows are then sized for the
+        measured pupil), the display's central depth plane (D; may be traced) and the
+        display's optics (None: the paper's ideal display)
     spectrum : default V(λ) on 400–700 nm in 10 nm steps with ``options``' LCA and SCE
     options : :class:`~lfjax.model.options.ModelOptions`
     sampling : checked against the field guard when given (``check_aliasing``; concrete
         inputs only); planned by :func:`default_sampling` when None (concrete depths, states,
         pupil and CDP only — give it when they are traced)
     eye_chunk : eyes evaluated together inside the pipeline's map (None: one at a time)
-    display : :class:`~lfjax.display.lenslets.DisplayOptics` of a real display, or None (ideal)
     traced_checks : False when every input is checked here on the host (the layout too):
         the compiled program then carries no host callbacks, so JAX's persistent compilation
         cache can keep it across processes. True checks traced inputs inside the program
@@ -420,6 +421,8 @@ def prepare(
     :class:`~lfjax.model.eyes.Eyes`, :class:`~lfjax.base.sampling.AliasingError` when the
     given sampling's field cannot hold the blur.
     """
+    check_viewing(viewing)
+    pupil_diameter_mm, cdp_D, display = viewing.pupil_diameter_mm, viewing.cdp_D, viewing.display
     check_eyes(eyes)
     validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
     validate_states(None, None, cdp_D)
@@ -432,6 +435,7 @@ def prepare(
         layout = (open_pupil(pupil_static) if is_concrete(pupil_diameter_mm) else Layout(
             jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
             pupil_static, "natural"))
+    check_display_for_layout(display, layout)  # a strip display built for another layout
     if is_concrete(layout.centres_mm, layout.diameters_mm, pupil_diameter_mm):
         # a view outside the pupil brings no light: VSOTF would be 0/0 (NaN, or 1)
         check_views_in_pupil(layout.centres_mm, layout.diameters_mm, pupil_diameter_mm,
@@ -444,9 +448,8 @@ def prepare(
                 "pupil_diameter_mm are traced (jax.jit / vmap / grad): plan it once on concrete "
                 "values, e.g. lfjax.planner.plan.plan_sampling(...).sampling"
             )
-        sampling = default_sampling(eyes, layout, states, pupil_diameter_mm=pupil_diameter_mm,
-                                    cdp_D=cdp_D, spectrum=spectrum, options=options,
-                                    display=display)
+        sampling = default_sampling(eyes, layout, states, viewing, spectrum=spectrum,
+                                    options=options)
     elif check_aliasing and concrete:
         field_check(eyes.zernike_um, eyes.measured_pupil_mm, pupil_diameter_mm, cdp_D,
                     states.computed_D, states.host_depths_D, layout, spectrum, sampling,

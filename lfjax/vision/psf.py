@@ -37,7 +37,7 @@ from lfjax.base.types import FULL, shape_checked
 from lfjax.base.apertures import soft_disk
 from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout
-from lfjax.kernel.optics import full_plane, validate_pupil, validate_states
+from lfjax.kernel.optics import full_plane, validate_pupil
 from lfjax.model.options import ModelOptions
 from lfjax.kernel.pipeline import otf_stack
 from lfjax.base.sampling import EDGE_EXTENT_SCALES, Sampling
@@ -45,6 +45,7 @@ from lfjax.model.spectral import Spectrum
 from lfjax.base.units import ARCMIN_PER_RADIAN, dioptres_to_c20_um
 from lfjax.vision.prepare import States, prepare
 from lfjax.base.zernike import zernike_mode, zernike_mode_host
+from lfjax.vision.viewing import Viewing, check_viewing
 
 WAVELENGTH_RANGE_NM = (380.0, 830.0)
 """Wavelengths accepted by :func:`monochromatic_psf` (nm)."""
@@ -434,16 +435,15 @@ class OTFStack(eqx.Module):
 def polychromatic_otf(
     eyes: Eyes,
     accommodation_D: Real[ArrayLike, " n_acc"] | float | Sequence[float],
-    pupil_diameter_mm: float = 3.0,
-    cdp_D: float = 2.0,
+    viewing: Viewing = Viewing(),  # noqa: B008 - frozen, checked once
+    *,
+    layout: Layout | None = None,
+    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None = None,
     spectrum: Spectrum | None = None,
     sampling: Sampling = Sampling(),
     options: ModelOptions = ModelOptions(),
-    layout: Layout | None = None,
-    depths_D: Real[ArrayLike, " n_depth"] | float | Sequence[float] | None = None,
     eye_chunk: int | None = None,
     check_aliasing: bool = True,
-    display=None,
 ) -> OTFStack:
     """Polychromatic OTFs for eyes × rendered depths × accommodation states.
 
@@ -456,10 +456,10 @@ def polychromatic_otf(
         Batch of eyes (coefficients in µm on ``eyes.measured_pupil_mm``).
     accommodation_D : array (n_acc,), D
         Absolute accommodation states 1/z_acc.
-    pupil_diameter_mm : float, mm
-        Calculation pupil, 0 < d ≤ eyes.measured_pupil_mm.
-    cdp_D : float, D
-        Depth of the display's central depth plane (where it forms its image points).
+    viewing : :class:`~lfjax.vision.viewing.Viewing`
+        Calculation pupil (mm, 0 < d ≤ eyes.measured_pupil_mm), the display's central depth
+        plane (D, where it forms its image points) and its optics (lenslet diffraction and
+        finite pixels; default the paper's ideal display); pupil and CDP may be traced.
     spectrum : Spectrum
         Wavelengths, weights, LCA and SCE (default: 400–700 nm / 10 nm, V(λ)).
     sampling : Sampling
@@ -468,21 +468,18 @@ def polychromatic_otf(
     layout : Layout
         Subapertures; default the open pupil (natural viewing).
     depths_D : array (n_depth,), D
-        Rendered depths; default ``[cdp_D]`` (a point on the display plane).
+        Rendered depths; default ``[viewing.cdp_D]`` (a point on the display plane).
     check_aliasing : bool
         Raise if the field 60/df arcmin cannot hold the blur (default True).
-    display : :class:`lfjax.display.lenslets.DisplayOptics`, optional
-        Lenslet diffraction and finite pixels (default: the paper's ideal display).
 
     Returns
     -------
     OTFStack with ``otf`` of shape (n_eyes, n_depth, n_acc, L, L), OTF(0) = 1.
     """
-    validate_states(None, None, cdp_D)  # the default depth is the CDP: its own message first
-    states = States.every(accommodation_D, cdp_D if depths_D is None else depths_D)
-    prepared = prepare(eyes, layout, states, pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D,
-                       spectrum=spectrum, options=options, sampling=sampling,
-                       check_aliasing=check_aliasing, eye_chunk=eye_chunk, display=display)
+    check_viewing(viewing)
+    states = States.every(accommodation_D, viewing.cdp_D if depths_D is None else depths_D)
+    prepared = prepare(eyes, layout, states, viewing, spectrum=spectrum, options=options,
+                       sampling=sampling, check_aliasing=check_aliasing, eye_chunk=eye_chunk)
     otf = otf_stack(eyes, prepared.scene, prepared.spectrum, prepared.accommodation(options),
                     prepared.config)
     return OTFStack(otf, states.states_D, states.depths_D, prepared.sampling.freq_step_cpd)

@@ -64,6 +64,7 @@ from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import Spectrum
 from lfjax.vision.prepare import States, default_sampling, prepare
 from lfjax.vision.psf import polychromatic_otf
+from lfjax.vision.viewing import Viewing
 
 PRIMARIES = ("red", "green", "blue")
 """The display channels, in the order of every ``n_channel`` axis here."""
@@ -118,15 +119,29 @@ def common_sampling(eye: Eyes, layouts, accommodation_D: float, depths_D, spectr
         if layout is None:
             continue
         states = States.every([a], depths)
-        steps.append(default_sampling(eye, layout, states, pupil_diameter_mm=pupil_diameter_mm,
-                                      cdp_D=cdp_D, spectrum=wide, options=options,
-                                      display=display))
+        steps.append(
+            default_sampling(
+                eye,
+                layout,
+                states,
+                Viewing(pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, display=display),
+                spectrum=wide,
+                options=options,
+            )
+        )
     deltas = depths - a if natural_defocus_D is None else np.asarray(natural_defocus_D, float)
     objects = np.clip(a + deltas, 0.0, 10.0)
     worst = float(objects[np.argmax(np.abs(objects - a))])
-    steps.append(default_sampling(eye, open_pupil(pupil_diameter_mm), States.every([a], [worst]),
-                                  pupil_diameter_mm=pupil_diameter_mm, cdp_D=worst, spectrum=wide,
-                                  options=options))
+    steps.append(
+        default_sampling(
+            eye,
+            open_pupil(pupil_diameter_mm),
+            States.every([a], [worst]),
+            Viewing(pupil_diameter_mm=pupil_diameter_mm, cdp_D=worst),
+            spectrum=wide,
+            options=options,
+        )
+    )
     sampling = min(steps, key=lambda s: s.freq_step_cpd)
     # One FFT size for every channel: the OTF grid grows at short wavelengths (the pupil's
     # support in cycles per degree is d/λ), so the bluest channel's size is used by all.
@@ -148,10 +163,17 @@ def natural_otfs(eye: Eyes, accommodation_D: float, object_depths_D, spectra,
     depths = jnp.asarray(_check_depths("object_depths_D", object_depths_D))
     out = []
     for spectrum in spectra:
-        prepared = prepare(eye, None, States.every([float(accommodation_D)], [float(depths[0])]),
-                           pupil_diameter_mm=pupil_diameter_mm, cdp_D=float(depths[0]),
-                           spectrum=spectrum, options=options, sampling=sampling,
-                           check_aliasing=False, traced_checks=False)
+        prepared = prepare(
+            eye,
+            None,
+            States.every([float(accommodation_D)], [float(depths[0])]),
+            Viewing(pupil_diameter_mm=pupil_diameter_mm, cdp_D=float(depths[0])),
+            spectrum=spectrum,
+            options=options,
+            sampling=sampling,
+            check_aliasing=False,
+            traced_checks=False,
+        )
         out.append(_natural_stack(eye, prepared.scene, spectrum, prepared.accommodation(options),
                                   prepared.config, depths))
     return jnp.stack(out)
@@ -195,10 +217,20 @@ def display_otfs(eye: Eyes, layout: Layout | None, accommodation_D: float, depth
                             pupil_diameter_mm=pupil_diameter_mm, options=options)
     eye = single_eye(eye)
     depths = _check_depths("depths_D", depths_D)
-    out = [polychromatic_otf(eye, [float(accommodation_D)], pupil_diameter_mm, cdp_D, spectrum,
-                             sampling, options, layout, depths, check_aliasing=False,
-                             display=display).otf[0, :, 0]
-           for spectrum in spectra]
+    out = [
+        polychromatic_otf(
+            eye,
+            [float(accommodation_D)],
+            Viewing(pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, display=display),
+            layout=layout,
+            depths_D=depths,
+            spectrum=spectrum,
+            sampling=sampling,
+            options=options,
+            check_aliasing=False,
+        ).otf[0, :, 0]
+        for spectrum in spectra
+    ]
     return jnp.stack(out)
 
 

@@ -54,6 +54,9 @@ from lfjax.vision.scene_blur import (
     display_otfs,
     embed_otf,
 )
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 BYTES_PER_PIXEL_LAYER = 4 * 2 * 4
 """Working memory per padded pixel, layer and channel, bytes: float32 colour and coverage,
@@ -217,10 +220,15 @@ def predicted_accommodation(eye: Eyes, layout: Layout | None, fixation_D: float,
         cdp_D = float(fixation_D)
     # from 3 D farther than the fixated depth (past the CDP, where a display whose views
     # drive accommodation weakly leaves the eye) to 1 D nearer, in 0.2 D states
-    tf = through_focus(single_eye(eye), layout, [float(fixation_D)], None, pupil_diameter_mm,
-                       cdp_D, spectrum=white, options=options,
-                       accommodation_offsets_D=SEARCH_OFFSETS_D, continuous_peaks=("vsotf",),
-                       display=display)
+    tf = through_focus(
+        single_eye(eye),
+        layout,
+        States.grid(None, depths_D=[float(fixation_D)]),
+        Viewing(pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, display=display),
+        spectrum=white,
+        options=options,
+        peaks=PeakOptions(metrics=("vsotf",)),
+    )
     a = float(tf.continuous_accommodation_D()[0, 0])
     if not math.isfinite(a):
         a = float(tf.predicted_accommodation_D()[0, 0])

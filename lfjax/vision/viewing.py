@@ -78,4 +78,13 @@ class Viewing(eqx.Module):
                 got=type(self.display).__name__)
 
 
-__all__ = ["Viewing", "MAX_PUPIL_MM"]
+def check_viewing(viewing) -> Viewing:
+    """``viewing`` itself when it is a :class:`Viewing`; else a
+    :class:`~lfjax.base.errors.ParameterError` naming ``viewing`` (before any work)."""
+    if not isinstance(viewing, Viewing):
+        raise ParameterError("viewing", "{viewing} must be lfjax.Viewing (pupil_diameter_mm, "
+                             "cdp_D, display), got {got}", got=type(viewing).__name__)
+    return viewing
+
+
+__all__ = ["Viewing", "MAX_PUPIL_MM", "check_viewing"]

@@ -25,6 +25,7 @@ from lfjax.display.lenslets import DisplayOptics
 from lfjax.display.panel import near_eye_microdisplay
 from lfjax.model.eyes import aberration_free_eye
 from lfjax.vision.focus import metrics_at
+from lfjax.vision.viewing import Viewing
 
 WL = [550.0]
 OPTIONS = lfjax.ModelOptions()
@@ -120,8 +121,16 @@ def _metrics(display, eye=None, layout=None):
     layout = lfjax.grid_layout(2, 3.0) if layout is None else layout
     eye = lfjax.average_eye(3.0) if eye is None else eye
     acc = np.array([[0.6, 1.4], [1.8, 2.4]])
-    out = metrics_at(eye, layout, [1.0, 2.0], acc, 3.0, 2.0, lfjax.make_spectrum(WL), SAMPLING,
-                     OPTIONS, display)
+    out = metrics_at(
+        eye,
+        layout,
+        [1.0, 2.0],
+        acc,
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0, display=display),
+        spectrum=lfjax.make_spectrum(WL),
+        sampling=SAMPLING,
+        options=OPTIONS,
+    )
     return np.asarray(out[0]), np.asarray(out[1])
 
 
@@ -165,8 +174,18 @@ def test_positive_spherical_aberration_moves_a_views_focus_farther():
     spectrum = lfjax.make_spectrum(WL)
 
     def peak(display):
-        v = np.asarray(metrics_at(eye, layout, [2.0], acc, 3.0, 2.0, spectrum, SAMPLING, OPTIONS,
-                                  display)[0])[0, 0]
+        v = np.asarray(
+            metrics_at(
+                eye,
+                layout,
+                [2.0],
+                acc,
+                Viewing(pupil_diameter_mm=3.0, cdp_D=2.0, display=display),
+                spectrum=spectrum,
+                sampling=SAMPLING,
+                options=OPTIONS,
+            )[0]
+        )[0, 0]
         return acc[0, int(np.argmax(v))]
 
     assert peak(None) == pytest.approx(2.0)
@@ -186,8 +205,18 @@ def test_aberration_gradients_match_finite_differences():
 
     def f(c):
         display = DisplayOptics(diffraction, "circle", 400.0).with_aberration(LensletAberration(*c))
-        return jnp.sum(metrics_at(eye, layout, [1.4], acc, 3.0, 2.0, spectrum, SAMPLING, OPTIONS,
-                                  display)[0])
+        return jnp.sum(
+            metrics_at(
+                eye,
+                layout,
+                [1.4],
+                acc,
+                Viewing(pupil_diameter_mm=3.0, cdp_D=2.0, display=display),
+                spectrum=spectrum,
+                sampling=SAMPLING,
+                options=OPTIONS,
+            )[0]
+        )
 
     grad = np.asarray(jax.grad(f)(base))
     h = 1e-4

@@ -12,6 +12,7 @@ import pytest
 from lfjax.display import spectra as ds
 from lfjax.model import spectral
 from lfjax.model.options import ModelOptions
+from lfjax.vision.viewing import Viewing
 
 def _spectrum(name, channel, **kwargs):
     with warnings.catch_warnings():
@@ -46,9 +47,15 @@ def test_reduced_spectrum_gives_the_full_spectrums_vsotf():
     assert reduced.n_wavelengths < full.n_wavelengths / 2
 
     def vsotf(spectrum):
-        v, _ = metrics_at(lfjax.sample_eyes(3, 2), lfjax.open_pupil(3.0), jnp.asarray([2.0]),
-                          jnp.asarray([[1.7, 2.0, 2.3]]), pupil_diameter_mm=3.0, cdp_D=2.0,
-                          spectrum=spectrum, sampling=lfjax.Sampling(2.0))
+        v, _ = metrics_at(
+            lfjax.sample_eyes(3, 2),
+            lfjax.open_pupil(3.0),
+            jnp.asarray([2.0]),
+            jnp.asarray([[1.7, 2.0, 2.3]]),
+            Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spectrum,
+            sampling=lfjax.Sampling(2.0),
+        )
         return np.asarray(v)
 
     v_full = vsotf(full)

@@ -19,6 +19,8 @@ from lfjax.planner.proxy import Proxy
 from lfjax.display.lenslets import DisplayOptics, LensletArray, fresnel_propagate, lenslets_for_layout
 from lfjax.vision.psf import polychromatic_otf
 from lfjax.vision.focus import metrics_at, through_focus
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 WL = [550.0]
 OPTIONS = lfjax.ModelOptions()
@@ -78,8 +80,18 @@ def _vsotf(display, layout=None, sampling=lfjax.Sampling(1.2, edge_width_samples
     layout = lfjax.grid_layout(2, 3.0) if layout is None else layout
     eye = lfjax.average_eye(3.0)
     acc = np.array([[0.6, 1.0, 1.4], [1.6, 2.0, 2.4]])
-    return np.asarray(metrics_at(eye, layout, [1.0, 2.0], acc, 3.0, 2.0,
-                                 lfjax.make_spectrum(WL), sampling, OPTIONS, display)[0])
+    return np.asarray(
+        metrics_at(
+            eye,
+            layout,
+            [1.0, 2.0],
+            acc,
+            Viewing(pupil_diameter_mm=3.0, cdp_D=2.0, display=display),
+            spectrum=lfjax.make_spectrum(WL),
+            sampling=sampling,
+            options=OPTIONS,
+        )[0]
+    )
 
 
 def test_large_ideal_lenslet_converges_to_the_geometric_subaperture():
@@ -110,9 +122,26 @@ def test_pixels_multiply_the_otf_by_the_emitter_sinc():
     sampling = lfjax.Sampling(2.0)
     spectrum = lfjax.make_spectrum(WL)
     width_arcmin = 1.5
-    base = polychromatic_otf(eye, [2.0], 3.0, 2.0, spectrum, sampling, OPTIONS)
-    blurred = polychromatic_otf(eye, [2.0], 3.0, 2.0, spectrum, sampling, OPTIONS,
-                                display=DisplayOptics(pixel_width_arcmin=width_arcmin))
+    base = polychromatic_otf(
+        eye,
+        [2.0],
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        spectrum=spectrum,
+        sampling=sampling,
+        options=OPTIONS,
+    )
+    blurred = polychromatic_otf(
+        eye,
+        [2.0],
+        Viewing(
+            pupil_diameter_mm=3.0,
+            cdp_D=2.0,
+            display=DisplayOptics(pixel_width_arcmin=width_arcmin),
+        ),
+        spectrum=spectrum,
+        sampling=sampling,
+        options=OPTIONS,
+    )
     n = base.n_fft
     a_deg = width_arcmin / 60.0
     fy = np.fft.fftfreq(n, 1.0 / n) * sampling.freq_step_cpd
@@ -132,8 +161,18 @@ def test_pixels_and_diffraction_are_differentiable():
 
     def from_optics(z_eff, width):
         display = DisplayOptics("fresnel", "circle", z_eff, width)
-        return jnp.sum(metrics_at(eye, lfjax.grid_layout(2, 3.0), [1.4], acc, 3.0, 2.0, spectrum,
-                                  sampling, OPTIONS, display)[0])
+        return jnp.sum(
+            metrics_at(
+                eye,
+                lfjax.grid_layout(2, 3.0),
+                [1.4],
+                acc,
+                Viewing(pupil_diameter_mm=3.0, cdp_D=2.0, display=display),
+                spectrum=spectrum,
+                sampling=sampling,
+                options=OPTIONS,
+            )[0]
+        )
 
     base = (jnp.asarray(400.0), jnp.asarray(1.0))
     grads = jax.grad(from_optics, argnums=(0, 1))(*base)
@@ -153,8 +192,18 @@ def test_pixels_and_diffraction_are_differentiable():
     def from_array(array, pixel_pitch_mm):
         layout = array.layout(3.0, 2)
         display = array.optics(pixel_pitch_mm, 0.8)
-        return jnp.sum(metrics_at(eye, layout, [1.4], acc, 3.0, array.cdp_D, spectrum, sampling,
-                                  OPTIONS, display)[0])
+        return jnp.sum(
+            metrics_at(
+                eye,
+                layout,
+                [1.4],
+                acc,
+                Viewing(pupil_diameter_mm=3.0, cdp_D=array.cdp_D, display=display),
+                spectrum=spectrum,
+                sampling=sampling,
+                options=OPTIONS,
+            )[0]
+        )
 
     pitch = jnp.asarray(0.01)
     grad, grad_pitch = jax.grad(from_array, argnums=(0, 1))(lenslets, pitch)
@@ -209,9 +258,14 @@ def test_the_field_guard_knows_the_display_blur():
     assert pixels.blur_radius_arcmin == pytest.approx(ideal.blur_radius_arcmin + 10.0 / math.sqrt(2))
     assert diffracted.blur_radius_arcmin > ideal.blur_radius_arcmin
     with pytest.raises(ValueError, match="aliasing"):
-        through_focus(lfjax.average_eye(3.0), layout, [1.0, 3.0], spectrum=lfjax.make_spectrum(WL),
-                      sampling=lfjax.Sampling(ideal.sampling.freq_step_cpd * 0.999),
-                      display=DisplayOptics(pixel_width_arcmin=30.0))
+        through_focus(
+            lfjax.average_eye(3.0),
+            layout,
+            States.around([1.0, 3.0]),
+            Viewing(display=DisplayOptics(pixel_width_arcmin=30.0)),
+            spectrum=lfjax.make_spectrum(WL),
+            sampling=lfjax.Sampling(ideal.sampling.freq_step_cpd * 0.999),
+        )
 
 
 @pytest.mark.parametrize("display", [
@@ -226,9 +280,15 @@ def test_proxy_vsotf_equals_the_pipeline_with_display_effects(display):
     depths, states = [1.0, 3.0], np.array([0.6, 1.0, 2.6, 3.0])
     spectrum = lfjax.make_spectrum([500.0, 600.0])
     df = 1.3
-    tf = through_focus(lfjax.model.eyes.aberration_free_eye(), layout, depths, states, 3.0,
-                       spectrum=spectrum, sampling=lfjax.Sampling(df), check_aliasing=False,
-                       display=display)
+    tf = through_focus(
+        lfjax.model.eyes.aberration_free_eye(),
+        layout,
+        States.grid(states, depths_D=depths),
+        Viewing(pupil_diameter_mm=3.0, display=display),
+        spectrum=spectrum,
+        sampling=lfjax.Sampling(df),
+        check_aliasing=False,
+    )
     acc, dep = np.meshgrid(states, depths)
     scene = PlanScene(layout, 3.0, 2.0, pairs=(acc.ravel(), dep.ravel()), options=OPTIONS,
                       display=display)
@@ -262,8 +322,16 @@ def test_traced_bad_display_values_do_not_pass_silently():
     @jax.jit
     def run(z_eff):
         display = DisplayOptics("fresnel", "circle", z_eff, 0.0)
-        return metrics_at(eye, lfjax.grid_layout(2, 3.0), [2.0], jnp.array([[2.0]]), 3.0, 2.0,
-                          spectrum, lfjax.Sampling(1.3), OPTIONS, display)[0]
+        return metrics_at(
+            eye,
+            lfjax.grid_layout(2, 3.0),
+            [2.0],
+            jnp.array([[2.0]]),
+            Viewing(pupil_diameter_mm=3.0, cdp_D=2.0, display=display),
+            spectrum=spectrum,
+            sampling=lfjax.Sampling(1.3),
+            options=OPTIONS,
+        )[0]
 
     assert np.all(np.isfinite(np.asarray(run(400.0))))
     with pytest.raises(Exception, match="fresnel_distance_mm"):

@@ -20,7 +20,7 @@ from lfjax.display.lenticular import (
 )
 from lfjax.model.strips import strip_layout
 from lfjax.vision.focus import metrics_at
-
+from lfjax.vision.viewing import Viewing
 
 def test_lenticular_phone_geometry_by_hand():
     """Gap for a 2 D CDP 350 mm away with f = 3 mm: 1/z_0 = 1/3 + 1/150; along y the beam
@@ -106,8 +106,17 @@ def test_new_parameters_are_differentiable():
     def vsotf(y_defocus, weight, width):
         layout = eqx.tree_at(lambda lay: lay.diameters_mm, base_layout, jnp.full((2,), width))
         display = strip_display(base_layout, y_defocus_D=y_defocus, leakage_weight=weight)
-        return jnp.sum(metrics_at(eye, layout, [2.5], acc, 2.0, 2.0, spectrum, sampling,
-                                  display=display)[0])
+        return jnp.sum(
+            metrics_at(
+                eye,
+                layout,
+                [2.5],
+                acc,
+                Viewing(pupil_diameter_mm=2.0, cdp_D=2.0, display=display),
+                spectrum=spectrum,
+                sampling=sampling,
+            )[0]
+        )
 
     x0 = (jnp.asarray(-0.6), jnp.asarray(0.3), jnp.asarray(0.9))
     # one compiled program gives the values and the gradient (the differences reuse it)

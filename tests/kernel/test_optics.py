@@ -27,7 +27,13 @@ def fine_dl():
     381 pupil samples across, L = 800."""
     sampling = lfjax.Sampling(0.25, edge_width_samples=0.25)
     stack = lfjax.polychromatic_otf(
-        H.dl_eye(), [2.0], 3.0, 2.0, H.spectrum_550_plain(), sampling, H.PLAIN)
+        H.dl_eye(),
+        [2.0],
+        lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        spectrum=H.spectrum_550_plain(),
+        sampling=sampling,
+        options=H.PLAIN,
+    )
     return np.asarray(stack.full_plane())[0, 0, 0]
 
 
@@ -47,8 +53,16 @@ def random_eyes_vs_reference():
     z = np.asarray(lfjax.sample_eyes(3, 3).zernike_um)
     # a fourth, aberration-free eye in the same batch: the control variate
     eyes = lfjax.model.eyes.make_eyes(np.concatenate([z, np.zeros((1, z.shape[1]))]), 3.0)
-    fast = np.asarray(lfjax.polychromatic_otf(
-        eyes, RANDOM_ACC, 3.0, 2.0, spectrum, RANDOM_SAMPLING, options).full_plane())
+    fast = np.asarray(
+        lfjax.polychromatic_otf(
+            eyes,
+            RANDOM_ACC,
+            lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spectrum,
+            sampling=RANDOM_SAMPLING,
+            options=options,
+        ).full_plane()
+    )
     n = fast.shape[-1]
     # eye i in accommodation state i: three eyes and three defocus values for 3 references
     ref = _random_eyes_reference(z, spectrum, options, n)
@@ -304,8 +318,14 @@ def test_float32_accuracy(random_eyes_vs_reference):
         options = lfjax.ModelOptions()
         spectrum = lfjax.make_spectrum(RANDOM_WAVELENGTHS, options)
         eyes = lfjax.model.eyes.make_eyes(z, 3.0)
-        stack = lfjax.polychromatic_otf(eyes, RANDOM_ACC, 3.0, 2.0, spectrum, RANDOM_SAMPLING,
-                                        options)
+        stack = lfjax.polychromatic_otf(
+            eyes,
+            RANDOM_ACC,
+            lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spectrum,
+            sampling=RANDOM_SAMPLING,
+            options=options,
+        )
         assert stack.otf.dtype == jnp.complex64
         f32 = np.asarray(stack.full_plane())[:, 0]
     err = np.abs(f32.astype(np.complex128) - random_eyes_vs_reference["fast"]).max()
@@ -335,13 +355,36 @@ def test_eye_batches_vmap_and_chunks_equal_loop():
     acc = jnp.asarray([1.8, 2.3])
 
     def one(z):
-        return lfjax.polychromatic_otf(lfjax.Eyes(z[None], 3.0), acc, 3.0, 2.0, spec,
-                                       SMALL_SAMPLING, H.PLAIN).otf[0]
+        return lfjax.polychromatic_otf(
+            lfjax.Eyes(z[None], 3.0),
+            acc,
+            lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spec,
+            sampling=SMALL_SAMPLING,
+            options=H.PLAIN,
+        ).otf[0]
 
-    batched = np.asarray(lfjax.polychromatic_otf(eyes, acc, 3.0, 2.0, spec, SMALL_SAMPLING,
-                                                 H.PLAIN).otf)
-    chunked = np.asarray(lfjax.polychromatic_otf(eyes, acc, 3.0, 2.0, spec, SMALL_SAMPLING,
-                                                 H.PLAIN, eye_chunk=2).otf)
+    batched = np.asarray(
+        lfjax.polychromatic_otf(
+            eyes,
+            acc,
+            lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spec,
+            sampling=SMALL_SAMPLING,
+            options=H.PLAIN,
+        ).otf
+    )
+    chunked = np.asarray(
+        lfjax.polychromatic_otf(
+            eyes,
+            acc,
+            lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spec,
+            sampling=SMALL_SAMPLING,
+            options=H.PLAIN,
+            eye_chunk=2,
+        ).otf
+    )
     loop = np.stack([np.asarray(one(eyes.zernike_um[i])) for i in range(eyes.n_eyes)])
     vmapped = np.asarray(jax.vmap(one)(eyes.zernike_um))
     np.testing.assert_allclose(chunked, batched, rtol=0, atol=1e-14)
@@ -414,11 +457,24 @@ def test_outer_jit_equals_direct_call():
 
     @jax.jit
     def traced(z, acc):
-        return lfjax.polychromatic_otf(lfjax.Eyes(z, 3.0), acc, 3.0, 2.0, spec,
-                                       SMALL_SAMPLING, H.PLAIN).otf
+        return lfjax.polychromatic_otf(
+            lfjax.Eyes(z, 3.0),
+            acc,
+            lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spec,
+            sampling=SMALL_SAMPLING,
+            options=H.PLAIN,
+        ).otf
 
     acc = jnp.asarray([1.8, 2.3])
-    direct = lfjax.polychromatic_otf(eyes, acc, 3.0, 2.0, spec, SMALL_SAMPLING, H.PLAIN).otf
+    direct = lfjax.polychromatic_otf(
+        eyes,
+        acc,
+        lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        spectrum=spec,
+        sampling=SMALL_SAMPLING,
+        options=H.PLAIN,
+    ).otf
     np.testing.assert_allclose(traced(eyes.zernike_um, acc), direct, rtol=0, atol=1e-14)
 
 
@@ -436,8 +492,8 @@ def test_wavelength_normalisation_unit_sum_is_mean_of_normalised_otfs(layout_nam
     eyes = lfjax.sample_eyes(1, 1)
     wavelengths = [450.0, 550.0, 650.0]
     sampling = lfjax.Sampling(2.0, n_fft=128, edge_width_samples=0.25)
-    kw = dict(accommodation_D=[1.9, 2.1], pupil_diameter_mm=3.0, cdp_D=2.0, sampling=sampling,
-              layout=layout, depths_D=[2.0, 2.3])
+    kw = dict(accommodation_D=[1.9, 2.1], viewing=lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+              sampling=sampling, layout=layout, depths_D=[2.0, 2.3])
 
     def otf(options, spectrum=None):
         spectrum = lfjax.make_spectrum(wavelengths, options) if spectrum is None else spectrum
@@ -490,8 +546,16 @@ def test_accommodation_sa_readings_match_the_reference(random_eyes_vs_reference,
     options = lfjax.ModelOptions(accommodation_sa=form)
     spectrum = lfjax.make_spectrum(RANDOM_WAVELENGTHS, options)
     eyes = lfjax.model.eyes.make_eyes(np.concatenate([d["eyes"], np.zeros((1, 15))]), 3.0)
-    fast = np.asarray(lfjax.polychromatic_otf(eyes, RANDOM_ACC, 3.0, 2.0, spectrum,
-                                              RANDOM_SAMPLING, options).full_plane())[:, 0]
+    fast = np.asarray(
+        lfjax.polychromatic_otf(
+            eyes,
+            RANDOM_ACC,
+            lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+            spectrum=spectrum,
+            sampling=RANDOM_SAMPLING,
+            options=options,
+        ).full_plane()
+    )[:, 0]
     pairs, free = fast[np.arange(3), np.arange(3)], fast[3]
     slope, s = options.sa_slope_um_per_D, 3.0 / 5.0
     if form == "unscaled":

@@ -22,6 +22,9 @@ from lfjax import layout_opt as lo
 from lfjax.layout_opt import _feasible as feasible_maps
 
 import helpers as H
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK = ROOT / "notebooks" / "optimise_layout.ipynb"
@@ -373,11 +376,19 @@ def test_collapsed_pinhole_is_reported_as_through_focus_sees_it(seeded_problem):
     problem = seeded_problem
     ev = lo.evaluate_layout(pinhole(), problem)
     layout = lo.to_layout(pinhole(), problem.constraints)
-    tf = through_focus(problem.eyes, layout, depths_D=[0.0, 2.0, 4.0],
-                       accommodation_D=np.round(np.arange(0.0, 6.01, 0.1), 9), window_D=3.0,
-                       pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=problem.spectrum,
-                       sampling=SAMPLING, options=problem.options, check_aliasing=False,
-                       continuous_peaks=("vsotf",), peak_method="newton")
+    tf = through_focus(
+        problem.eyes,
+        layout,
+        States.grid(
+            np.round(np.arange(0.0, 6.01, 0.1), 9), depths_D=[0.0, 2.0, 4.0], window_D=3.0
+        ),
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        spectrum=problem.spectrum,
+        sampling=SAMPLING,
+        options=problem.options,
+        peaks=PeakOptions(metrics=("vsotf",), method="newton"),
+        check_aliasing=False,
+    )
     reference = np.asarray(tf.continuous_peaks("vsotf").accommodation_D)
     np.testing.assert_allclose(ev["values"]["peak_D"], reference, atol=5e-3)
     assert np.all(np.abs(reference - 2.0) < 0.6)  # every eye focuses near the CDP

@@ -27,6 +27,8 @@ from lfjax.reproduce.alternatives import ALTERNATIVES
 from lfjax.kernel.scene import sa_parameters
 from lfjax.model.spectral import make_spectrum
 from lfjax.vision.focus import through_focus, through_focus_variants
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
 
 VARIANTS = [ModelOptions()] + [ModelOptions().replace(**c) for c in ALTERNATIVES.values()] + [
     ModelOptions(sce="off"), ModelOptions(accommodation_sa="off"),
@@ -74,8 +76,9 @@ def test_bad_parameters_are_refused_by_name():
         stack_parameters([ModelOptions().parameters(),
                           ModelOptions().parameters().replace(sa_reference_pupil_mm=0.0)])
     with pytest.raises(ValueError, match="batch must be one of"):
-        through_focus_variants(lfjax.sample_eyes(0, 1), None, [2.0], [ModelOptions()],
-                               batch="pmap")
+        through_focus_variants(
+            lfjax.sample_eyes(0, 1), None, States.around([2.0]), [ModelOptions()], batch="pmap"
+        )
 
 
 # ----------------------------------------------------------------------------- gradients
@@ -98,8 +101,13 @@ def _peak_function():
     def peak_of(p: ModelParameters):
         """Predicted accommodation (D, the VSOTF peak by Newton) of one aberrated eye."""
         return accommodation_peaks(
-            eyes, scene, make_spectrum(WL, options, parameters=p),
-            Accommodation.shared(GRID, index, p, 3.0), config, "vsotf", "newton",
+            eyes,
+            scene,
+            make_spectrum(WL, options, parameters=p),
+            Accommodation.shared(GRID, index, p, 3.0),
+            config,
+            metric="vsotf",
+            peaks=PeakOptions(method="newton"),
         ).accommodation_D[0, 0]
 
     return peak_of, options.parameters()
@@ -141,9 +149,15 @@ def test_numbers_do_not_recompile_static_choices_do():
     spectrum_wl = [500.0, 600.0]
 
     def run(options):
-        tf = through_focus(eyes, None, [2.0], accommodation_D=[1.8, 2.0, 2.2],
-                           spectrum=make_spectrum(spectrum_wl, options),
-                           sampling=lfjax.Sampling(2.0), options=options, check_aliasing=False)
+        tf = through_focus(
+            eyes,
+            None,
+            States.grid([1.8, 2.0, 2.2], depths_D=[2.0]),
+            spectrum=make_spectrum(spectrum_wl, options),
+            sampling=lfjax.Sampling(2.0),
+            options=options,
+            check_aliasing=False,
+        )
         return jax.block_until_ready(tf.vsotf)
 
     # counted compiles must be real ones: a program another test (or another worker, through
@@ -193,20 +207,22 @@ def test_batched_variants_equal_the_variants_one_by_one(batch):
     options = [ModelOptions(), ModelOptions(sce="intensity", lca_A=633.46),
                ModelOptions(accommodation_sa="wavefront_5mm", wavelength_normalisation="unit_sum")]
     wl = [500.0, 600.0]
-    kw = dict(accommodation_D=[1.6, 2.0, 2.4], pupil_diameter_mm=3.0, cdp_D=2.0)
+    states = lfjax.States.grid([1.6, 2.0, 2.4], [2.0, 2.4])
+    viewing = lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=2.0)
     sampling = lfjax.Sampling(1.5)
-    batch = through_focus_variants(eyes, layout, [2.0, 2.4], options, wavelengths_nm=wl,
-                                   samplings=[sampling] * 3, batch=batch, **kw)
+    batch = through_focus_variants(eyes, layout, states, options, viewing, wavelengths_nm=wl,
+                                   samplings=[sampling] * 3, batch=batch)
     for o, b in zip(options, batch):
-        one = through_focus(eyes, layout, [2.0, 2.4], spectrum=make_spectrum(wl, o),
-                            sampling=sampling, options=o, **kw)
+        one = through_focus(eyes, layout, states, viewing, spectrum=make_spectrum(wl, o),
+                            sampling=sampling, options=o)
         np.testing.assert_allclose(np.asarray(b.vsotf), np.asarray(one.vsotf), rtol=1e-10)
         np.testing.assert_allclose(np.asarray(b.strehl), np.asarray(one.strehl), rtol=1e-10)
         assert b.sampling == one.sampling
     assert not np.allclose(np.asarray(batch[0].vsotf), np.asarray(batch[2].vsotf))
     with pytest.raises(ValueError, match="ModelOptions.vsotf_reference must agree"):
-        through_focus_variants(eyes, layout, [2.0], [ModelOptions(),
-                               ModelOptions(vsotf_reference="open_pupil")], **kw)
+        through_focus_variants(eyes, layout, lfjax.States.grid([1.6, 2.0, 2.4], [2.0]),
+                               [ModelOptions(), ModelOptions(vsotf_reference="open_pupil")],
+                               viewing)
 
 
 @pytest.mark.parametrize("batch", ["vmap", "map"])
@@ -221,9 +237,9 @@ def test_batched_variants_program_is_exported_and_reloaded(tmp_path, batch):
     eyes = lfjax.sample_eyes(1, 1)
     layout = lfjax.grid_layout(2, 3.0)
     options = [ModelOptions(), ModelOptions(sce="intensity", lca_A=633.46)]
-    kw = dict(accommodation_D=[1.6, 2.0, 2.4], pupil_diameter_mm=3.0, cdp_D=2.0,
-              wavelengths_nm=[500.0, 600.0], samplings=[lfjax.Sampling(1.5)] * 2, batch=batch,
-              continuous_peaks=("vsotf",), peak_method="vertex")
+    states = lfjax.States.grid([1.6, 2.0, 2.4], [2.0, 2.4])
+    kw = dict(wavelengths_nm=[500.0, 600.0], samplings=[lfjax.Sampling(1.5)] * 2, batch=batch,
+              peaks=lfjax.PeakOptions(metrics=("vsotf",), method="vertex"))
     kept = programs.program_cache_folder()
     folder = programs.enable_program_cache(tmp_path / "programs")
     programs.clear_loaded()
@@ -236,10 +252,10 @@ def test_batched_variants_program_is_exported_and_reloaded(tmp_path, batch):
 
     try:
         focus._metrics_and_peaks_variants = counting
-        first = through_focus_variants(eyes, layout, [2.0, 2.4], options, **kw)
+        first = through_focus_variants(eyes, layout, states, options, **kw)
         assert len(list(folder.glob("*.jaxexport"))) == 1 and traced == [1]
         programs.clear_loaded()  # a new process
-        again = through_focus_variants(eyes, layout, [2.0, 2.4], options, **kw)
+        again = through_focus_variants(eyes, layout, states, options, **kw)
         assert traced == [1]  # loaded from the file, not traced
     finally:
         focus._metrics_and_peaks_variants = original

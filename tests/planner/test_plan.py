@@ -19,6 +19,8 @@ from lfjax.vision.psf import polychromatic_otf
 from lfjax.planner import Overrides, FieldGuard, PlanScene, Targets, plan_sampling
 from lfjax.planner import proxy as planner_proxy
 from lfjax.vision.focus import through_focus
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 WAVELENGTHS = [450.0, 550.0, 650.0]
 ACCOMMODATION = np.round(np.arange(0.0, 4.01, 0.2), 9)
@@ -35,9 +37,15 @@ SCENES = {
 def _vsotf(scene, sampling, check=False):
     layout, depths, pupil, window = scene
     eye = lfjax.model.eyes.aberration_free_eye(measured_pupil_mm=max(pupil, 3.0))
-    tf = through_focus(eye, layout, depths, ACCOMMODATION, window_D=window, pupil_diameter_mm=pupil,
-                       spectrum=lfjax.make_spectrum(WAVELENGTHS), sampling=sampling,
-                       check_aliasing=check)
+    tf = through_focus(
+        eye,
+        layout,
+        States.grid(ACCOMMODATION, depths_D=depths, window_D=window),
+        Viewing(pupil_diameter_mm=pupil),
+        spectrum=lfjax.make_spectrum(WAVELENGTHS),
+        sampling=sampling,
+        check_aliasing=check,
+    )
     return np.asarray(tf.vsotf), np.asarray(tf.allowed)
 
 
@@ -68,9 +76,16 @@ def _measured_wrap(scene, df):
     worst = 0.0
     for depth in depths:
         acc = [a for a in ACCOMMODATION if abs(a - depth) <= window + 1e-9]
-        stack = polychromatic_otf(eye, acc, pupil, 2.0, lfjax.make_spectrum(WAVELENGTHS),
-                                  lfjax.Sampling(df / 2), layout=layout, depths_D=[depth],
-                                  check_aliasing=False)
+        stack = polychromatic_otf(
+            eye,
+            acc,
+            Viewing(pupil_diameter_mm=pupil, cdp_D=2.0),
+            layout=layout,
+            depths_D=[depth],
+            spectrum=lfjax.make_spectrum(WAVELENGTHS),
+            sampling=lfjax.Sampling(df / 2),
+            check_aliasing=False,
+        )
         psf = np.asarray(psf_from_otf(stack.otf, stack.n_fft, df / 2))[0, 0]
         h = psf.shape[-1] // 2
         folded = psf + np.roll(psf, h, -1) + np.roll(psf, h, -2) + np.roll(np.roll(psf, h, -1), h, -2)
@@ -137,12 +152,22 @@ def test_plan_passes_guard_and_aliasing_is_detected():
                                    accommodation_window_D=1.0, wavelengths_nm=WAVELENGTHS))
     eye = lfjax.model.eyes.aberration_free_eye()
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
-    through_focus(eye, layout, depths, ACCOMMODATION, window_D=1.0, spectrum=spectrum,
-                  sampling=plan.sampling)
+    through_focus(
+        eye,
+        layout,
+        States.grid(ACCOMMODATION, depths_D=depths, window_D=1.0),
+        spectrum=spectrum,
+        sampling=plan.sampling,
+    )
     coarse = lfjax.Sampling(plan.guard_freq_step_cpd * 1.06)
     with pytest.raises(ValueError, match="aliasing"):
-        through_focus(eye, layout, depths, ACCOMMODATION, window_D=1.0, spectrum=spectrum,
-                      sampling=coarse)
+        through_focus(
+            eye,
+            layout,
+            States.grid(ACCOMMODATION, depths_D=depths, window_D=1.0),
+            spectrum=spectrum,
+            sampling=coarse,
+        )
 
 
 def test_override_that_aliases_is_refused():
@@ -231,9 +256,15 @@ def test_proxy_aperture_is_area_exact_and_matches_the_pipeline():
     assert otf[0, 0, 0].real == pytest.approx(math.pi * 1.5**2, rel=5e-4)
     options = lfjax.ModelOptions(sce="off", accommodation_sa="off")
     spectrum = lfjax.make_spectrum([550.0], options)
-    stack = polychromatic_otf(lfjax.model.eyes.aberration_free_eye(), [2.0 - float(spectrum.lca_D[0])],
-                              3.0, 2.0, spectrum, lfjax.Sampling(df, n_fft=160), options,
-                              check_aliasing=False)
+    stack = polychromatic_otf(
+        lfjax.model.eyes.aberration_free_eye(),
+        [2.0 - float(spectrum.lca_D[0])],
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        spectrum=spectrum,
+        sampling=lfjax.Sampling(df, n_fft=160),
+        options=options,
+        check_aliasing=False,
+    )
     ours = otf[0] / otf[0, 0, 0]
     np.testing.assert_allclose(ours, np.asarray(stack.otf)[0, 0, 0], atol=2e-5)
 
@@ -251,8 +282,15 @@ def test_proxy_vsotf_equals_the_pipeline(layout, pupil):
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
     eye = lfjax.model.eyes.aberration_free_eye(measured_pupil_mm=pupil)
     df = 1.3  # coarse on purpose: sampling errors must be the same ones, not just small
-    tf = through_focus(eye, layout, depths, states, pupil_diameter_mm=pupil, spectrum=spectrum,
-                       sampling=lfjax.Sampling(df), check_aliasing=False)
+    tf = through_focus(
+        eye,
+        layout,
+        States.grid(states, depths_D=depths),
+        Viewing(pupil_diameter_mm=pupil),
+        spectrum=spectrum,
+        sampling=lfjax.Sampling(df),
+        check_aliasing=False,
+    )
     acc, dep = np.meshgrid(states, depths)
     scene = PlanScene(layout, pupil, 2.0, pairs=(acc.ravel(), dep.ravel()))
     proxy = planner_proxy.Proxy(scene, spectrum, 0.25)
@@ -270,9 +308,15 @@ def test_proxy_mft_equals_the_pipeline_mft():
     depths, states = [1.0, 3.0], np.array([0.6, 1.4, 2.6, 3.4])
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
     sampling = lfjax.Sampling(df, transform="mft", mft_pupil_samples=samples)
-    tf = through_focus(lfjax.model.eyes.aberration_free_eye(), layout, depths, states,
-                       pupil_diameter_mm=3.0, spectrum=spectrum, sampling=sampling,
-                       check_aliasing=False)
+    tf = through_focus(
+        lfjax.model.eyes.aberration_free_eye(),
+        layout,
+        States.grid(states, depths_D=depths),
+        Viewing(pupil_diameter_mm=3.0),
+        spectrum=spectrum,
+        sampling=sampling,
+        check_aliasing=False,
+    )
     acc, dep = np.meshgrid(states, depths)
     scene = PlanScene(layout, 3.0, 2.0, pairs=(acc.ravel(), dep.ravel()))
     ours = planner_proxy.Proxy(scene, spectrum, 0.25).vsotf(
@@ -329,9 +373,15 @@ def test_proxy_cutoffs_equal_the_pipeline():
     layout, df = lfjax.grid_layout(3, 3.0), 1.3
     depths, states = [1.0, 3.0], np.array([0.6, 1.0, 2.6, 3.0, 3.4])
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
-    tf = through_focus(lfjax.model.eyes.aberration_free_eye(), layout, depths, states,
-                       pupil_diameter_mm=3.0, spectrum=spectrum, sampling=lfjax.Sampling(df),
-                       check_aliasing=False)
+    tf = through_focus(
+        lfjax.model.eyes.aberration_free_eye(),
+        layout,
+        States.grid(states, depths_D=depths),
+        Viewing(pupil_diameter_mm=3.0),
+        spectrum=spectrum,
+        sampling=lfjax.Sampling(df),
+        check_aliasing=False,
+    )
     expected = np.asarray(cutoff_frequency(tf.radial_mtf[0], tf.radial_freq_cpd, 0.05)).ravel()
     acc, dep = np.meshgrid(states, depths)
     scene = PlanScene(layout, 3.0, 2.0, pairs=(acc.ravel(), dep.ravel()))

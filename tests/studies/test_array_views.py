@@ -17,7 +17,8 @@ from lfjax.vision.resolution import perceivable_cutoff_at_peak
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import make_spectrum
 from lfjax.vision.focus import through_focus
-
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 def _fine_pixels(panel: Panel, pitch_mm: float = 1e-9) -> Panel:
     return dataclasses.replace(panel, pixel_pitch_mm=pitch_mm)
@@ -121,9 +122,10 @@ def test_array_through_focus_is_the_idealisation_when_the_array_makes_the_n_by_n
     eye = average_eye()
     spectrum = make_spectrum(np.array([550.0]))
     acc = np.array([1.0, 1.5, 2.0])
-    kwargs = dict(spectrum=spectrum, sampling=Sampling(2.0), window_D=None)
+    kwargs = dict(spectrum=spectrum, sampling=Sampling(2.0))
     (views, got), = array_through_focus(eye, base, [cdp], acc, **kwargs)
-    want = through_focus(eye, base.layout(), np.array([cdp]), acc, 3.0, cdp, display=base.optics(), **kwargs)
+    want = through_focus(eye, base.layout(), States.grid(acc, [cdp]),
+                         Viewing(pupil_diameter_mm=3.0, cdp_D=cdp, display=base.optics()), **kwargs)
     assert views.n_geometric == 4
     assert np.allclose(np.asarray(got.vsotf), np.asarray(want.vsotf), rtol=1e-9, atol=1e-12)
     assert np.all(np.isfinite(np.asarray(got.vsotf)))
@@ -281,8 +283,14 @@ def test_the_independent_views_computation_reproduces_the_pipelines_idealised_cu
     panel = _sweep_panel(300.0)
     eye = average_eye()
     acc = np.array([0.5, 1.0, 1.5])
-    tf = through_focus(eye, panel.layout(2), [1.0], acc, 3.0, float(panel.cdp_D),
-                       spectrum=make_spectrum([550.0]), sampling=Sampling(0.5), display=panel.optics())
+    tf = through_focus(
+        eye,
+        panel.layout(2),
+        States.grid(acc, depths_D=[1.0]),
+        Viewing(pupil_diameter_mm=3.0, cdp_D=float(panel.cdp_D), display=panel.optics()),
+        spectrum=make_spectrum([550.0]),
+        sampling=Sampling(0.5),
+    )
     pipeline = np.asarray(tf.vsotf)[0, 0]
     curves = array_vs_views(np.asarray(eye.zernike_um[0]), float(eye.measured_pupil_mm), panel, 1.0,
                             acc, freq_step_cpd=0.5)

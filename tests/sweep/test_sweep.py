@@ -40,6 +40,9 @@ from lfjax.sweep.store import (
     lock_path,
     verify_store,
 )
+from lfjax.vision.peak_options import PeakOptions
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 TINY = {
     "population": {"n_eyes": 5, "seed": 3},
@@ -330,11 +333,19 @@ def test_store_equals_through_focus_on_the_same_eyes_and_sampling(reference):
     eyes, _ = population(config)
     for task in build_tasks(config, eyes, sweep_spectrum(config)):
         tf = through_focus(
-            eyes, task.layout, task.depths_D, accommodation_D=config.accommodation_D,
-            window_D=config.window_D, pupil_diameter_mm=task.pupil_mm, cdp_D=config.cdp_D,
-            spectrum=sweep_spectrum(config), sampling=task.sampling, options=config.options,
-            continuous_peaks=("vsotf",), peak_method=config.peak_method,
-            peak_tolerance_D=config.peak_tolerance_D, refine_second_peaks=False,
+            eyes,
+            task.layout,
+            States.grid(config.accommodation_D, depths_D=task.depths_D, window_D=config.window_D),
+            Viewing(pupil_diameter_mm=task.pupil_mm, cdp_D=config.cdp_D),
+            spectrum=sweep_spectrum(config),
+            sampling=task.sampling,
+            options=config.options,
+            peaks=PeakOptions(
+                metrics=("vsotf",),
+                method=config.peak_method,
+                second_peaks=False,
+                tolerance_D=config.peak_tolerance_D,
+            ),
         )
         sub = ds.isel(pupil=task.pupil_index, layout=task.layout_index,
                       depth=list(task.depth_slots))
@@ -805,15 +816,25 @@ def test_a_real_display_sweeps_as_through_focus_computes_it(tmp_path):
     eyes, _ = population(config)
     (task,) = build_tasks(config, eyes, spectrum)
     assert task.scene.display is not None
-    tf = through_focus(eyes, task.layout, task.depths_D, accommodation_D=config.accommodation_D,
-                       window_D=config.window_D, pupil_diameter_mm=task.pupil_mm, cdp_D=config.cdp_D,
-                       spectrum=spectrum, sampling=task.sampling, options=config.options,
-                       display=display)
+    tf = through_focus(
+        eyes,
+        task.layout,
+        States.grid(config.accommodation_D, depths_D=task.depths_D, window_D=config.window_D),
+        Viewing(pupil_diameter_mm=task.pupil_mm, cdp_D=config.cdp_D, display=display),
+        spectrum=spectrum,
+        sampling=task.sampling,
+        options=config.options,
+    )
     np.testing.assert_allclose(ds.vsotf.values[:, 0, 0], np.asarray(tf.vsotf), rtol=1e-6, atol=1e-9)
-    ideal = through_focus(eyes, task.layout, task.depths_D, accommodation_D=config.accommodation_D,
-                          window_D=config.window_D, pupil_diameter_mm=task.pupil_mm,
-                          cdp_D=config.cdp_D, spectrum=spectrum, sampling=task.sampling,
-                          options=config.options)
+    ideal = through_focus(
+        eyes,
+        task.layout,
+        States.grid(config.accommodation_D, depths_D=task.depths_D, window_D=config.window_D),
+        Viewing(pupil_diameter_mm=task.pupil_mm, cdp_D=config.cdp_D),
+        spectrum=spectrum,
+        sampling=task.sampling,
+        options=config.options,
+    )
     assert np.nanmax(np.abs(np.asarray(ideal.vsotf) - np.asarray(tf.vsotf))) > 1e-3
 
 
@@ -841,11 +862,23 @@ def test_hpo_strips_with_leakage_sweep_as_through_focus_computes_them(tmp_path):
     np.testing.assert_array_equal(np.asarray(task.layout.diameters_mm), np.asarray(layout.diameters_mm))
 
     def direct(**display):
-        return np.asarray(through_focus(
-            eyes, layout, task.depths_D, accommodation_D=config.accommodation_D,
-            window_D=config.window_D, pupil_diameter_mm=task.pupil_mm, cdp_D=config.cdp_D,
-            spectrum=spectrum, sampling=task.sampling, options=config.options,
-            display=strip_display(layout, **display)).vsotf)
+        return np.asarray(
+            through_focus(
+                eyes,
+                layout,
+                States.grid(
+                    config.accommodation_D, depths_D=task.depths_D, window_D=config.window_D
+                ),
+                Viewing(
+                    pupil_diameter_mm=task.pupil_mm,
+                    cdp_D=config.cdp_D,
+                    display=strip_display(layout, **display),
+                ),
+                spectrum=spectrum,
+                sampling=task.sampling,
+                options=config.options,
+            ).vsotf
+        )
 
     lenticular = direct(y_defocus_D=-0.83, leakage_weight=0.5)
     np.testing.assert_allclose(ds.vsotf.values[:, 0, 0], lenticular, rtol=1e-6, atol=1e-9)

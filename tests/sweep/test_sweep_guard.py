@@ -20,6 +20,8 @@ from lfjax.sweep import (
 )
 from lfjax.sweep.config import config_template
 from lfjax.sweep.guard import check_fits
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 ONE_EYE = {
     "population": {"n_eyes": 1, "seed": 3},
@@ -124,8 +126,12 @@ def test_eyes_inputs_are_checked():
     with pytest.raises(ValueError, match="at least one eye"):
         Eyes(np.zeros((0, 15)), 3.0)
     with pytest.raises(TypeError, match="eyes must be an lfjax.Eyes, got list"):
-        through_focus([[0.0] * 15], paper_layouts(3.0)["2x2"], [2.0], cdp_D=2.0,
-                      pupil_diameter_mm=3.0)
+        through_focus(
+            [[0.0] * 15],
+            paper_layouts(3.0)["2x2"],
+            States.around([2.0]),
+            Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        )
 
 
 # ----------------------------------------------------------------------------- sizes

@@ -16,6 +16,8 @@ import lfjax
 import reference as R
 from lfjax.vision.focus import metrics_at, through_focus
 from lfjax.vision.prepare import relative_accommodation_grid
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 CDP = 2.0
 
@@ -28,8 +30,16 @@ INSIDE_CENTRES = [(0.7, 0.3), (-0.5, 0.8), (0.0, -1.0), (-0.9, -0.2)]  # |c| + 0
 
 def _single_view_otfs(centre, depths, acc):
     layout = lfjax.make_layout([centre], [0.8], 3.0, window_diameter_mm=CENTROID_WINDOW)
-    stack = lfjax.polychromatic_otf(H.dl_eye(), acc, 3.0, CDP, H.spectrum_550_plain(),
-                                    CENTROID_SAMPLING, H.PLAIN, layout=layout, depths_D=depths)
+    stack = lfjax.polychromatic_otf(
+        H.dl_eye(),
+        acc,
+        lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=CDP),
+        layout=layout,
+        depths_D=depths,
+        spectrum=H.spectrum_550_plain(),
+        sampling=CENTROID_SAMPLING,
+        options=H.PLAIN,
+    )
     return np.asarray(stack.full_plane())[0]  # (n_depth, n_acc, L, L)
 
 
@@ -97,7 +107,7 @@ def test_one_subaperture_filling_the_pupil_is_natural_view():
     reproduce natural viewing (layout=None) exactly."""
     spec = H.spectrum_550_plain()
     eyes = lfjax.sample_eyes(3, 2)
-    kw = dict(accommodation_D=[1.8, 2.2], pupil_diameter_mm=3.0, cdp_D=CDP, spectrum=spec,
+    kw = dict(accommodation_D=[1.8, 2.2], viewing=lfjax.Viewing(3.0, CDP), spectrum=spec,
               sampling=lfjax.Sampling(2.0), options=lfjax.ModelOptions(accommodation_sa="off",
                                                                         sce="off"),
               depths_D=[1.0, 2.0])
@@ -153,14 +163,35 @@ def test_lightfield_otf_is_energy_weighted_sum_of_displaced_elementals():
     eyes = lfjax.sample_eyes(3, 1)
     depths, acc = [CDP, 1.4, 2.7], [1.9, 2.3]
     layout = lfjax.make_layout(SUM_CENTRES, SUM_DIAMETERS, 3.0, window_diameter_mm=1.0)
-    lf = np.asarray(lfjax.polychromatic_otf(eyes, acc, 3.0, CDP, spectrum, sampling, options,
-                                            layout=layout, depths_D=depths).full_plane())[0]
+    lf = np.asarray(
+        lfjax.polychromatic_otf(
+            eyes,
+            acc,
+            lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=CDP),
+            layout=layout,
+            depths_D=depths,
+            spectrum=spectrum,
+            sampling=sampling,
+            options=options,
+        ).full_plane()
+    )[0]
     n = lf.shape[-1]
     singles, energies = [], []
     for c, d in zip(SUM_CENTRES, SUM_DIAMETERS):
         one = lfjax.make_layout([c], [d], 3.0, window_diameter_mm=1.0)
-        singles.append(np.asarray(lfjax.polychromatic_otf(
-            eyes, acc, 3.0, CDP, spectrum, sampling, options, layout=one).full_plane())[0, 0])
+        singles.append(
+            np.asarray(
+                lfjax.polychromatic_otf(
+                    eyes,
+                    acc,
+                    lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=CDP),
+                    layout=one,
+                    spectrum=spectrum,
+                    sampling=sampling,
+                    options=options,
+                ).full_plane()
+            )[0, 0]
+        )
         energies.append(sum(float(w) * _disk_energy(c, d, float(rho)) for w, rho in
                             zip(spectrum.weights, spectrum.sce_rho_per_mm2)))
     singles = np.stack(singles)  # (n_sub, n_acc, L, L)
@@ -300,9 +331,18 @@ def _lf_comparison(name):
     z = np.asarray(lfjax.sample_eyes(3, 2).zernike_um)
     eyes = lfjax.model.eyes.make_eyes(np.concatenate([z, np.zeros((1, z.shape[1]))]), 3.0)
     layout = _ref_layout(name)
-    fast = np.asarray(lfjax.polychromatic_otf(eyes, REF_ACC, 3.0, CDP, spectrum, REF_SAMPLING,
-                                              options, layout=layout, depths_D=REF_DEPTHS)
-                      .full_plane())
+    fast = np.asarray(
+        lfjax.polychromatic_otf(
+            eyes,
+            REF_ACC,
+            lfjax.Viewing(pupil_diameter_mm=3.0, cdp_D=CDP),
+            layout=layout,
+            depths_D=REF_DEPTHS,
+            spectrum=spectrum,
+            sampling=REF_SAMPLING,
+            options=options,
+        ).full_plane()
+    )
     n = fast.shape[-1]
     ref, ref_free = _lf_references(z, layout, n, options)
     return dict(z=z, layout=layout, n=n, fast={c: fast[c] for c in REF_COMBOS},
@@ -388,8 +428,13 @@ def test_states_beyond_hyperopic_limit_keep_their_true_values():
     """With relative offsets, entries below 0 D are marked not allowed, hold NaN metrics and
     keep their true (negative) accommodation, so relative_accommodation_D equals the offsets."""
     offsets = np.array([-0.4, -0.2, 0.0, 0.2])
-    tf = through_focus(H.dl_eye(), None, [0.2, 2.0], accommodation_offsets_D=offsets,
-                       spectrum=lfjax.make_spectrum([550.0]), sampling=lfjax.Sampling(2.0))
+    tf = through_focus(
+        H.dl_eye(),
+        None,
+        States.around([0.2, 2.0], offsets),
+        spectrum=lfjax.make_spectrum([550.0]),
+        sampling=lfjax.Sampling(2.0),
+    )
     np.testing.assert_allclose(tf.relative_accommodation_D, np.broadcast_to(offsets, (2, 4)),
                                atol=1e-12)
     np.testing.assert_array_equal(np.asarray(tf.allowed), [[False, True, True, True]] + [[True] * 4])
@@ -405,12 +450,23 @@ def test_metrics_at_and_through_focus_agree_at_one_point():
     eyes = lfjax.sample_eyes(0, 1)
     layout = lfjax.grid_layout(2, 3.0)
     spectrum = lfjax.make_spectrum(np.array([450.0, 550.0, 650.0]))
-    tf = through_focus(eyes, layout, depths_D=[1.0], pupil_diameter_mm=3.0, cdp_D=2.0,
-                       spectrum=spectrum)  # default offsets -1 ... +1 D around the depth
+    tf = through_focus(
+        eyes,
+        layout,
+        States.around([1.0]),
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        spectrum=spectrum,
+    )  # default offsets -1 ... +1 D around the depth
     k = int(np.argmin(np.abs(np.asarray(tf.accommodation_D)[0] - 1.2)))
     state = float(np.asarray(tf.accommodation_D)[0, k])
-    vsotf, strehl = metrics_at(eyes, layout, [1.0], [[state]], pupil_diameter_mm=3.0, cdp_D=2.0,
-                               spectrum=spectrum)
+    vsotf, strehl = metrics_at(
+        eyes,
+        layout,
+        [1.0],
+        [[state]],
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        spectrum=spectrum,
+    )
     assert abs(float(vsotf[0, 0, 0]) - float(tf.vsotf[0, 0, k])) < 1e-5
     assert abs(float(strehl[0, 0, 0]) - float(tf.strehl[0, 0, k])) < 1e-5
 
@@ -426,8 +482,14 @@ def test_aliasing_error_carries_the_safe_step():
     layout = lfjax.grid_layout(2, 3.0)
     spectrum = lfjax.make_spectrum(np.array([550.0]))
     with pytest.raises(lfjax.AliasingError) as caught:
-        through_focus(eyes, layout, depths_D=[0.0], accommodation_D=[3.0], cdp_D=2.0,
-                      spectrum=spectrum, sampling=lfjax.Sampling(5.0))
+        through_focus(
+            eyes,
+            layout,
+            States.grid([3.0], depths_D=[0.0]),
+            Viewing(cdp_D=2.0),
+            spectrum=spectrum,
+            sampling=lfjax.Sampling(5.0),
+        )
     err = caught.value
     assert isinstance(err, ValueError)
     assert err.freq_step_cpd == 5.0 and 0 < err.max_freq_step_cpd < 5.0

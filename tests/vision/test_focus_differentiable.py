@@ -8,6 +8,8 @@ import pytest
 import lfjax
 from lfjax.model.layouts import Layout
 from lfjax.vision.focus import metrics_at, through_focus
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 WAVELENGTHS = [500.0, 600.0]
 SAMPLING = lfjax.Sampling(2.0)
@@ -26,7 +28,9 @@ def test_metrics_at_matches_through_focus():
     spectrum = lfjax.make_spectrum(WAVELENGTHS)
     layout = lfjax.grid_layout(2, 3.0)
     acc = np.array([1.4, 1.8, 2.2])
-    tf = through_focus(eyes, layout, [1.8], acc, spectrum=spectrum, sampling=SAMPLING)
+    tf = through_focus(
+        eyes, layout, States.grid(acc, depths_D=[1.8]), spectrum=spectrum, sampling=SAMPLING
+    )
     vs, sr = metrics_at(eyes, layout, jnp.array([1.8]), jnp.array([acc]), spectrum=spectrum,
                         sampling=SAMPLING)
     np.testing.assert_allclose(vs, tf.vsotf, rtol=2e-5, atol=2e-6)
@@ -54,8 +58,15 @@ def test_vsotf_gradient_matches_finite_difference(setup):
             d = diameters.at[1].add(x["diameter"])
             pupil = 2.8 + x["pupil"]
             layout = Layout(c, d, 1.2, "test")
-            v, _ = metrics_at(eyes, layout, depth, acc, pupil_diameter_mm=pupil,
-                              spectrum=spectrum, sampling=SAMPLING)
+            v, _ = metrics_at(
+                eyes,
+                layout,
+                depth,
+                acc,
+                Viewing(pupil_diameter_mm=pupil),
+                spectrum=spectrum,
+                sampling=SAMPLING,
+            )
             return v[0, 0, 0]
 
         value_and_grad = jax.jit(jax.value_and_grad(vs))
@@ -80,8 +91,14 @@ def test_no_nan_gradient_at_pupil_centre_and_zero_accommodation(setup):
 
         def vs(params):
             layout = Layout(params["c"], params["d"], 3.0, "test")
-            v, s = metrics_at(eyes, layout, jnp.array([0.0]), params["a"][None],
-                              spectrum=spectrum, sampling=SAMPLING)
+            v, s = metrics_at(
+                eyes,
+                layout,
+                jnp.array([0.0]),
+                params["a"][None],
+                spectrum=spectrum,
+                sampling=SAMPLING,
+            )
             return v.sum() + s.sum()
 
         params = dict(c=jnp.zeros((1, 2)), d=jnp.array([3.0]), a=jnp.array([0.0]))

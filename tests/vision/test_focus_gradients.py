@@ -20,6 +20,7 @@ import helpers as H
 import lfjax
 from lfjax.base import sampling
 from lfjax.vision.focus import metrics_at
+from lfjax.vision.viewing import Viewing
 
 CDP = 1.0
 WINDOW_MM = 1.6
@@ -45,9 +46,16 @@ def _base_params():
 
 def _metrics(p):
     layout = H.layout_from(p["centres"], p["diameters"], WINDOW_MM)
-    vs, sr = metrics_at(lfjax.Eyes(p["z"], 3.0), layout, p["depth"], p["acc"],
-                        pupil_diameter_mm=p["pupil"], cdp_D=CDP, spectrum=SPECTRUM,
-                        sampling=SAMPLING, options=OPTIONS)
+    vs, sr = metrics_at(
+        lfjax.Eyes(p["z"], 3.0),
+        layout,
+        p["depth"],
+        p["acc"],
+        Viewing(pupil_diameter_mm=p["pupil"], cdp_D=CDP),
+        spectrum=SPECTRUM,
+        sampling=SAMPLING,
+        options=OPTIONS,
+    )
     return vs[0, 0, 0], sr[0, 0, 0]
 
 

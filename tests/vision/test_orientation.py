@@ -16,7 +16,9 @@ from lfjax.model.layouts import grid_layout, open_pupil
 from lfjax.model.strips import strip_layout
 from lfjax.vision.focus import through_focus
 from lfjax.vision.orientation import orientation_through_focus, orientation_windows
+from lfjax.vision.prepare import States
 from lfjax.vision.psf import polychromatic_otf
+from lfjax.vision.viewing import Viewing
 
 PLAIN = lfjax.ModelOptions(sce="off", accommodation_sa="off")
 LAMBDA_MM = 550e-6
@@ -26,9 +28,17 @@ def _strip_psf(width_mm, y_defocus_D, eye_defocus_D, df=0.5):
     """Monochromatic (550 nm) PSF of one strip, aberration-free eye, (psf, angles rad)."""
     layout = strip_layout(1, 3.0, width_mm=width_mm)
     eye = Eyes(jnp.zeros((1, 15)), 3.0)
-    stack = polychromatic_otf(eye, [2.0 + eye_defocus_D], 3.0, 2.0,
-                              lfjax.make_spectrum([550.0], PLAIN), lfjax.Sampling(df), PLAIN,
-                              layout, [2.0], display=strip_display(layout, y_defocus_D=y_defocus_D))
+    stack = polychromatic_otf(
+        eye,
+        [2.0 + eye_defocus_D],
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0,
+                display=strip_display(layout, y_defocus_D=y_defocus_D)),
+        layout=layout,
+        depths_D=[2.0],
+        spectrum=lfjax.make_spectrum([550.0], PLAIN),
+        sampling=lfjax.Sampling(df),
+        options=PLAIN,
+    )
     otf = stack.otf[0, 0, 0]
     n = otf.shape[0]
     psf = np.asarray(psf_from_otf(otf, n, df), float)
@@ -88,10 +98,9 @@ def test_full_height_strip_with_one_view_is_the_open_pupil_along_y():
     spectrum = lfjax.make_spectrum([500.0, 600.0], PLAIN)
     layout = strip_layout(1, 3.0, width_mm=3.3)  # its sides beyond the pupil: the pupil's own edge
     acc = [1.5, 2.0, 2.5]
-    common = dict(pupil_diameter_mm=3.0, cdp_D=2.0, spectrum=spectrum, sampling=lfjax.Sampling(1.5),
-                  options=PLAIN, depths_D=[2.0])
-    hpo = polychromatic_otf(eye, acc, layout=layout, display=strip_display(layout, y_defocus_D=-0.5),
-                            **common).otf[0, 0]
+    common = dict(spectrum=spectrum, sampling=lfjax.Sampling(1.5), options=PLAIN, depths_D=[2.0])
+    hpo = polychromatic_otf(eye, acc, Viewing(display=strip_display(layout, y_defocus_D=-0.5)),
+                            layout=layout, **common).otf[0, 0]
     natural = polychromatic_otf(eye, acc, layout=open_pupil(3.0), **common).otf[0, 0]
     np.testing.assert_allclose(np.asarray(hpo[1, :, 0]), np.asarray(natural[0, :, 0]), atol=1e-12)
     np.testing.assert_allclose(np.asarray(hpo[1, 0, :]), np.asarray(natural[1, 0, :]), atol=1e-12)
@@ -100,15 +109,16 @@ def test_full_height_strip_with_one_view_is_the_open_pupil_along_y():
 
 def test_leakage_weight_zero_is_todays_display_bit_for_bit():
     eye = lfjax.average_eye(3.0)
-    kw = dict(accommodation_offsets_D=[-0.5, 0.0], sampling=lfjax.Sampling(1.5),
-              spectrum=lfjax.make_spectrum([550.0]))
+    kw = dict(sampling=lfjax.Sampling(1.5), spectrum=lfjax.make_spectrum([550.0]))
+    states = States.around([1.0, 3.0], [-0.5, 0.0])
     layout = grid_layout(2, 3.0)
-    today = through_focus(eye, layout, [1.0, 3.0], **kw)
-    leaky = through_focus(eye, layout, [1.0, 3.0], display=strip_display(layout, aperture="circle"), **kw)
+    today = through_focus(eye, layout, states, **kw)
+    leaky = through_focus(eye, layout, states,
+                          Viewing(display=strip_display(layout, aperture="circle")), **kw)
     for name in ("vsotf", "strehl", "radial_mtf"):
         np.testing.assert_array_equal(np.asarray(getattr(leaky, name)), np.asarray(getattr(today, name)))
-    more = through_focus(eye, layout, [1.0, 3.0], display=strip_display(layout, aperture="circle",
-                                                                      leakage_weight=0.4), **kw)
+    more = through_focus(eye, layout, states, Viewing(display=strip_display(
+        layout, aperture="circle", leakage_weight=0.4)), **kw)
     assert np.max(np.abs(np.asarray(more.vsotf) - np.asarray(today.vsotf))) > 1e-2
 
 
@@ -130,10 +140,11 @@ def test_a_symmetric_overlap_scan_is_symmetric_in_its_results(ratio):
     onto each other)."""
     eye = lfjax.sample_eyes(3, 1, 3.0)
     layout = strip_layout(2, 3.0, width_mm=ratio * 1.5)
-    kw = dict(sampling=lfjax.Sampling(1.5), spectrum=lfjax.make_spectrum([550.0]),
-              display=strip_display(layout, leakage_weight=0.3))
-    a = orientation_through_focus(eye, layout, [1.0, 3.0], [1.5, 2.5], **kw)
-    b = orientation_through_focus(_mirrored(eye), layout, [1.0, 3.0], [1.5, 2.5], **kw)
+    kw = dict(sampling=lfjax.Sampling(1.5), spectrum=lfjax.make_spectrum([550.0]))
+    states = States.grid([1.5, 2.5], [1.0, 3.0])
+    viewing = Viewing(display=strip_display(layout, leakage_weight=0.3))
+    a = orientation_through_focus(eye, layout, states, viewing, **kw)
+    b = orientation_through_focus(_mirrored(eye), layout, states, viewing, **kw)
     # The mirrored views' samples are the same lattice points, held at other indices of
     # their windows (an even window has one more sample on one side): the sums differ by
     # float64 rounding only, ~1e-12 of VSOTF on near-cancelling (≈1e-4) values.
@@ -148,9 +159,10 @@ def test_orientation_windows_and_the_whole_band_is_through_focus():
     eye = lfjax.sample_eyes(0, 2, 3.0)
     layout = strip_layout(2, 3.0)
     display = strip_display(layout, y_defocus_D=-0.5)
-    kw = dict(sampling=lfjax.Sampling(1.4), spectrum=lfjax.make_spectrum([550.0]), display=display)
-    bands = orientation_through_focus(eye, layout, [1.0, 2.5], [1.0, 2.0, 3.0], **kw)
-    whole = through_focus(eye, layout, [1.0, 2.5], accommodation_D=[1.0, 2.0, 3.0], **kw)
+    kw = dict(sampling=lfjax.Sampling(1.4), spectrum=lfjax.make_spectrum([550.0]))
+    states = States.grid([1.0, 2.0, 3.0], [1.0, 2.5])
+    bands = orientation_through_focus(eye, layout, states, Viewing(display=display), **kw)
+    whole = through_focus(eye, layout, states, Viewing(display=display), **kw)
     np.testing.assert_allclose(np.asarray(bands.vsotf[0]), np.asarray(whole.vsotf), rtol=1e-10)
 
 
@@ -158,7 +170,7 @@ def test_strips_narrow_fft_is_the_square_windows_answer():
     """Strips are transformed on windows as wide as the strip along x (fewer FFT columns,
     the same angular field): the same OTFs as on the square, pupil-wide window, which a
     user-fixed n_fft of the same size still uses."""
-    from lfjax.vision.prepare import States, prepare
+    from lfjax.vision.prepare import prepare
 
     eyes = lfjax.sample_eyes(5, 2, 3.0)
     layout = strip_layout(3, 3.0, width_mm=1.2)
@@ -166,15 +178,17 @@ def test_strips_narrow_fft_is_the_square_windows_answer():
     # two wavelengths: two bands of narrow windows (each its own width) against the one
     # square band; a third band is a third copy of the kernel to compile, nothing new
     spectrum = lfjax.make_spectrum([480.0, 640.0])
-    common = dict(spectrum=spectrum, display=display, pupil_diameter_mm=3.0, cdp_D=2.0)
-    narrow_config = prepare(eyes, layout, States.grid([1.5, 2.5], [1.0, 3.0]),
+    common = dict(spectrum=spectrum)
+    viewing = Viewing(pupil_diameter_mm=3.0, cdp_D=2.0, display=display)
+    narrow_config = prepare(eyes, layout, States.grid([1.5, 2.5], [1.0, 3.0]), viewing,
                             sampling=lfjax.Sampling(0.9), **common).config
     assert len(narrow_config.bands) == 2
     assert all(len(b) == 4 and b[3] < b[2] for b in narrow_config.bands)  # fewer columns
     n_fft = narrow_config.n_fft
-    narrow = orientation_through_focus(eyes, layout, [1.0, 3.0], [1.5, 2.0, 2.5],
+    states = States.grid([1.5, 2.0, 2.5], [1.0, 3.0])
+    narrow = orientation_through_focus(eyes, layout, states, viewing,
                                        sampling=lfjax.Sampling(0.9), **common)
-    square = orientation_through_focus(eyes, layout, [1.0, 3.0], [1.5, 2.0, 2.5],
+    square = orientation_through_focus(eyes, layout, states, viewing,
                                        sampling=lfjax.Sampling(0.9, n_fft=n_fft), **common)
     np.testing.assert_allclose(np.asarray(narrow.vsotf), np.asarray(square.vsotf), atol=2e-5)
     np.testing.assert_allclose(np.asarray(narrow.mtf_x), np.asarray(square.mtf_x), atol=2e-5)

@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 
 import lfjax
-from lfjax.vision.peaks import accommodation_peaks, refine_peak
+from lfjax.vision.peak_refinement import refine_peak
+from lfjax.vision.peaks import accommodation_peaks
 from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, retinal_metrics
 
 import helpers as H
+from lfjax.vision.peak_options import PeakOptions
 
 SOLVERS = ("newton", "golden", "bfgs")
 
@@ -103,8 +105,16 @@ def test_defocused_eye_peak_is_exact_and_its_gradient_analytic(method="newton"):
 
     def peak_of(c20):
         eyes = lfjax.Eyes(jnp.zeros((1, 15)).at[0, 4].set(c20), 3.0)
-        return accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", method,
-                                       allowed).accommodation_D[0, 0]
+        return accommodation_peaks(
+            eyes,
+            scene,
+            SPECTRUM,
+            grid,
+            cfg,
+            metric="vsotf",
+            peaks=PeakOptions(method=method),
+            allowed=allowed,
+        ).accommodation_D[0, 0]
 
     c20 = 0.37 * H.C20_PER_D_3MM
     # the peak and its derivative from one program (value_and_grad): one compile, not two
@@ -127,8 +137,16 @@ def test_implicit_gradient_matches_finite_difference_of_the_resolved_peak():
 
     def peak_of(p):
         s = Scene(p["centres"], p["diameters"], p["cdp"], scene.depths_D, 3.0)
-        return accommodation_peaks(lfjax.Eyes(p["z"][None], 3.0), s, spectrum, grid, cfg,
-                                       "vsotf", "newton", allowed).accommodation_D[0, 0]
+        return accommodation_peaks(
+            lfjax.Eyes(p["z"][None], 3.0),
+            s,
+            spectrum,
+            grid,
+            cfg,
+            metric="vsotf",
+            peaks=PeakOptions(method="newton"),
+            allowed=allowed,
+        ).accommodation_D[0, 0]
 
     # one compiled program serves the gradient and the re-solved peaks of the central
     # differences (its value output is the same forward solve as peak_of's own program)
@@ -160,7 +178,16 @@ def test_two_peaked_strehl_returns_global_maximum_and_reports_the_second():
     allowed = np.abs(GRID[None] - 4.0) <= 2.6 + 1e-9
     grid = Accommodation.shared(GRID, index, options, 3.0)
     eyes = lfjax.model.eyes.aberration_free_eye()
-    peaks = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "strehl", "auto", allowed)
+    peaks = accommodation_peaks(
+        eyes,
+        scene,
+        spectrum,
+        grid,
+        cfg,
+        metric="strehl",
+        peaks=PeakOptions(method="auto"),
+        allowed=allowed,
+    )
     main, second = float(peaks.accommodation_D[0, 0]), float(peaks.second_accommodation_D[0, 0])
     fine = np.round(np.arange(140, 501) * 0.01, 9)
     dense = np.asarray(retinal_metrics(
@@ -171,7 +198,16 @@ def test_two_peaked_strehl_returns_global_maximum_and_reports_the_second():
     assert bool(peaks.success[0, 0])
     assert 3.5 <= second <= 4.2, f"second peak (near the rendered depth) not reported: {second}"
     assert float(peaks.second_value[0, 0]) < float(peaks.value[0, 0])
-    newton = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "strehl", "newton", allowed)
+    newton = accommodation_peaks(
+        eyes,
+        scene,
+        spectrum,
+        grid,
+        cfg,
+        metric="strehl",
+        peaks=PeakOptions(method="newton"),
+        allowed=allowed,
+    )
     assert abs(float(newton.accommodation_D[0, 0]) - fine[np.argmax(dense)]) > 0.05
 
 
@@ -184,8 +220,16 @@ def test_hyperopic_limit_and_far_grid_end_are_flagged():
     result = {}
     for depth in (0.2, 4.5):  # a point on the display plane, viewed through the whole pupil
         cfg, scene, grid, allowed = _pipeline(layout, [depth], window=1.5, cdp_D=depth)
-        result[depth] = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf",
-                                                "newton", allowed)
+        result[depth] = accommodation_peaks(
+            eyes,
+            scene,
+            SPECTRUM,
+            grid,
+            cfg,
+            metric="vsotf",
+            peaks=PeakOptions(method="newton"),
+            allowed=allowed,
+        )
     near, far = result[0.2], result[4.5]
     # eye 0 (+0.6 D myopic) at 0.2 D: wants −0.4 D → held at 0 D
     assert float(near.accommodation_D[0, 0]) == 0.0
@@ -251,15 +295,41 @@ def test_local_refinement_agrees_with_the_exact_peak():
     own = np.array([0.37, -0.61])  # two eyes: the shape of this file's other open-pupil calls
     eyes = lfjax.Eyes(np.concatenate([_defocused_eye(d).zernike_um for d in own]), 3.0)
     exact = 2.5 - own
-    local = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "local", allowed)
-    parabola = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "parabola",
-                                       allowed)
+    local = accommodation_peaks(
+        eyes,
+        scene,
+        SPECTRUM,
+        grid,
+        cfg,
+        metric="vsotf",
+        peaks=PeakOptions(method="local"),
+        allowed=allowed,
+    )
+    parabola = accommodation_peaks(
+        eyes,
+        scene,
+        SPECTRUM,
+        grid,
+        cfg,
+        metric="vsotf",
+        peaks=PeakOptions(method="parabola"),
+        allowed=allowed,
+    )
     assert np.all(np.asarray(local.success))
     np.testing.assert_allclose(np.asarray(local.accommodation_D)[:, 0], exact, atol=5e-4)
     assert np.max(np.abs(np.asarray(parabola.accommodation_D)[:, 0] - exact)) > 1e-3
     # "vertex": the parabola's location, valued by the parabola itself (no evaluation):
     # close to the metric there, and not below the grid maximum it interpolates
-    vertex = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "vertex", allowed)
+    vertex = accommodation_peaks(
+        eyes,
+        scene,
+        SPECTRUM,
+        grid,
+        cfg,
+        metric="vsotf",
+        peaks=PeakOptions(method="vertex"),
+        allowed=allowed,
+    )
     np.testing.assert_array_equal(np.asarray(vertex.accommodation_D),
                                   np.asarray(parabola.accommodation_D))
     np.testing.assert_allclose(np.asarray(vertex.value), np.asarray(parabola.value), rtol=2e-2)
@@ -274,7 +344,16 @@ def test_local_refinement_at_the_hyperopic_limit():
     cfg, scene, grid, allowed = _pipeline(layout, [0.3], cdp_D=0.3)
     own = np.array([0.25, 0.6])  # peaks at 0.05 D and (beyond the limit) -0.3 D
     eyes = lfjax.Eyes(np.concatenate([_defocused_eye(d).zernike_um for d in own]), 3.0)
-    local = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", "local", allowed)
+    local = accommodation_peaks(
+        eyes,
+        scene,
+        SPECTRUM,
+        grid,
+        cfg,
+        metric="vsotf",
+        peaks=PeakOptions(method="local"),
+        allowed=allowed,
+    )
     found = np.asarray(local.accommodation_D)[:, 0]
     assert np.all(np.isfinite(found)) and np.all(np.asarray(local.success))
     np.testing.assert_allclose(found, [0.05, 0.0], atol=5e-4)
@@ -290,7 +369,16 @@ def test_flat_curves_of_strongly_aberrated_eyes_are_not_reported_as_successes():
     z[0, 12], z[1, 7] = 0.6, 1.5
     eyes = lfjax.Eyes(z, 3.0)
     for method in ("newton", "golden", "local"):
-        peaks = accommodation_peaks(eyes, scene, SPECTRUM, grid, cfg, "vsotf", method, allowed)
+        peaks = accommodation_peaks(
+            eyes,
+            scene,
+            SPECTRUM,
+            grid,
+            cfg,
+            metric="vsotf",
+            peaks=PeakOptions(method=method),
+            allowed=allowed,
+        )
         assert np.all(np.asarray(peaks.at_grid_edge)), method
         assert not np.any(np.asarray(peaks.success)), method
         assert np.all(np.abs(np.abs(np.asarray(peaks.accommodation_D) - 2.0) - 1.0) < 1e-3)
@@ -361,13 +449,23 @@ def test_pairs_refined_in_batches_equal_pairs_refined_together(monkeypatch, meth
     reference = reference_normalisers(scene, SPECTRUM, grid, cfg)
 
     def peaks():
-        p = peaks_from_grid(values, eyes, scene, SPECTRUM, grid, cfg, reference, "vsotf", method,
-                            allowed)
+        p = peaks_from_grid(
+            values,
+            eyes,
+            scene,
+            SPECTRUM,
+            grid,
+            cfg,
+            reference,
+            metric="vsotf",
+            peaks=PeakOptions(method=method),
+            allowed=allowed,
+        )
         return np.asarray(p.accommodation_D), np.asarray(p.value), np.asarray(p.success)
 
     together = peaks()
     monkeypatch.setattr(optics, "KERNEL_WORKSPACE_BYTES", optics.KERNEL_BYTES_PER_SAMPLE * cfg.n_fft**2)
-    assert lfjax.vision.peaks._pairs_per_batch(scene, cfg, method, 2) == 1
+    assert lfjax.vision.peak_refinement.pairs_per_batch(scene, cfg, method, 2) == 1
     batched = peaks()
     np.testing.assert_array_equal(batched[2], together[2])
     for a, b in zip(batched[:2], together[:2]):  # float64 rounding of another program only
@@ -381,7 +479,7 @@ def test_grid_estimate_is_exact_for_a_gaussian_and_bounds_a_skewed_peak():
     """The grid estimate (quartic through the logarithms of five samples) is exact for a
     Gaussian peak, wherever it falls between grid points; on smooth skewed peaks it is
     off, and its error estimate bounds how far off (float64, analytic)."""
-    from lfjax.vision.peaks import ESTIMATE_RULES, grid_peak_estimate
+    from lfjax.vision.peak_refinement import ESTIMATE_RULES, grid_peak_estimate
 
     states = np.round(np.arange(0, 26) * 0.2, 9)
     for centre in (1.0, 1.0731, 2.4499):
@@ -411,7 +509,7 @@ def test_grid_estimate_is_exact_for_a_gaussian_and_bounds_a_skewed_peak():
 def test_grid_estimate_refuses_what_the_grid_cannot_tell():
     """No estimate (error ∞, the grid maximum kept) where a neighbour is missing, the
     curve is not concave, or a value is not positive."""
-    from lfjax.vision.peaks import grid_peak_estimate
+    from lfjax.vision.peak_refinement import grid_peak_estimate
 
     states = np.round(np.arange(0, 11) * 0.2, 9)
     peak = np.exp(-((states - 1.0) / 0.4) ** 2)
@@ -430,7 +528,7 @@ def test_map_flagged_evaluates_only_the_flagged_pairs():
     """Flagged pairs get fn, the others the fallback; fn never sees an unflagged pair's
     batch when a whole batch is unflagged (a counter inside fn would show it: here, fn
     returns a marker that the fallback cannot)."""
-    from lfjax.vision.peaks import _map_flagged
+    from lfjax.vision.peak_refinement import _map_flagged
 
     rng = np.random.default_rng(0)
     x = jnp.asarray(rng.normal(size=(5, 7)))
@@ -458,11 +556,27 @@ def test_adaptive_refines_exactly_where_the_estimate_exceeds_the_tolerance():
     cfg, scene, grid, allowed = _pipeline(layout, depths, options=options, spectrum=spectrum,
                                           window=2.0)
     eyes = lfjax.sample_eyes(5, 6)
-    local = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "vsotf", "local", allowed,
-                                refine_second=False)
+    local = accommodation_peaks(
+        eyes,
+        scene,
+        spectrum,
+        grid,
+        cfg,
+        metric="vsotf",
+        peaks=PeakOptions(method="local", second_peaks=False),
+        allowed=allowed,
+    )
     tol = 0.01
-    adaptive = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "vsotf", "adaptive",
-                                   allowed, refine_second=False, tolerance_D=tol)
+    adaptive = accommodation_peaks(
+        eyes,
+        scene,
+        spectrum,
+        grid,
+        cfg,
+        metric="vsotf",
+        peaks=PeakOptions(method="adaptive", second_peaks=False, tolerance_D=tol),
+        allowed=allowed,
+    )
     refined = np.asarray(adaptive.n_steps) > 0
     assert 0 < refined.sum() < refined.size, refined  # both kinds of pair are checked
     estimate = np.asarray(adaptive.grid_error_D)
@@ -471,8 +585,16 @@ def test_adaptive_refines_exactly_where_the_estimate_exceeds_the_tolerance():
     np.testing.assert_allclose(a[refined], b[refined], atol=1e-6)
     assert np.all(np.abs(a - b)[~refined] <= tol + 2e-4)  # "local" is itself ~1e-4 off
     np.testing.assert_array_equal(np.asarray(adaptive.success), np.asarray(local.success))
-    everything = accommodation_peaks(eyes, scene, spectrum, grid, cfg, "vsotf", "adaptive",
-                                     allowed, refine_second=False, tolerance_D=1e-9)
+    everything = accommodation_peaks(
+        eyes,
+        scene,
+        spectrum,
+        grid,
+        cfg,
+        metric="vsotf",
+        peaks=PeakOptions(method="adaptive", second_peaks=False, tolerance_D=1e-9),
+        allowed=allowed,
+    )
     assert np.all(np.asarray(everything.n_steps) == 3)
     np.testing.assert_allclose(np.asarray(everything.accommodation_D),
                                np.asarray(local.accommodation_D), atol=1e-6)
@@ -489,8 +611,16 @@ def test_adaptive_gradient_matches_finite_difference():
     z0 = jnp.asarray(np.asarray(lfjax.sample_eyes(2, 1).zernike_um)[0])
 
     def locations(z):
-        p = accommodation_peaks(lfjax.Eyes(z[None], 3.0), scene, spectrum, grid, cfg,
-                                "vsotf", "adaptive", allowed, refine_second=False)
+        p = accommodation_peaks(
+            lfjax.Eyes(z[None], 3.0),
+            scene,
+            spectrum,
+            grid,
+            cfg,
+            metric="vsotf",
+            peaks=PeakOptions(method="adaptive", second_peaks=False),
+            allowed=allowed,
+        )
         return p.accommodation_D[0], (p.accommodation_D[0], p.n_steps)
 
     # one compiled program: both pairs' derivatives (reverse mode, one row each), the
@@ -506,9 +636,18 @@ def test_adaptive_gradient_matches_finite_difference():
     np.testing.assert_allclose(directional, fd, rtol=1e-3)
     # refined: "local"'s derivative (its fitted vertex's, with the stencil held), passed
     # through the gather and scatter unchanged
-    local = jax.grad(lambda z: accommodation_peaks(
-        lfjax.Eyes(z[None], 3.0), scene, spectrum, grid, cfg, "vsotf", "local", allowed,
-        refine_second=False).accommodation_D[0, 0])(z0)
+    local = jax.grad(
+        lambda z: accommodation_peaks(
+            lfjax.Eyes(z[None], 3.0),
+            scene,
+            spectrum,
+            grid,
+            cfg,
+            metric="vsotf",
+            peaks=PeakOptions(method="local", second_peaks=False),
+            allowed=allowed,
+        ).accommodation_D[0, 0]
+    )(z0)
     refined = rows[0]
     assert float(jnp.max(jnp.abs(local))) > 1e-2
     np.testing.assert_allclose(np.asarray(refined), np.asarray(local), rtol=1e-9, atol=1e-12)
@@ -520,6 +659,14 @@ def test_adaptive_tolerance_is_checked(tolerance):
 
     layout = lfjax.open_pupil(3.0)
     cfg, scene, grid, allowed = _pipeline(layout, [2.0])
-    with pytest.raises(ParameterError, match="peak_tolerance_D"):
-        accommodation_peaks(_defocused_eye(0.1), scene, SPECTRUM, grid, cfg, "vsotf",
-                            "adaptive", allowed, tolerance_D=tolerance)
+    with pytest.raises(ParameterError, match="PeakOptions.tolerance_D"):
+        accommodation_peaks(
+            _defocused_eye(0.1),
+            scene,
+            SPECTRUM,
+            grid,
+            cfg,
+            metric="vsotf",
+            peaks=PeakOptions(method="adaptive", tolerance_D=tolerance),
+            allowed=allowed,
+        )

@@ -13,6 +13,8 @@ from lfjax.model.eyes import sample_eyes
 from lfjax.model.layouts import Layout, make_layout
 from lfjax.model.spectral import make_spectrum
 from lfjax.vision.focus import metrics_at, through_focus
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 SPECTRUM = make_spectrum([550.0])
 SAMPLING = lfjax.Sampling(0.75)  # a ±40 arcmin field: holds most random blurs below
@@ -37,26 +39,37 @@ def test_a_layout_made_for_a_larger_pupil_is_refused_naming_the_layout_pupil_and
     far = make_layout([[2.5, 0.0], [0.0, 0.0]], [1.0, 1.0], 6.0, name="made for 6 mm")
     eyes = sample_eyes(0, 1)
     with pytest.raises(ParameterError) as err:
-        through_focus(eyes, far, [2.0], pupil_diameter_mm=3.0, cdp_D=2.0)
+        through_focus(eyes, far, States.around([2.0]), Viewing(pupil_diameter_mm=3.0, cdp_D=2.0))
     assert err.value.parameter == "layout"
     assert str(err.value).startswith(
         "layout 'made for 6 mm' has 1 of its 2 views entirely outside the 3 mm pupil "
         "(pupil_diameter_mm; a view must reach |centre| - diameter/2 < 1.5 mm): "
         "view 0 at (2.5, 0) mm, diameter 1 mm, 0.5 mm outside.")
     with pytest.raises(ParameterError, match="entirely outside the 3 mm pupil"):
-        metrics_at(eyes, far, [2.0], [[2.0]], 3.0, 2.0)
+        metrics_at(eyes, far, [2.0], [[2.0]], Viewing(pupil_diameter_mm=3.0, cdp_D=2.0))
     # a view the pupil crops (partly outside) is the model's: accepted
     make_layout([[1.5, 0.0]], [1.0], 3.0)
 
 
-@pytest.mark.parametrize("call, parameter", [
-    (lambda e: through_focus(e, None, [20.0], cdp_D=2.0), "depths_D"),
-    (lambda e: through_focus(e, None, [2.0], [1.0, 50.0], cdp_D=2.0), "accommodation_D"),
-    (lambda e: through_focus(e, None, [9.5], cdp_D=9.0), "accommodation_offsets_D"),  # 9.5 + 1
-    (lambda e: through_focus(e, None, [2.0], cdp_D=20.0), "cdp_D"),
-    (lambda e: metrics_at(e, lfjax.open_pupil(3.0), [50.0], [[2.0]]), "depths_D"),
-    (lambda e: metrics_at(e, lfjax.open_pupil(3.0), [2.0], [[20.0]]), "accommodation_D"),
-])
+@pytest.mark.parametrize(
+    "call, parameter",
+    [
+        (lambda e: through_focus(e, None, States.around([20.0]), Viewing(cdp_D=2.0)), "depths_D"),
+        (
+            lambda e: through_focus(
+                e, None, States.grid([1.0, 50.0], depths_D=[2.0]), Viewing(cdp_D=2.0)
+            ),
+            "accommodation_D",
+        ),
+        (
+            lambda e: through_focus(e, None, States.around([9.5]), Viewing(cdp_D=9.0)),
+            "accommodation_offsets_D",
+        ),  # 9.5 + 1
+        (lambda e: through_focus(e, None, States.around([2.0]), Viewing(cdp_D=20.0)), "cdp_D"),
+        (lambda e: metrics_at(e, lfjax.open_pupil(3.0), [50.0], [[2.0]]), "depths_D"),
+        (lambda e: metrics_at(e, lfjax.open_pupil(3.0), [2.0], [[20.0]]), "accommodation_D"),
+    ],
+)
 def test_depths_and_states_beyond_the_models_range_are_refused(monkeypatch, call, parameter):
     _no_planning(monkeypatch)
     with pytest.raises(ParameterError) as err:
@@ -89,10 +102,23 @@ def test_no_nan_for_any_accepted_input_of_the_public_entry_points():
         depth = float(rng.uniform(0.0, 4.0))
         acc = np.sort(rng.uniform(0.0, 5.0, 3))
         try:
-            vsotf, strehl = metrics_at(eyes, layout, [depth], acc[None, :], 3.0, cdp, spectrum=SPECTRUM,
-                                       sampling=SAMPLING)
-            tf = through_focus(eyes, layout, [depth], acc, 3.0, cdp, spectrum=SPECTRUM,
-                               sampling=SAMPLING)
+            vsotf, strehl = metrics_at(
+                eyes,
+                layout,
+                [depth],
+                acc[None, :],
+                Viewing(pupil_diameter_mm=3.0, cdp_D=cdp),
+                spectrum=SPECTRUM,
+                sampling=SAMPLING,
+            )
+            tf = through_focus(
+                eyes,
+                layout,
+                States.grid(acc, depths_D=[depth]),
+                Viewing(pupil_diameter_mm=3.0, cdp_D=cdp),
+                spectrum=SPECTRUM,
+                sampling=SAMPLING,
+            )
         except (ParameterError, AliasingError):
             continue
         accepted += 1

@@ -14,7 +14,8 @@ from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import monochromatic_spectrum
 from lfjax.vision.focus import through_focus
 from lfjax.vision.scene_blur import natural_otfs, rest_of_scene
-
+from lfjax.vision.prepare import States
+from lfjax.vision.viewing import Viewing
 
 def test_natural_reference_is_the_open_pupil_at_the_same_defocus():
     # A real point at 1.3 D, the eye at 2.5 D (defocus a − d = 1.2 D), against through_focus
@@ -26,8 +27,15 @@ def test_natural_reference_is_the_open_pupil_at_the_same_defocus():
     spectrum = monochromatic_spectrum(600.0, options)
     sampling = Sampling(freq_step_cpd=1.0)
     otf = natural_otfs(eye, 2.5, [1.3], (spectrum,), sampling, options=options)[0, 0]
-    tf = through_focus(eye, None, [2.0], [3.2], 3.0, 2.0, spectrum=spectrum, sampling=sampling,
-                       options=options)
+    tf = through_focus(
+        eye,
+        None,
+        States.grid([3.2], depths_D=[2.0]),
+        Viewing(pupil_diameter_mm=3.0, cdp_D=2.0),
+        spectrum=spectrum,
+        sampling=sampling,
+        options=options,
+    )
     mine = np.asarray(radial_mtf(otf, otf.shape[-2], 1.0)[0], float)
     np.testing.assert_allclose(mine, np.asarray(tf.radial_mtf[0, 0, 0], float), atol=2e-5)
     # the defocus is really there: 1.2 D less 0.2 D of LCA at 600 nm puts the first zero
