@@ -1,7 +1,8 @@
 """Which claims a study's numbers settle (lfjax.vision.claims.undecided_layouts, over the
 ranges of lfjax.vision.claim_margins), on synthetic study Datasets: a baseline far from
-every threshold settles all seven claims; each case puts one claim's numbers within the planned spectrum's resolution of its
-threshold (flagged, with the layouts it turns on) and then just beyond it (settled).
+every threshold settles all seven claims; each case puts one claim's numbers within the
+planned spectrum's resolution of its threshold (flagged, with the layouts it turns on) and
+then just beyond it (settled).
 
 Each flagged case also checks the premise: the numbers moved within the resolution
 (:class:`Resolution`) in the flagged direction do give evaluate_claims the other verdict.
