@@ -48,7 +48,8 @@ from lfjax.base.errors import ParameterError
 from lfjax.base.files import check_writable, owned_temp_dir, remove_orphans
 from lfjax.base.programs import in_callers_jax_context
 from lfjax.base.tables import printable
-from lfjax.vision.claims import Claim, dof_D, evaluate_claims
+from lfjax.vision.claim_core import Claim, dof_D
+from lfjax.vision.claims import evaluate_claims
 from lfjax.studies.display_effects import (
     DisplayStudyConfig,
     display_effects_markdown,

@@ -46,7 +46,7 @@ def run_alternatives(config: StudyConfig, stage=None, wavelength_rules=None,
     spectra), the baseline is read from it instead of computed again: each (eye, depth)'s
     numbers do not depend on which other depths are evaluated beside it.
     Each claim records the layouts its verdict turns on within the planned spectrum's
-    error (:attr:`~lfjax.vision.claims.Claim.unsettled`); with
+    error (:attr:`~lfjax.vision.claim_core.Claim.unsettled`); with
     ``config.settle_verdicts`` those layouts are computed again at the reference spectrum
     (:func:`~lfjax.reproduce.settling.settle`; ``settle_stage(name)`` is called as each
     starts) and the verdicts are the reference's.

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lfjax.vision.claims import Claim, aberrated, average
+from lfjax.vision.claim_core import Claim
+from lfjax.vision.claims import aberrated, average
 from lfjax.reproduce.config import METRICS, StudyConfig
 
 TABLES = {

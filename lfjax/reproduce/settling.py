@@ -5,7 +5,7 @@ The study's default spectrum is planned per layout for its peaks and cut-offs
 closer to its threshold than that spectrum's error is decided by the spectrum, not the
 model: the reference spectrum (``accuracy="vsotf"``'s uniform steps) may give the other
 verdict. :func:`mark_unsettled` records such claims (:attr:`Claim.unsettled
-<lfjax.vision.claims.Claim.unsettled>`, from :func:`lfjax.vision.claim_margins.undecided_layouts`);
+<lfjax.vision.claim_core.Claim.unsettled>`, from :func:`lfjax.vision.claims.undecided_layouts`);
 :func:`settle` computes the layouts they turn on again at the reference spectrum and puts
 them in place (:func:`~lfjax.reproduce.study.replace_layouts`), so that the claim's verdict
 is the reference's.
@@ -22,8 +22,9 @@ from lfjax.base.programs import in_callers_jax_context
 from lfjax.model.options import ModelOptions
 from lfjax.reproduce.config import StudyConfig
 from lfjax.reproduce.study import layout_workers, replace_layouts, run_study_variants
-from lfjax.vision.claim_margins import Resolution, undecided_layouts
-from lfjax.vision.claims import Claim, evaluate_claims
+from lfjax.vision.claim_core import Claim
+from lfjax.vision.claim_margins import Resolution
+from lfjax.vision.claims import evaluate_claims, undecided_layouts
 
 
 def reference_layouts(ds) -> tuple[str, ...]:
@@ -33,9 +34,9 @@ def reference_layouts(ds) -> tuple[str, ...]:
 
 def mark_unsettled(claims: list[Claim], ds, resolution: Resolution = Resolution()  # noqa: B008
                    ) -> list[Claim]:
-    """``claims`` (of ``ds``) with :attr:`~lfjax.vision.claims.Claim.unsettled` (the layouts
+    """``claims`` (of ``ds``) with :attr:`~lfjax.vision.claim_core.Claim.unsettled` (the layouts
     whose numbers, within ``resolution``, could change the verdict, less those already at
-    the reference spectrum) and :attr:`~lfjax.vision.claims.Claim.reference_layouts` set.
+    the reference spectrum) and :attr:`~lfjax.vision.claim_core.Claim.reference_layouts` set.
     A study at ``accuracy="vsotf"`` is the reference: nothing is unsettled."""
     if ds.attrs.get("accuracy_plan") == "vsotf":
         return claims

@@ -7,14 +7,16 @@ configuration, scene), :mod:`~lfjax.vision.psf` (PSFs and
 OTF stacks), :mod:`~lfjax.vision.images` (retinal images), :mod:`~lfjax.vision.resolution`
 (the perceivable cut-off of a display), :mod:`~lfjax.vision.orientation` (through-focus by
 orientation band), :mod:`~lfjax.vision.claims` (the paper's
-findings as checkable criteria) and :mod:`~lfjax.vision.claim_margins` (which verdicts a
-planned spectrum's error could change).
+findings as checkable criteria: the registry of the claims declared in
+:mod:`~lfjax.vision.claims_accommodation` and :mod:`~lfjax.vision.claims_resolution`, built
+from :mod:`~lfjax.vision.claim_core`) and :mod:`~lfjax.vision.claim_margins` (how far a
+planned spectrum's numbers may move, for the verdicts it could change).
 """
 
-from lfjax.vision import claim_margins, claims, focus, images, orientation, peaks, prepare, psf, resolution
+from lfjax.vision import claim_core, claim_margins, claims, claims_accommodation, claims_resolution, focus, images, orientation, peaks, prepare, psf, resolution
 from lfjax.vision.focus import ThroughFocus, metrics_at, through_focus, through_focus_variants
 from lfjax.vision.peaks import Peaks, accommodation_peaks
 
-__all__ = ["claim_margins", "claims", "focus", "images", "orientation", "peaks", "prepare", "psf", "resolution",
+__all__ = ["claim_core", "claim_margins", "claims", "claims_accommodation", "claims_resolution", "focus", "images", "orientation", "peaks", "prepare", "psf", "resolution",
            "ThroughFocus", "metrics_at", "through_focus", "through_focus_variants", "Peaks",
            "accommodation_peaks"]

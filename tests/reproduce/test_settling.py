@@ -15,7 +15,7 @@ import lfjax.reproduce.settling as settling
 from lfjax.model.options import ModelOptions
 from lfjax.reproduce.config import StudyConfig
 from lfjax.reproduce.study import replace_layouts
-from lfjax.vision.claims import Claim
+from lfjax.vision.claim_core import Claim
 
 LAYOUTS = ["natural", "2x2", "3x3"]
 

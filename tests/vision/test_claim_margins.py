@@ -1,7 +1,8 @@
-"""Which claims a study's numbers settle (lfjax.vision.claim_margins.undecided_layouts), on
-synthetic study Datasets: a baseline far from every threshold settles all seven claims;
-each case puts one claim's numbers within the planned spectrum's resolution of its
-threshold (flagged, with the layouts it turns on) and then just beyond it (settled).
+"""Which claims a study's numbers settle (lfjax.vision.claims.undecided_layouts, over the
+ranges of lfjax.vision.claim_margins), on synthetic study Datasets: a baseline far from
+every threshold settles all seven claims; each case puts one claim's numbers within the
+planned spectrum's resolution of its threshold (flagged, with the layouts it turns on) and
+then just beyond it (settled).
 
 Each flagged case also checks the premise: the numbers moved within the resolution
 (:class:`Resolution`) in the flagged direction do give evaluate_claims the other verdict.
@@ -13,7 +14,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from lfjax.vision.claim_margins import Resolution, undecided_layouts
+from lfjax.vision.claim_margins import Resolution
+from lfjax.vision.claims import undecided_layouts
 from lfjax.vision.claims import evaluate_claims
 
 CDP = 2.0
@@ -186,12 +188,12 @@ def test_claim6_beyond_the_corner_limit_searches_a_subset(monkeypatch, slope):
     """Beyond MAX_CORNER_DEPTHS depths claim 6 tries only the box's two uniform corners (of
     2^n): what it flags is then a subset of what the full search flags, and a baseline far
     from the threshold stays settled."""
-    from lfjax.vision import claim_margins
+    from lfjax.vision import claims_resolution
 
     s = Study()
     s.cutoff[s.li("3x3"), :, :, :] = (26.0 - slope * np.abs(REL))[None, :, None]
     full = undecided_layouts(s.dataset()).get("6", ())
-    monkeypatch.setattr(claim_margins, "MAX_CORNER_DEPTHS", REL.size - 1)
+    monkeypatch.setattr(claims_resolution, "MAX_CORNER_DEPTHS", REL.size - 1)
     capped = undecided_layouts(s.dataset()).get("6", ())
     assert set(capped) <= set(full)
     assert undecided_layouts(Study().dataset()) == {}

@@ -1,6 +1,9 @@
 """The paper's claims (lfjax.vision.claims.evaluate_claims) on synthetic study Datasets
 built just inside and just outside each criterion, and the ten-eye version
 (lfjax.sweep.ten_eyes) on a synthetic population whose answer per sample is known.
+Covers lfjax.vision.claims (the registry), lfjax.vision.claim_core (Interval,
+StudyNumbers), lfjax.vision.claims_accommodation (claims 1–4) and
+lfjax.vision.claims_resolution (claims 5–7); their margins are tests/vision/test_claim_margins.py.
 
 The synthetic Dataset has the variables and coordinates a study (or a sweep's study view)
 has; every claim holds on the baseline, and each case moves one number across one
@@ -14,7 +17,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from lfjax.vision.claims import evaluate_claims
+from lfjax.vision.claim_core import Interval, StudyNumbers
+from lfjax.vision.claims import CLAIMS, evaluate_claims
 from lfjax.sweep import ten_eyes as te
 
 CDP = 2.0
@@ -104,20 +108,41 @@ class Study:
         )
 
 
-def verdicts(study: Study, dataset: bool = False) -> dict[str, str]:
-    """{claim id: verdict} of evaluate_claims on the ten-eye stand-in of the Dataset (the
-    same code on the same numbers, ~30x faster than xarray's indexing); ``dataset``: also
-    on the xarray Dataset itself, asserting the same claims, numbers included."""
-    ds = study.dataset()
-    claims = evaluate_claims(te._Frame.from_dataset(ds))
-    if dataset:
-        assert [(c.id, c.holds, c.result) for c in evaluate_claims(ds)] == [
-            (c.id, c.holds, c.result) for c in claims]
-    return {c.id: c.verdict for c in claims}
+def verdicts(study: Study) -> dict[str, str]:
+    """{claim id: verdict} of evaluate_claims on the synthetic study's Dataset."""
+    return {c.id: c.verdict for c in evaluate_claims(study.dataset())}
 
 
 def test_baseline_every_claim_holds():
-    assert verdicts(Study(), dataset=True) == {str(i): "holds" for i in range(1, 8)}
+    assert verdicts(Study()) == {str(i): "holds" for i in range(1, 8)}
+
+
+def test_registry_declares_each_claim_once():
+    assert [rule.id for rule in CLAIMS] == [str(i) for i in range(1, 8)]
+    assert len({type(rule) for rule in CLAIMS}) == 7
+    with pytest.raises(AttributeError):  # frozen: a threshold is changed where declared
+        CLAIMS[0].mean_error = Interval()
+    ds = Study().dataset()
+    numbers = StudyNumbers.from_dataset(ds)
+    assert [c.result for c in evaluate_claims(numbers)] == [c.result for c in evaluate_claims(ds)]
+
+
+def test_interval_answers_a_value_and_a_range():
+    negative = Interval(lo=-0.25, hi=0.0, hi_open=True)  # claim 1's mean error
+    assert negative.holds(-0.25) and negative.holds(-1e-12)
+    assert not negative.holds(0.0) and not negative.holds(-0.2501)
+    assert negative.holds(np.array([-0.1, -0.2])) and not negative.holds(np.array([-0.1, 0.0]))
+    assert negative.possible(-0.1, -0.05) == {True}
+    assert negative.possible(-0.4, -0.3) == {False} and negative.possible(0.0, 0.1) == {False}
+    assert negative.possible(-0.1, 0.0) == {True, False}
+    assert negative.possible(-0.3, 0.1) == {True, False}  # holds inside, fails at both ends
+    assert Interval(lo=0.9).possible(0.9, 0.9) == {True}
+
+
+def test_study_needs_an_average_eye():
+    ds = Study().dataset()
+    with pytest.raises(ValueError, match="average eye"):
+        evaluate_claims(ds.isel(eye=np.flatnonzero(~ds.is_average.values)))
 
 
 # ----------------------------------------------------------------------------- claim 1
@@ -140,12 +165,12 @@ def test_claim1_natural_view(errors, want):
 
 
 def test_claim1_undecided():
-    assert verdicts(Study(layouts=["2x2", "3x3", "4x4"]), dataset=True)["1"] == "n/a"
+    assert verdicts(Study(layouts=["2x2", "3x3", "4x4"]))["1"] == "n/a"
     off_cdp = Study(rel=[-2.0, -1.0, 1.0, 2.0])  # no depth on the CDP
-    assert verdicts(off_cdp, dataset=True)["1"] == "n/a"
+    assert verdicts(off_cdp)["1"] == "n/a"
     s = Study()
     s.pred[s.li("natural"), 1, s.di(0.0), 0] = np.nan  # an eye without a prediction
-    assert verdicts(s, dataset=True)["1"] == "n/a"
+    assert verdicts(s)["1"] == "n/a"
 
 
 # ----------------------------------------------------------------------------- claim 2
@@ -184,14 +209,14 @@ def test_claim2_constant(error, want):
 
 
 def test_claim2_undecided():
-    assert verdicts(Study(layouts=["natural"]), dataset=True)["2"] == "n/a"
+    assert verdicts(Study(layouts=["natural"]))["2"] == "n/a"
     s = Study()
     s.cont[s.li("3x3"), :, s.di(1.0), 0] = np.nan  # no continuous peak at one depth
-    assert verdicts(s, dataset=True)["2"] == "n/a"
+    assert verdicts(s)["2"] == "n/a"
     s.cont[s.li("4x4"), :-1, s.di(1.5), 0] += 0.4  # a part that fails still fails
-    assert verdicts(s, dataset=True)["2"] == "fails"
+    assert verdicts(s)["2"] == "fails"
     only_zero = Study(rel=[-2.0])  # every depth at 0 D: "negative" cannot be judged
-    assert verdicts(only_zero, dataset=True)["2"] == "n/a"
+    assert verdicts(only_zero)["2"] == "n/a"
 
 
 # ----------------------------------------------------------------------------- claim 3
@@ -218,12 +243,12 @@ def test_claim3_two_by_two_picks_the_cdp(at_depth, want):
 
 
 def test_claim3_undecided():
-    assert verdicts(Study(layouts=["natural", "3x3", "4x4"]), dataset=True)["3"] == "n/a"
+    assert verdicts(Study(layouts=["natural", "3x3", "4x4"]))["3"] == "n/a"
     # 2x2 present, no depth beyond ±1 D (a sweep with offsets −1, 0, 1): part (b) undecided
     near = Study(rel=[-1.0, -0.5, 0.0, 0.5, 1.0])
-    assert verdicts(near, dataset=True)["3"] == "n/a"
+    assert verdicts(near)["3"] == "n/a"
     near.pred[near.li("4x4"), :-1, 0, 1] += 0.5  # part (a) fails: the claim fails
-    assert verdicts(near, dataset=True)["3"] == "fails"
+    assert verdicts(near)["3"] == "fails"
 
 
 # ----------------------------------------------------------------------------- claim 4
@@ -247,7 +272,7 @@ def test_claim4_average_eye_predicts_the_mean(n_cells, offset, want):
 def test_claim4_undecided():
     s = Study()
     s.pred[:, -1] = np.nan  # the average eye has no prediction anywhere
-    assert verdicts(s, dataset=True)["4"] == "n/a"
+    assert verdicts(s)["4"] == "n/a"
 
 
 # ----------------------------------------------------------------------------- claim 5
@@ -276,7 +301,7 @@ def test_claim5_reads_zero_to_sixty_cpd_only():
 def test_claim5_undecided():
     s = Study()
     s.mtf[:, -1] = np.nan
-    assert verdicts(s, dataset=True)["5"] == "n/a"
+    assert verdicts(s)["5"] == "n/a"
 
 
 # ----------------------------------------------------------------------------- claim 6
@@ -317,11 +342,11 @@ def test_claim6_censored_depth_of_field():
 
 
 def test_claim6_undecided():
-    assert verdicts(Study(layouts=["natural", "2x2"]), dataset=True)["6"] == "n/a"
-    assert verdicts(Study(rel=[0.0, 1.0]), dataset=True)["6"] == "n/a"
+    assert verdicts(Study(layouts=["natural", "2x2"]))["6"] == "n/a"
+    assert verdicts(Study(rel=[0.0, 1.0]))["6"] == "n/a"
     s = Study()
     s.cutoff[s.li("3x3"), :, s.di(1.5), 0] = np.nan
-    assert verdicts(s, dataset=True)["6"] == "n/a"
+    assert verdicts(s)["6"] == "n/a"
 
 
 # ----------------------------------------------------------------------------- claim 7
@@ -342,11 +367,11 @@ def test_claim7_best_at_the_cdp_within_two_percent(factor, want):
 
 
 def test_claim7_undecided():
-    assert verdicts(Study(rel=[-2.0, -1.0, 1.0, 2.0]), dataset=True)["7"] == "n/a"
-    assert verdicts(Study(layouts=["natural", "4x4"]), dataset=True)["7"] == "n/a"
+    assert verdicts(Study(rel=[-2.0, -1.0, 1.0, 2.0]))["7"] == "n/a"
+    assert verdicts(Study(layouts=["natural", "4x4"]))["7"] == "n/a"
     s = Study()
     s.cutoff[s.li("2x2"), :, s.di(0.0), 0] = np.nan
-    assert verdicts(s, dataset=True)["7"] == "n/a"
+    assert verdicts(s)["7"] == "n/a"
 
 
 # ----------------------------------------------------------------------------- ten eyes
@@ -361,14 +386,10 @@ def _population(n_eyes=12, bad_eye=5, layouts=LAYOUTS):
     return s.dataset()
 
 
-@pytest.mark.parametrize("fast", [True, False])
-def test_ten_eye_claims_count_each_sample_by_its_own_criterion(fast):
+def test_ten_eye_claims_count_each_sample_by_its_own_criterion():
     ds = _population()
-    # samples of 6 of the 12 eyes leave the bad eye out half the time; the Dataset route
-    # costs ~0.1 s per draw, so it runs fewer draws
-    result = te.ten_eye_claims(ds, n_draws=40 if fast else 8, sample_size=6, seed=1,
-                               fast=fast)
-    assert result.attrs["evaluation"] == ("fast" if fast else "xarray")
+    # samples of 6 of the 12 eyes leave the bad eye out half the time
+    result = te.ten_eye_claims(ds, n_draws=40, sample_size=6, seed=1)
     claims = list(result.claim.values)
     without_bad = np.array(["eye05" not in row for row in result.sample_eye.values])
     assert 0 < without_bad.sum() < without_bad.size  # both kinds of sample were drawn
