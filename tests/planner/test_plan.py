@@ -233,7 +233,8 @@ def test_proxy_aperture_is_area_exact_and_matches_the_pipeline():
 
     df = 1.5
     dx = 550e-6 * df * DEGREES_PER_RADIAN
-    otf = _aperture_otfs((np.zeros(2), 3.0), 3.0, [0.0], [0.0], 1.5, 550.0, 0.0, dx, 160, 0.25)
+    otf = _aperture_otfs((np.zeros(2), 3.0), 3.0, ([0.0], [0.0], 1.5), 550.0, 0.0, dx, 160,
+                         0.25)
     assert otf[0, 0, 0].real == pytest.approx(math.pi * 1.5**2, rel=5e-4)
     options = lfjax.ModelOptions(sce="off", accommodation_sa="off")
     spectrum = lfjax.make_spectrum([550.0], options)
