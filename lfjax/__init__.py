@@ -55,9 +55,9 @@ from lfjax.model.options import ModelParameters as ModelParameters
 from lfjax.model.spectral import Spectrum as Spectrum
 from lfjax.model.spectral import make_spectrum as make_spectrum
 from lfjax.planner.plan import Plan as Plan
-from lfjax.planner.plan import Targets as Targets
 from lfjax.planner.plan import plan_sampling as plan_sampling
 from lfjax.planner.scene import PlanScene as PlanScene
+from lfjax.planner.targets import Targets as Targets
 from lfjax.vision.focus import ThroughFocus as ThroughFocus
 from lfjax.vision.focus import metrics_at as metrics_at
 from lfjax.vision.focus import through_focus as through_focus

@@ -3,7 +3,7 @@
 For each of the paper's layouts (3 mm pupil, CDP 2 D; natural view at the CDP, the
 viewpoint layouts at the study's depths 0–4 D in 0.5 D steps; states 0–5 D in 0.2 D steps
 within ±2 D), the planner is asked the study's question (peaks to 0.01 D, cut-offs to
-0.25 cpd, ``lfjax.planner.plan.Targets``) twice: with ``spectral_rule="uniform"`` (the step,
+0.25 cpd, ``lfjax.planner.targets.Targets``) twice: with ``spectral_rule="uniform"`` (the step,
 as lfjax planned before) and ``"auto"`` (the step or the Gauss rule for V(λ), whichever meets
 the targets on the proxy with fewer wavelengths). Both plans' spectra then run through the
 pipeline itself (real eyes, not the aberration-free proxy) on the auto plan's frequency
@@ -32,7 +32,8 @@ import numpy as np
 import lfjax
 from lfjax.model.layouts import paper_layouts
 from lfjax.model.spectral import make_spectrum
-from lfjax.planner.plan import Overrides, Targets, plan_sampling
+from lfjax.planner.plan import plan_sampling
+from lfjax.planner.targets import Overrides, Targets
 from lfjax.planner.scene import PlanScene
 from lfjax.reproduce.config import StudyConfig, study_eyes
 from lfjax.vision.focus import _cutoff_at_index, through_focus

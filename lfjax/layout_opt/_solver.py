@@ -239,25 +239,12 @@ def optimise_layout(
     Returns a :class:`LayoutFit`. Raises ``FloatingPointError`` rather than return a
     non-finite layout.
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    if isinstance(max_steps, bool) or int(max_steps) != max_steps or max_steps < 0:
-        raise ValueError(f"max_steps must be an integer >= 0, got {max_steps!r}")
-    finite_scalar("tol", tol, 0.0, None, lo_open=True)
-    finite_scalar("ftol", ftol, 0.0, 1.0)
-    if isinstance(patience, bool) or int(patience) != patience or patience < 1:
-        raise ValueError(f"patience must be an integer >= 1, got {patience!r}")
+    _check_solver_options(method, max_steps, tol, ftol, patience)
     constraints = problem.constraints
-
-    def stalled() -> bool:
-        if ftol <= 0 or len(history) <= patience:
-            return False
-        return history[-1 - patience] - history[-1] < ftol * abs(history[-1])
     if isinstance(initial, Layout):
         initial = free_params(initial.centres_mm, initial.diameters_mm)
     t0 = time.perf_counter()
     history = []
-    converged = False
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -270,41 +257,9 @@ def optimise_layout(
                 bar.update(1)
                 bar.set_postfix(loss=f"{history[-1]:.5g}")
 
-        if method == "lbfgsb":
-            x, bounds = to_box(initial, constraints)
-            target = _CoordinateObjective(initial, problem, "box")
-            solver = _lbfgsb(target.value_and_grad, float(tol))
-            state = solver.init_state(x, bounds)
-            history.append(float(state.value))
-            for _ in range(int(max_steps)):
-                if float(state.error) <= tol or stalled():
-                    break
-                x, state = solver.update(x, state, bounds)
-                history.append(float(state.value))
-                tick()
-            converged = float(state.error) <= tol or stalled()
-            fitted = from_box(x, initial, constraints)
-        else:
-            y = to_unconstrained(initial, constraints)
-            target = _CoordinateObjective(initial, problem, "raw")
-            fn = target.optimistix_fn()
-            solver = optx.BFGS(rtol=float(tol), atol=float(tol))
-            f_struct = jax.ShapeDtypeStruct((), jnp.result_type(float))
-            state = solver.init(fn, y, None, {}, f_struct, None, frozenset())
-            history.append(float(target.value_and_grad(y)[0]))
-            for _ in range(int(max_steps)):
-                y, state, _ = solver.step(fn, y, None, {}, state, frozenset())
-                accepted = int(state.num_accepted_steps) > 0
-                history.append(float(state.f_info.f) if accepted else history[0])
-                tick()
-                done, result = solver.terminate(fn, y, None, {}, state, frozenset())
-                if bool(done):
-                    converged = result == optx.RESULTS.successful
-                    break
-                if accepted and stalled():
-                    converged = True
-                    break
-            fitted = from_unconstrained(y, initial, constraints)
+        fit_with = _fit_lbfgsb if method == "lbfgsb" else _fit_bfgs
+        fitted, converged = fit_with(initial, problem, max_steps, tol, (ftol, patience),
+                                     history, tick)
     finally:
         if bar is not None:
             bar.close()
@@ -317,16 +272,8 @@ def optimise_layout(
     constraints.check(layout)  # by construction; kept as a guard against regressions
     initial_layout = to_layout(initial, constraints, "initial")
     train = {"before": evaluate_layout(initial, problem), "after": evaluate_layout(fitted, problem)}
-    test = None
     t_eval = time.perf_counter()
-    if test_eyes is not None:
-        if isinstance(report_problem, LayoutProblem):
-            held_out = report_problem.with_eyes(test_eyes)
-        else:
-            held_out = problem.at_accuracy(report_problem or problem.accuracy, eyes=test_eyes)
-        chunk = min(test_eyes.n_eyes, max(problem.eyes.n_eyes, 8))
-        test = {"before": evaluate_layout(initial, held_out, chunk=chunk),
-                "after": evaluate_layout(fitted, held_out, chunk=chunk)}
+    test = _held_out_scores(initial, fitted, problem, test_eyes, report_problem)
     t_end = time.perf_counter()
     fit = LayoutFit(layout, fitted, initial_layout, initial, history, method, len(history) - 1,
                     bool(converged), t_fit, train, test, problem.objective, constraints,
@@ -334,6 +281,93 @@ def optimise_layout(
     if fit.warning is not None:
         warnings.warn(f"fitted layout: {fit.warning}", LayoutWarning, stacklevel=2)
     return fit
+
+
+def _check_solver_options(method, max_steps, tol, ftol, patience) -> None:
+    """:func:`optimise_layout`'s solver options, checked before any work (a ``ValueError``
+    names the parameter and its allowed range)."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if isinstance(max_steps, bool) or int(max_steps) != max_steps or max_steps < 0:
+        raise ValueError(f"max_steps must be an integer >= 0, got {max_steps!r}")
+    finite_scalar("tol", tol, 0.0, None, lo_open=True)
+    finite_scalar("ftol", ftol, 0.0, 1.0)
+    if isinstance(patience, bool) or int(patience) != patience or patience < 1:
+        raise ValueError(f"patience must be an integer >= 1, got {patience!r}")
+
+
+def _stalled(history: list, stall: tuple) -> bool:
+    """Whether the loss improved by less than ``ftol``·|loss| over the last ``patience``
+    steps (``stall`` = (ftol, patience); ftol <= 0 disables the rule)."""
+    ftol, patience = stall
+    if ftol <= 0 or len(history) <= patience:
+        return False
+    return history[-1 - patience] - history[-1] < ftol * abs(history[-1])
+
+
+def _fit_lbfgsb(initial, problem: LayoutProblem, max_steps, tol, stall: tuple, history: list,
+                tick):
+    """jaxopt L-BFGS-B in box coordinates from ``initial``, at most ``max_steps`` steps,
+    appending each step's loss to ``history`` (and calling ``tick``); returns (fitted
+    parameters, converged)."""
+    constraints = problem.constraints
+    x, bounds = to_box(initial, constraints)
+    target = _CoordinateObjective(initial, problem, "box")
+    solver = _lbfgsb(target.value_and_grad, float(tol))
+    state = solver.init_state(x, bounds)
+    history.append(float(state.value))
+    for _ in range(int(max_steps)):
+        if float(state.error) <= tol or _stalled(history, stall):
+            break
+        x, state = solver.update(x, state, bounds)
+        history.append(float(state.value))
+        tick()
+    converged = float(state.error) <= tol or _stalled(history, stall)
+    return from_box(x, initial, constraints), converged
+
+
+def _fit_bfgs(initial, problem: LayoutProblem, max_steps, tol, stall: tuple, history: list,
+              tick):
+    """optimistix BFGS in unconstrained coordinates from ``initial``, as
+    :func:`_fit_lbfgsb`; a rejected step records the initial loss. Returns (fitted
+    parameters, converged)."""
+    constraints = problem.constraints
+    converged = False
+    y = to_unconstrained(initial, constraints)
+    target = _CoordinateObjective(initial, problem, "raw")
+    fn = target.optimistix_fn()
+    solver = optx.BFGS(rtol=float(tol), atol=float(tol))
+    f_struct = jax.ShapeDtypeStruct((), jnp.result_type(float))
+    state = solver.init(fn, y, None, {}, f_struct, None, frozenset())
+    history.append(float(target.value_and_grad(y)[0]))
+    for _ in range(int(max_steps)):
+        y, state, _ = solver.step(fn, y, None, {}, state, frozenset())
+        accepted = int(state.num_accepted_steps) > 0
+        history.append(float(state.f_info.f) if accepted else history[0])
+        tick()
+        done, result = solver.terminate(fn, y, None, {}, state, frozenset())
+        if bool(done):
+            converged = result == optx.RESULTS.successful
+            break
+        if accepted and _stalled(history, stall):
+            converged = True
+            break
+    return from_unconstrained(y, initial, constraints), converged
+
+
+def _held_out_scores(initial, fitted, problem: LayoutProblem, test_eyes: Eyes | None,
+                     report_problem) -> dict | None:
+    """The initial and fitted layouts scored on ``test_eyes`` at ``report_problem``'s setting
+    (:func:`optimise_layout`), {"before": …, "after": …}; None without held-out eyes."""
+    if test_eyes is None:
+        return None
+    if isinstance(report_problem, LayoutProblem):
+        held_out = report_problem.with_eyes(test_eyes)
+    else:
+        held_out = problem.at_accuracy(report_problem or problem.accuracy, eyes=test_eyes)
+    chunk = min(test_eyes.n_eyes, max(problem.eyes.n_eyes, 8))
+    return {"before": evaluate_layout(initial, held_out, chunk=chunk),
+            "after": evaluate_layout(fitted, held_out, chunk=chunk)}
 
 
 @dataclass

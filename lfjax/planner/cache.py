@@ -3,7 +3,7 @@ costs seconds of host work per layout (3–10 s for the paper's layouts, the pro
 reference), so a second ask of the same plan should cost nothing.
 
 :func:`cached_plan_sampling` keys a plan by everything it is computed from — every argument
-(the :class:`~lfjax.planner.scene.PlanScene`, the :class:`~lfjax.planner.plan.Targets`, the
+(the :class:`~lfjax.planner.scene.PlanScene`, the :class:`~lfjax.planner.targets.Targets`, the
 overrides and the guard), by value (arrays by their bytes, dataclasses and equinox modules
 field by field, defaults filled in) — and by the source of the package and the numpy version, so an edited planner or a new release
 never answers from an old plan. Plans are kept for the process; with

@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from lfjax.base.sampling import EDGE_EXTENT_SCALES, Sampling, next_fast_size, wavelength_bands
-from lfjax.base.units import ARCMIN_PER_RADIAN, DEGREES_PER_RADIAN
+from lfjax.base.units import DEGREES_PER_RADIAN
 from lfjax.display.lenslets import DisplayOptics
 from lfjax.base.parabola import parabola_vertex
 from lfjax.kernel.metrics import cutoff_frequency, ncsf_half_plane, radial_bins
@@ -64,13 +64,14 @@ def _subsample_spectrum(spectrum: Spectrum, n_max: int = PROXY_WAVELENGTHS):
             np.asarray(spectrum.sce_rho_per_mm2, float)[keep])
 
 
-def _aperture_otfs(view, pupil_mm, defocus_D, sa_c40_um, sa_radius_mm, wavelength_nm, rho,
-                   dx_mm, n_fft, edge_samples, mft_samples: int | None = None,
-                   df_cpd: float | None = None, display=None):
+def _aperture_otfs(view, pupil_mm, wavefront, wavelength_nm, rho, dx_mm, n_fft, edge_samples,
+                   mft_samples: int | None = None, df_cpd: float | None = None, display=None):
     """Half-plane OTFs (n_states, L, L//2+1), lag step dx, of one view — subaperture
-    ``view`` = (centre mm, diameter mm) clipped by the pupil — at each local defocus (D) and
-    accommodation SA c(4,0) (µm): the pipeline's aperture (optics._pupil_parts) on one
-    window, complex64 FFTs. OTF(0) is the transmitted energy (mm²), as in the pipeline.
+    ``view`` = (centre mm, diameter mm) clipped by the pupil — at each state's
+    ``wavefront`` = (local defocus (n_states,) D, accommodation SA c(4,0) (n_states,) µm,
+    the radius (mm) the SA's pupil coordinates are normalised by): the pipeline's aperture
+    (optics._pupil_parts) on one window, complex64 FFTs. OTF(0) is the transmitted energy
+    (mm²), as in the pipeline.
 
     With ``mft_samples``: the pipeline's MFT path instead — ``mft_samples``² pupil samples,
     the PSF's point samples on the n_fft angles of a field 60/``df_cpd`` arcmin (truncated,
@@ -80,6 +81,7 @@ def _aperture_otfs(view, pupil_mm, defocus_D, sa_c40_um, sa_radius_mm, wavelengt
     diffraction as the pipeline models them (the window is then the whole pupil and the
     view's beam its Fresnel pattern, :func:`_fresnel_np`)."""
     centre, d_mm = view
+    defocus_D, sa_c40_um, sa_radius_mm = wavefront
     if mft_samples is not None:
         n_pupil = mft_samples
     else:
@@ -231,13 +233,15 @@ class Proxy:
             # state 0: the paper's reference, the same views focused and rendered at the CDP
             all_acc = np.concatenate([[scene.cdp_D], states])
             for g, ((centre, d_mm), maps) in enumerate(self.groups):
-                otfs = _aperture_otfs((centre, d_mm), scene.pupil_mm, all_acc - scene.cdp_D + lca,
-                                      self.sa[0] * all_acc, self.sa[1], lam, rho, dx, n_fft, self.edge,
-                                      mft_samples, step, scene.display)
+                otfs = _aperture_otfs((centre, d_mm), scene.pupil_mm,
+                                      (all_acc - scene.cdp_D + lca, self.sa[0] * all_acc, self.sa[1]),
+                                      lam, rho, dx, n_fft, self.edge, mft_samples, step,
+                                      scene.display)
                 if reference_otfs is not None:  # the ideal display's (diffraction off)
-                    ref_otf = _aperture_otfs((centre, d_mm), scene.pupil_mm, [lca], [self.sa[0] * scene.cdp_D],
-                                             self.sa[1], lam, rho, dx, n_fft, self.edge, mft_samples,
-                                             step, reference_display)[0]
+                    ref_otf = _aperture_otfs((centre, d_mm), scene.pupil_mm,
+                                             ([lca], [self.sa[0] * scene.cdp_D], self.sa[1]),
+                                             lam, rho, dx, n_fft, self.edge, mft_samples, step,
+                                             reference_display)[0]
                 else:
                     ref_otf = otfs[0]
                 # A view at c is displaced by (depth − CDP)·c on the display and by

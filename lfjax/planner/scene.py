@@ -1,6 +1,6 @@
 """The scene a sampling plan is for: :class:`PlanScene`, checked when built.
 
-A plan depends on the scene alone (and on its targets, :class:`lfjax.planner.plan.Targets`):
+A plan depends on the scene alone (and on its targets, :class:`lfjax.planner.targets.Targets`):
 the layout of views, the calculation pupil, the CDP, the (accommodation, depth) pairs the
 computation will evaluate, the spectrum (given, or a range whose step the planner chooses),
 the eyes (their ray angles widen the field, their RMS per Zernike order sets the order
@@ -78,7 +78,7 @@ class PlanScene:
     pairs : (accommodation_D, depths_D) arrays of the exact pairs to plan for, D; replaces
         the pairs ``depths_D``/``accommodation_D``/``accommodation_window_D`` describe
     wavelengths_nm : the spectrum to use as given, nm; None: the planner chooses the step over
-        ``wavelength_range_nm`` (or uses :attr:`lfjax.planner.plan.Overrides.wavelength_step_nm`)
+        ``wavelength_range_nm`` (or uses :attr:`lfjax.planner.targets.Overrides.wavelength_step_nm`)
     wavelength_range_nm : (first, last) nm of a spectrum whose step is planned
     spectral_weights : weights of ``wavelengths_nm`` when they are not V(λ)'s (a display's
         spectrum, :mod:`lfjax.display.spectra`): the guard then leaves out the wavelengths

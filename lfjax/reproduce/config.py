@@ -25,7 +25,7 @@ from lfjax.model.layouts import PAPER_LAYOUTS
 from lfjax.model.options import ModelOptions
 from lfjax.planner.cache import cached_plan_sampling
 from lfjax.model.spectral import gauss_rule
-from lfjax.planner.plan import Overrides, Targets
+from lfjax.planner.targets import Overrides, Targets
 from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 

@@ -518,7 +518,7 @@ def check_array_vs_views_memory(panel: Panel, n_views: int, wavelength_nm: float
     fits = (f"freq_step_cpd >= {step:.3g} cpd with chunk = 1 would fit "
             f"(~{format_bytes(array_vs_views_bytes(panel, n_views, wavelength_nm, step, 1))})"
             if step <= top else f"no step up to {top:.3g} cpd fits: fewer beams (a smaller "
-                                "diffraction_widths) or more memory")
+                                "beams.diffraction_widths) or more memory")
     n_p, n_fft = _grid_sizes(panel, wavelength_nm, freq_step_cpd)
     raise ParameterError(
         "freq_step_cpd", "{freq_step_cpd} = {step:g} cpd would need ~{need} of memory ({views} "
@@ -527,9 +527,42 @@ def check_array_vs_views_memory(panel: Panel, n_views: int, wavelength_nm: float
         n_p=n_p, n_fft=n_fft, chunk=int(chunk), have=format_bytes(have), fits=fits)
 
 
+@dataclass(frozen=True)
+class ArrayBeams:
+    """Which of the whole array's beams :func:`array_vs_views` sums, and where the lit
+    pixels sit (checked when built, a :class:`~lfjax.base.errors.ParameterError` naming the
+    field).
+
+    Attributes
+    ----------
+    diffraction_widths : how many λ·z_eff/(M·a) beyond its footprint a lenslet's beam counts
+        as reaching the pupil (:func:`array_views`), ≥ 0
+    min_view_energy : beams bringing less than this share of the strongest beam's power
+        through the pupil are left out (the share they carried is reported), in [0, 1)
+    pixel_offset_mm : (x, y) offset of the pixel grid, mm: pixel centres at (j + ½)·p +
+        offset on each axis
+    """
+
+    diffraction_widths: float = 3.0
+    min_view_energy: float = 1e-3
+    pixel_offset_mm: tuple = (0.0, 0.0)
+
+    def __post_init__(self):
+        finite_scalar("diffraction_widths", self.diffraction_widths, 0.0)
+        finite_scalar("min_view_energy", self.min_view_energy, 0.0)
+        if not self.min_view_energy < 1.0:
+            raise ParameterError("min_view_energy", "{min_view_energy} must be in [0, 1), got "
+                                 "{got}", got=self.min_view_energy)
+        offset = np.asarray(self.pixel_offset_mm, float)
+        if offset.shape != (2,) or not np.all(np.isfinite(offset)):
+            raise ParameterError("pixel_offset_mm", "{pixel_offset_mm} must be two finite "
+                                 "numbers (x, y) in mm, got {got!r}", got=self.pixel_offset_mm)
+        # a tuple of floats keeps the object hashable whatever sequence was given
+        object.__setattr__(self, "pixel_offset_mm", tuple(float(x) for x in offset))
+
+
 def _check_array_vs_views(zernike_um, measured_pupil_mm, panel, depth_D, accommodation_D,
-                          wavelength_nm, freq_step_cpd, options, diffraction_widths,
-                          min_view_energy, pixel_offset_mm, chunk) -> np.ndarray:
+                          wavelength_nm, freq_step_cpd, options, beams, chunk) -> np.ndarray:
     """:func:`array_vs_views`' checks of its arguments, before any work; returns the states
     (n_states,) D."""
     if not isinstance(panel, Panel):
@@ -566,15 +599,9 @@ def _check_array_vs_views(zernike_um, measured_pupil_mm, panel, depth_D, accommo
     if acc.size == 0:
         raise ParameterError("accommodation_D", "{accommodation_D} must hold at least one state")
     check_dioptres("accommodation_D", acc, "accommodation state")
-    finite_scalar("diffraction_widths", diffraction_widths, 0.0)
-    finite_scalar("min_view_energy", min_view_energy, 0.0)
-    if not min_view_energy < 1.0:
-        raise ParameterError("min_view_energy", "{min_view_energy} must be in [0, 1), got {got}",
-                             got=min_view_energy)
-    offset = np.asarray(pixel_offset_mm, float)
-    if offset.shape != (2,) or not np.all(np.isfinite(offset)):
-        raise ParameterError("pixel_offset_mm", "{pixel_offset_mm} must be two finite numbers "
-                             "(x, y) in mm, got {got!r}", got=pixel_offset_mm)
+    if not isinstance(beams, ArrayBeams):
+        raise ParameterError("beams", "{beams} must be lfjax.studies.array_views.ArrayBeams, "
+                             "got {got}", got=type(beams).__name__)
     if isinstance(chunk, bool) or int(chunk) != chunk or chunk < 1:
         raise ParameterError("chunk", "{chunk} must be an integer >= 1 (views transformed "
                              "together), got {got!r}", got=chunk)
@@ -583,22 +610,22 @@ def _check_array_vs_views(zernike_um, measured_pupil_mm, panel, depth_D, accommo
 
 def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: float,
                    accommodation_D, *, wavelength_nm: float = 550.0, freq_step_cpd: float = 0.5,
-                   options=None, diffraction_widths: float = 3.0, min_view_energy: float = 1e-3,
-                   pixel_offset_mm=(0.0, 0.0), chunk: int = 32,
-                   available_bytes: float | None = None) -> dict[str, ViewCurves]:
+                   options=None, beams: ArrayBeams = ArrayBeams(),  # noqa: B008 (frozen)
+                   chunk: int = 32, available_bytes: float | None = None) -> dict[str, ViewCurves]:
     """Through-focus VSOTF of one eye for a point on the axis at ``depth_D`` (D), rendered
     (a) by the panel's n×n idealised views (``"idealised"``: the layout of
     :meth:`~lfjax.display.panel.Panel.layout`, each displaced as a ray through the point — what the
     pipeline computes) and (b) by the whole array (``"array"``: every lenslet whose lit
-    pixel's diffracted beam reaches the pupil, within ``diffraction_widths`` ×
+    pixel's diffracted beam reaches the pupil, within ``beams.diffraction_widths`` ×
     λ·z_eff/(M·a) of it, at the lit pixel's footprint and displaced to the lit pixel's image),
     one wavelength (``wavelength_nm``), on a frequency step ``freq_step_cpd`` (cpd).
 
     An independent, host float64/complex64 computation (diffracted beams by
     :func:`disc_fresnel_field`, one FFT pair per view and state), for studies; its
     idealised curves agree with the pipeline's (``tests/studies/test_array_views.py``). Beams
-    bringing less than ``min_view_energy`` of the strongest beam's power through the pupil
-    are left out, and the share they carried is reported. Circular lenslets only.
+    bringing less than ``beams.min_view_energy`` of the strongest beam's power through the
+    pupil are left out, and the share they carried is reported (:class:`ArrayBeams`: which
+    beams, and the pixel grid's offset). Circular lenslets only.
 
     ``zernike_um`` (n_modes,) µm on ``measured_pupil_mm``; ``accommodation_D`` (n_states,) D.
     ``chunk``: views Fourier transformed together (an integer >= 1).
@@ -613,11 +640,11 @@ def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: 
     """
     options = ModelOptions() if options is None else options
     acc = _check_array_vs_views(zernike_um, measured_pupil_mm, panel, depth_D, accommodation_D,
-                                wavelength_nm, freq_step_cpd, options, diffraction_widths,
-                                min_view_energy, pixel_offset_mm, chunk)
+                                wavelength_nm, freq_step_cpd, options, beams, chunk)
     # the whole array's beams (geometry only, cheap): their count sizes the memory
     views = array_views(panel, float(depth_D), wavelength_nm=wavelength_nm,
-                        diffraction_widths=diffraction_widths, pixel_offset_mm=pixel_offset_mm)
+                        diffraction_widths=beams.diffraction_widths,
+                        pixel_offset_mm=beams.pixel_offset_mm)
     check_array_vs_views_memory(panel, views.n_views, wavelength_nm, freq_step_cpd, chunk,
                                 available_bytes)
     common = dict(wavelength_nm=wavelength_nm, freq_step_cpd=freq_step_cpd, options=options,
@@ -634,13 +661,13 @@ def array_vs_views(zernike_um, measured_pupil_mm: float, panel: Panel, depth_D: 
     out["idealised"] = ViewCurves(acc, values / reference[0], int(keep.sum()), energy[keep], dropped, 0.0)
     values, energy, keep, dropped = _view_vsotf_numerators(
         zernike_um, measured_pupil_mm, panel, acc, views.centres_mm, _array_views_shifts(panel, views),
-        min_view_energy=min_view_energy, **common)
+        min_view_energy=beams.min_view_energy, **common)
     by_diffraction = float(np.sum(energy[keep & ~views.geometric]) / np.sum(energy[keep]))
     out["array"] = ViewCurves(acc, values / reference[0], int(keep.sum()), energy[keep], dropped,
                               by_diffraction)
     return out
 
 
-__all__ = ["ArrayViews", "array_views", "idealisation_gap", "array_through_focus", "ViewCurves",
+__all__ = ["ArrayBeams", "ArrayViews", "array_views", "idealisation_gap", "array_through_focus", "ViewCurves",
            "disc_fresnel_field", "array_vs_views", "array_vs_views_bytes",
            "check_array_vs_views_memory", "max_freq_step_cpd", "MIN_PUPIL_SAMPLES"]

@@ -35,7 +35,8 @@ from lfjax.vision.peaks import peaks_from_grid
 from lfjax.vision.viewing import Viewing
 from lfjax.kernel.pipeline import Accommodation, PipelineConfig, Scene, reference_normalisers, retinal_metrics
 from lfjax.planner.cache import cached_plan_sampling
-from lfjax.planner.plan import Overrides, Plan, Targets
+from lfjax.planner.plan import Plan
+from lfjax.planner.targets import Overrides, Targets
 from lfjax.planner.scene import PlanScene
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import Spectrum, make_spectrum

@@ -302,7 +302,28 @@ def monochromatic_psf(
     finite differences (the default steps with the values) and for wavefronts above
     :data:`TRACED_RMS_WAVES` under a transformation.
     """
-    # ---- tier 1: structure (static, known at trace time)
+    n_pixels, pupil_samples, measured_pupil_mm, edge_width_samples, coefficients_um = (
+        _psf_structure(coefficients_um, measured_pupil_mm, n_pixels, pupil_samples,
+                       edge_width_samples))
+    coefficients_um, pupil, wavelength, pixel, defocus, sce_rho = _psf_values(
+        coefficients_um, measured_pupil_mm, pupil_diameter_mm, wavelength_nm, pixel_arcmin,
+        defocus_D, sce_rho_per_mm2)
+    if pupil_samples is None:
+        pupil_samples = pupil_samples_for(
+            coefficients_um, measured_pupil_mm, pupil, wavelength, pixel, n_pixels, defocus,
+            edge_width_samples=edge_width_samples, tolerance=tolerance,
+        )
+    return _monochromatic_psf(
+        coefficients_um, measured_pupil_mm, pupil, wavelength, pixel, n_pixels, defocus,
+        sce_rho, pupil_samples, edge_width_samples,
+    )
+
+
+def _psf_structure(coefficients_um, measured_pupil_mm, n_pixels, pupil_samples,
+                   edge_width_samples):
+    """:func:`monochromatic_psf`'s tier-1 checks, of its structure (static, known at trace
+    time): (n_pixels, pupil_samples, measured_pupil_mm, edge_width_samples, coefficients_um)
+    as it computes with them."""
     n_pixels = _static_int("n_pixels", n_pixels, 2)
     if pupil_samples is not None:
         pupil_samples = _static_int("pupil_samples", pupil_samples, 2)
@@ -319,6 +340,14 @@ def monochromatic_psf(
             f"coefficients_um must have shape (n_modes,), got {np.shape(coefficients_um)}; "
             "map over eyes with jax.vmap"
         )
+    return n_pixels, pupil_samples, measured_pupil_mm, edge_width_samples, coefficients_um
+
+
+def _psf_values(coefficients_um, measured_pupil_mm: float, pupil_diameter_mm, wavelength_nm,
+                pixel_arcmin, defocus_D, sce_rho_per_mm2):
+    """:func:`monochromatic_psf`'s checks of its values: concrete ones on the host (tier 2a,
+    messages name the parameter), traced ones when the program runs (tier 2b). Returns
+    (coefficients_um, pupil mm, wavelength nm, pixel arcmin, defocus D, SCE ρ 1/mm²)."""
     pupil = _scalar("pupil_diameter_mm", pupil_diameter_mm)
     wavelength = _scalar("wavelength_nm", wavelength_nm)
     pixel = _scalar("pixel_arcmin", pixel_arcmin)
@@ -354,16 +383,7 @@ def monochromatic_psf(
     )
     defocus = _check_traced(defocus, lambda x: ~jnp.isfinite(x), "defocus_D must be finite")
     sce_rho = _check_traced(sce_rho, lambda x: ~jnp.isfinite(x), "sce_rho_per_mm2 must be finite")
-
-    if pupil_samples is None:
-        pupil_samples = pupil_samples_for(
-            coefficients_um, measured_pupil_mm, pupil, wavelength, pixel, n_pixels, defocus,
-            edge_width_samples=edge_width_samples, tolerance=tolerance,
-        )
-    return _monochromatic_psf(
-        coefficients_um, measured_pupil_mm, pupil, wavelength, pixel, n_pixels, defocus,
-        sce_rho, pupil_samples, edge_width_samples,
-    )
+    return coefficients_um, pupil, wavelength, pixel, defocus, sce_rho
 
 
 @partial(

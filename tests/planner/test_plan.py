@@ -5,6 +5,12 @@ against a converged run (Richardson-extrapolated from half and quarter frequency
 its error estimates bound those measurements within 10 %, one ladder step cheaper fails
 (pupil: measured error above the target; field: refused by the aliasing guard), and
 aliasing overrides are refused.
+
+Covers :mod:`lfjax.planner.plan` and the modules of its steps: :mod:`lfjax.planner.targets`
+(bad targets and overrides name the parameter), :mod:`lfjax.planner.state`,
+:mod:`lfjax.planner.ladder`, :mod:`lfjax.planner.spectral_step` (the wavelength step and the
+Gauss rule) and :mod:`lfjax.planner.frequency_step` (the frequency step, the MFT, one step
+cheaper).
 """
 
 import math
@@ -13,7 +19,7 @@ import numpy as np
 import pytest
 
 import lfjax
-from lfjax.planner import plan as planner
+from lfjax.planner import ladder, spectral_step
 from lfjax.kernel.optics import psf_from_otf
 from lfjax.vision.psf import polychromatic_otf
 from lfjax.planner import Overrides, FieldGuard, PlanScene, Targets, plan_sampling
@@ -126,7 +132,7 @@ def test_one_step_cheaper_does_not_meet_the_target(planned):
     assert plan.cheaper, name
     for dimension, (cheaper, why) in plan.cheaper.items():
         assert cheaper.freq_step_cpd == pytest.approx(
-            plan.sampling.freq_step_cpd * 2 ** (1 / planner.STEPS_PER_OCTAVE))
+            plan.sampling.freq_step_cpd * 2 ** (1 / ladder.STEPS_PER_OCTAVE))
         if dimension == "pupil":
             measured = _measured_error(scene, cheaper, plan.sampling.freq_step_cpd)
             assert measured > TOLERANCE, (name, measured, why)
@@ -139,10 +145,10 @@ def test_one_step_cheaper_does_not_meet_the_target(planned):
 
 def test_ladder():
     for x in (0.37, 1.0, 1.2, 2.9):
-        step = planner.ladder_floor(x)
+        step = ladder.ladder_floor(x)
         assert step <= x < step * 2 ** (1 / 8) * (1 + 1e-12)
-        assert planner.ladder_up(step) == pytest.approx(step * 2 ** (1 / 8))
-    assert planner.ladder_floor(1.0) == pytest.approx(1.0)
+        assert ladder.ladder_up(step) == pytest.approx(step * 2 ** (1 / 8))
+    assert ladder.ladder_floor(1.0) == pytest.approx(1.0)
 
 
 def test_plan_passes_guard_and_aliasing_is_detected():
@@ -252,7 +258,8 @@ def test_proxy_aperture_is_area_exact_and_matches_the_pipeline():
 
     df = 1.5
     dx = 550e-6 * df * DEGREES_PER_RADIAN
-    otf = _aperture_otfs((np.zeros(2), 3.0), 3.0, [0.0], [0.0], 1.5, 550.0, 0.0, dx, 160, 0.25)
+    otf = _aperture_otfs((np.zeros(2), 3.0), 3.0, ([0.0], [0.0], 1.5), 550.0, 0.0, dx, 160,
+                         0.25)
     assert otf[0, 0, 0].real == pytest.approx(math.pi * 1.5**2, rel=5e-4)
     options = lfjax.ModelOptions(sce="off", accommodation_sa="off")
     spectrum = lfjax.make_spectrum([550.0], options)
@@ -406,7 +413,7 @@ def test_peak_and_cutoff_targets_choose_the_wavelength_step():
 
     assert step(tight) < step(loose) < 50.0
     for plan, (peak, cut) in ((loose, (0.05, 1.0)), (tight, (2e-4, 0.05))):
-        if plan.wavelengths_nm[1] - plan.wavelengths_nm[0] > planner.SPECTRAL_REFERENCE_STEP_NM:
+        if plan.wavelengths_nm[1] - plan.wavelengths_nm[0] > spectral_step.SPECTRAL_REFERENCE_STEP_NM:
             assert plan.errors["spectral_peak_D"] <= 0.5 * peak
             assert plan.errors["spectral_cutoff_cpd"] <= 0.5 * cut
     assert "peaks moved" in loose.summary() and "cut-offs moved" in loose.summary()
@@ -510,7 +517,7 @@ def test_spectral_rule_auto_takes_the_gauss_rule_when_it_needs_fewer_wavelengths
     assert auto.errors["spectral_cutoff_cpd"] <= 0.5 * 0.25
     (reason,) = [r for r in auto.reasons if "Gauss rule in V(λ)" in r]
     assert f"{n} nodes" in reason and f"uniform step's {wl_u.size}" in reason
-    if n > planner.GAUSS_NODE_CANDIDATES[0]:
+    if n > spectral_step.GAUSS_NODE_CANDIDATES[0]:
         assert f"({n - 1} nodes:" in reason
     assert "Gauss rule in V(λ)" in auto.summary()
 
@@ -519,7 +526,7 @@ def test_spectral_rule_keeps_the_step_when_no_rule_meets_the_targets(monkeypatch
     """Without a Gauss rule that meets the targets with fewer nodes (here only 2 nodes are
     tried), "auto" keeps the uniform step and says why; a step given by the user is a
     uniform grid whatever the rule."""
-    monkeypatch.setattr(planner, "GAUSS_NODE_CANDIDATES", (2,))
+    monkeypatch.setattr(spectral_step, "GAUSS_NODE_CANDIDATES", (2,))
     scene = PlanScene(lfjax.grid_layout(2, 3.0), depths_D=[2.0], accommodation_window_D=0.6,
                       wavelength_range_nm=(400.0, 700.0))
     targets = Targets(vsotf=None, peak_D=0.01, cutoff_cpd=0.25)

@@ -315,11 +315,15 @@ def _avv_args(**changes):
 
 
 def _avv(**changes):
-    from lfjax.studies.array_views import array_vs_views
+    """array_vs_views on :func:`_avv_args`; its beam fields (``diffraction_widths``,
+    ``min_view_energy``, ``pixel_offset_mm``) go into one ArrayBeams."""
+    from lfjax.studies.array_views import ArrayBeams, array_vs_views
 
     a = _avv_args(**changes)
+    beams = ArrayBeams(**{k: a.pop(k) for k in ("diffraction_widths", "min_view_energy",
+                                                 "pixel_offset_mm") if k in a})
     return array_vs_views(a.pop("zernike_um"), a.pop("measured_pupil_mm"), a.pop("panel"),
-                          a.pop("depth_D"), a.pop("accommodation_D"), **a)
+                          a.pop("depth_D"), a.pop("accommodation_D"), beams=beams, **a)
 
 
 @pytest.mark.parametrize("changes, message", [
@@ -339,6 +343,7 @@ def _avv(**changes):
     (dict(accommodation_D=[np.nan]), "accommodation_D must be finite"),
     (dict(accommodation_D=[]), "accommodation_D must hold at least one state"),
     (dict(pixel_offset_mm=(0.0, np.inf)), "pixel_offset_mm must be two finite numbers"),
+    (dict(min_view_energy=1.0), "min_view_energy must be in [0, 1), got 1.0"),
 ])
 def test_array_vs_views_refuses_every_bad_argument_by_name(changes, message):
     with pytest.raises(ParameterError) as err:
