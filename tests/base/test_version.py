@@ -1,6 +1,9 @@
 """The version lfjax stamps on its outputs: the installed distribution's, else, for a
 checkout on PYTHONPATH (a machine with no package index, RESULTS §34), its pyproject.toml's
-marked "+source", never a bare placeholder."""
+marked "+source", never a bare placeholder.
+
+Covers: lfjax._version
+"""
 
 from __future__ import annotations
 

@@ -5,6 +5,8 @@ against a converged run (Richardson-extrapolated from half and quarter frequency
 its error estimates bound those measurements within 10 %, one ladder step cheaper fails
 (pupil: measured error above the target; field: refused by the aliasing guard), and
 aliasing overrides are refused.
+
+Covers: lfjax.planner.proxy, lfjax.planner.cache, lfjax.planner.scene
 """
 
 import math
