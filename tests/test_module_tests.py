@@ -1,4 +1,5 @@
-"""Every module of ``lfjax/`` with logic has tests that say so (docs/design.md#the-tests).
+"""Every module of ``lfjax/`` with logic has tests that say so
+(docs/design.md#where-each-capability-lives).
 
 Parsed with ``ast`` (nothing is imported or run). The rule:
 

@@ -127,8 +127,9 @@ def test_frequency_axes():
 
 
 def test_eye_slope_is_the_defocus_terms_gradient_and_ignores_tilt():
-    # OSA j=4: W = c √3 (2ρ² − 1), ρ = r / R_measured: |∇W| = 4 √3 c r / R², largest at the
-    # calculation pupil's edge (the 48-point grid's inside points reach within one step)
+    # OSA j=4: W = c √3 (2ρ² − 1), ρ = r / R_measured: |∇W| = 4 √3 c r / R², largest at
+    # the calculation pupil's edge (the 48-point grid's inside points reach within one
+    # step of it; central differences of a quadratic are exact)
     c_um, measured, pupil = 0.5, 6.0, 4.0
     z = np.zeros((1, 15))
     z[0, 4] = c_um

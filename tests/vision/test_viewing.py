@@ -22,7 +22,8 @@ def test_defaults_and_fields():
 
 
 @pytest.mark.parametrize("changes, parameter, words", [
-    ({"pupil_diameter_mm": 0.0}, "pupil_diameter_mm", r"Viewing.pupil_diameter_mm must lie in \(0, 10\] mm"),
+    ({"pupil_diameter_mm": 0.0}, "pupil_diameter_mm",
+     r"Viewing.pupil_diameter_mm must lie in \(0, 10\] mm"),
     ({"pupil_diameter_mm": 10.5}, "pupil_diameter_mm", r"must lie in \(0, 10\] mm, got 10.5"),
     ({"pupil_diameter_mm": math.nan}, "pupil_diameter_mm", r"must lie in \(0, 10\] mm"),
     ({"pupil_diameter_mm": "wide"}, "pupil_diameter_mm", r"got 'wide'"),
