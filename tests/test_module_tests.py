@@ -19,8 +19,8 @@ Parsed with ``ast`` (nothing is imported or run). The rule:
   ``Covers: lfjax.layout_opt._problem, lfjax.layout_opt._run`` (full dotted module names,
   separated by commas; several such lines may follow one another). Write it only in a file
   whose tests do exercise that module's logic. The modules at the top of ``lfjax/``
-  (``lfjax/__init__.py``, ``lfjax/_version.py``) have no folder of tests and always need
-  the line.
+  (``lfjax/__init__.py``, ``lfjax/_version.py``), and any in a folder two levels down, have
+  no folder of tests of their own and always need the line.
 
 A ``Covers:`` line that names no module of ``lfjax/`` (a module renamed, split or removed)
 fails too, so the lines follow the package when it moves.
