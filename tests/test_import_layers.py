@@ -351,6 +351,7 @@ PROJECT_WIDE_TESTS = {
     "test_gpu_check.py": "benchmarks/speed/gpu_check.sh, the one-command GPU check, on the CPU",
     "test_import_layers.py": "this file: the layers and the tests' tree",
     "test_isetbio_style.py": "the ISETBio-style baseline kept beside the tests",
+    "test_module_tests.py": "every module with logic has tests named after it",
     "test_precision.py": "every matrix product asks for full precision",
     "test_reference_selfcheck.py": "the float64 reference against analytic results",
     "test_shapes.py": "the shape checks of every public numerical entry point",

@@ -1,6 +1,10 @@
 """The command line: `lfjax reproduce` end to end (quick run, outputs complete and finite),
 bad input, the parameter↔flag table every subcommand names library errors through, the
-notebook."""
+notebook.
+
+Covers: lfjax.cli.common, lfjax.cli.reproduce, lfjax.reproduce, lfjax.reproduce.config
+Covers: lfjax.reproduce.study, lfjax.reproduce.report, lfjax.reproduce.figures
+"""
 
 import argparse
 import dataclasses

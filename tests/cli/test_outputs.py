@@ -4,6 +4,8 @@ status 130 within 2 s, leaving nothing partial (issue #37).
 Read-only folders and full disks are injected (these tests run as root, for whom permission
 bits forbid nothing): the probe file :func:`lfjax.base.files.check_writable` creates fails
 with EROFS, as on a read-only mount, or the free space reported is a few bytes.
+
+Covers: lfjax
 """
 
 from __future__ import annotations

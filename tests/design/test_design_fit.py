@@ -1,4 +1,7 @@
-"""lfjax.design.fit and ``lfjax design``: fitting a buildable panel to eyes."""
+"""lfjax.design.fit and ``lfjax design``: fitting a buildable panel to eyes.
+
+Covers: lfjax.design.plan, lfjax.design.resume, lfjax.cli.design
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,8 @@
 """Display effects (lfjax.display.lenslets): lenslet diffraction and finite pixels against their limits,
-analytic Fresnel diffraction, finite-difference gradients and bad input."""
+analytic Fresnel diffraction, finite-difference gradients and bad input.
+
+Covers: lfjax.studies.display_effects, lfjax.base.apertures
+"""
 
 from __future__ import annotations
 

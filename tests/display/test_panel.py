@@ -1,4 +1,7 @@
-"""lfjax.display.panel: the display as built, its derived geometry and the perceivable resolution."""
+"""lfjax.display.panel: the display as built, its derived geometry and the perceivable resolution.
+
+Covers: lfjax.vision.resolution
+"""
 
 from __future__ import annotations
 

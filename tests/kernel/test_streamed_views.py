@@ -1,5 +1,8 @@
 """Views one at a time (lfjax.kernel.pipeline.rendered_otfs above ELEMENTAL_STACK_BYTES) give
-the rendered OTFs, and their gradients, of all views transformed together."""
+the rendered OTFs, and their gradients, of all views transformed together.
+
+Covers: lfjax.kernel.pipeline
+"""
 
 from __future__ import annotations
 

@@ -4,6 +4,11 @@ the ``lfjax optimise`` command and the notebook.
 
 One tiny problem (1 wavelength, Sampling(2 cpd), 2 depths, 4 views, 2 mm diameter cap) is
 shared by the tests and by the command-line run, so they reuse one compiled objective.
+
+Covers: lfjax.layout_opt._evaluation, lfjax.layout_opt._feasible, lfjax.layout_opt._files
+Covers: lfjax.layout_opt._objectives, lfjax.layout_opt._params, lfjax.layout_opt._problem
+Covers: lfjax.layout_opt._run, lfjax.layout_opt._solver, lfjax.cli.optimise
+Covers: lfjax.model.layout_files, lfjax.model.layout_plots
 """
 
 import json

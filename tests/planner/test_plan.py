@@ -11,6 +11,10 @@ Covers :mod:`lfjax.planner.plan` and the modules of its steps: :mod:`lfjax.plann
 :mod:`lfjax.planner.ladder`, :mod:`lfjax.planner.spectral_step` (the wavelength step and the
 Gauss rule) and :mod:`lfjax.planner.frequency_step` (the frequency step, the MFT, one step
 cheaper).
+
+Covers: lfjax.planner.proxy, lfjax.planner.cache, lfjax.planner.scene, lfjax.planner.targets
+Covers: lfjax.planner.state, lfjax.planner.ladder, lfjax.planner.spectral_step
+Covers: lfjax.planner.frequency_step
 """
 
 import math

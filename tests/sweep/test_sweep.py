@@ -4,6 +4,9 @@ devices, and two processes through jax.distributed writing one store.
 
 Subprocesses get this session's XLA flags and float64 (``JAX_ENABLE_X64``), so their
 stores are comparable with the in-process reference bit for bit.
+
+Covers: lfjax.sweep.compute, lfjax.sweep.config, lfjax.sweep.run, lfjax.sweep.store
+Covers: lfjax.cli.sweep
 """
 
 from __future__ import annotations

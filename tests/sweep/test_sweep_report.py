@@ -3,6 +3,8 @@
 One tiny real sweep (12 eyes + the average eye, natural / 2x2 / 3x3, three depths, two
 wavelengths) is computed once for the module. Its chunk size is 7, so
 the store has two chunks and one can be marked incomplete on a copy.
+
+Covers: lfjax.sweep.ten_eyes, lfjax.cli.sweep_report, lfjax.base.tables
 """
 
 from __future__ import annotations
