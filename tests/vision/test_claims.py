@@ -9,6 +9,8 @@ The synthetic Dataset has the variables and coordinates a study (or a sweep's st
 has; every claim holds on the baseline, and each case moves one number across one
 criterion's edge. Verdicts are asserted exactly: "holds", "fails" or "n/a" (the data
 cannot decide the claim).
+
+Covers: lfjax.vision.claim_core, lfjax.vision.claims_accommodation, lfjax.vision.claims_resolution
 """
 
 from __future__ import annotations

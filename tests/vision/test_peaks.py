@@ -1,6 +1,9 @@
 """Continuous accommodation peaks (lfjax.vision.peaks): analytic curves, implicit gradients, the
 two-peaked Strehl curve, the hyperopic limit and the grid's far end, bad input, and the
-golden method on brackets away from zero (its workaround of an optimistix 0.1.0 bug)."""
+golden method on brackets away from zero (its workaround of an optimistix 0.1.0 bug).
+
+Covers: lfjax.vision.peak_refinement
+"""
 
 from __future__ import annotations
 
