@@ -79,7 +79,8 @@ FLAGS: dict[str, dict[str, str]] = {
         "out_dir": "--out", "force": "--force",
     },
     "retina": {
-        # lfjax.vision.scene_images.retinal_scene and the command's own readers
+        # lfjax.vision.scene_images.retinal_scene and LayeredScene, lfjax.vision.viewing.Viewing
+        # and the scene's files (lfjax.vision.scene_files)
         "image": "--image", "depth_map_D": "--depth", "layers_file": "--layers-file",
         "layers": "--layers-file", "alpha": "--layers-file", "depths_D": "--layers-file",
         "n_layers": "--n-layers", "pixel_arcmin": "--pixel-arcmin", "display": "--display",

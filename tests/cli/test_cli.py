@@ -384,7 +384,9 @@ def _library_inputs():
     from lfjax.base.sampling import Sampling
     from lfjax.sweep.report import sweep_report
     from lfjax.sweep.run import check_store_target
-    from lfjax.vision.scene_images import retinal_scene
+    from lfjax.vision.scene_files import read_depth_map_scene, read_layers_file
+    from lfjax.vision.scene_images import LayeredScene, retinal_scene
+    from lfjax.vision.viewing import Viewing
 
     return {
         "reproduce": ([rep.check_reproduce, rep.StudyConfig.quick],
@@ -394,9 +396,11 @@ def _library_inputs():
         "sweep": ([check_store_target, sweep.run_sweep],
                   {"config", "progress", "devices", "on_plan"}),
         "sweep-report": ([sweep_report], {"sample_size", "dpi", "progress"}),
-        "retina": ([retinal_scene, check_output_folder],
-                   {"pupil_diameter_mm", "options", "boundary", "memory_limit_bytes",
-                    "need_bytes", "parameter", "progress"}),
+        "retina": ([retinal_scene, LayeredScene.from_depth_map, LayeredScene.from_layers,
+                    read_depth_map_scene, read_layers_file, Viewing, check_output_folder],
+                   {"scene", "viewing", "pupil_diameter_mm", "options", "boundary",
+                    "memory_limit_bytes", "need_bytes", "parameter", "progress", "cls",
+                    "image_path", "depth_path", "path"}),
         "design": ([check_output_folder, design.design_cdp_D, design.design_panel,
                     design.DesignConstraints, Sampling, design.check_design],
                    {"min_gap_fraction", "panel", "n_fft", "transform", "mft_pupil_samples",
