@@ -57,6 +57,9 @@ FLAGS: dict[str, dict[str, str]] = {
     "sweep": {
         "store": "--out", "resume": "--resume", "max_chunks": "--max-chunks",
         "config": "CONFIG.toml",
+        # lfjax.sweep.distributed.start_distributed
+        "coordinator_address": "--coordinator", "num_processes": "--num-processes",
+        "process_id": "--process-id", "timeout_s": "--distributed-timeout",
     },
     "sweep-report": {
         "store_path": "STORE", "out_dir": "--out", "draws": "--draws", "seed": "--seed",
@@ -209,15 +212,18 @@ def unexpected_error(prog: str, err: Exception, suffix: str = "") -> int:
 
 def guarded(prog: str, command: str | None, work: Callable[[], T], *,
             note: str | Callable[[], str] = "", refused: tuple[type[Exception], ...] = (ValueError,),
-            fold: bool = False) -> tuple[T | None, int | None]:
+            fold: bool = False,
+            failed: Callable[[Exception], str | None] | None = None) -> tuple[T | None, int | None]:
     """Run a subcommand's work under the command line's conventions: ``(work(), None)``, or
     ``(None, status)`` after saying what stopped it in one line on stderr.
 
     Ctrl-C → :func:`interrupted` (130); an exception of a ``refused`` type → :func:`refuse`
     (2: a value found wrong once the work had begun, such as an output folder taken meanwhile);
-    any other exception → :func:`unexpected_error` (1, no traceback). ``note`` (or a function
-    giving it, read when the work stops) says what was kept, e.g. "; nothing written"; it
-    follows the interrupted and unexpected-error lines."""
+    an exception ``failed`` gives a line for (a failure the command foresees, such as a full
+    disk) → that line after ``prog: error:`` (1); any other exception →
+    :func:`unexpected_error` (1, no traceback), its notes (``add_note``) in parentheses.
+    ``note`` (or a function giving it, read when the work stops) says what was kept, e.g.
+    "; nothing written"; it follows the interrupted and unexpected-error lines."""
     def said() -> str:
         return note() if callable(note) else note
     try:
@@ -227,7 +233,12 @@ def guarded(prog: str, command: str | None, work: Callable[[], T], *,
     except refused as err:
         return None, refuse(prog, err, command, fold=fold)
     except Exception as err:  # one line, no traceback
-        return None, unexpected_error(prog, err, said())
+        line = failed(err) if failed is not None else None
+        if line is not None:
+            print(f"{prog}: error: {line}", file=sys.stderr)
+            return None, 1
+        notes = " ".join(getattr(err, "__notes__", []))
+        return None, unexpected_error(prog, err, said() + (f" ({notes})" if notes else ""))
 
 
 class OneLineParser(argparse.ArgumentParser):

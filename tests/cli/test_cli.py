@@ -383,7 +383,8 @@ def _library_inputs():
     from lfjax.base.files import check_output_folder
     from lfjax.base.sampling import Sampling
     from lfjax.sweep.report import sweep_report
-    from lfjax.sweep.run import check_store_target
+    from lfjax.sweep.distributed import start_distributed
+    from lfjax.sweep.target import check_store_target, check_store_writable
     from lfjax.vision.scene_files import read_depth_map_scene, read_layers_file
     from lfjax.vision.scene_images import LayeredScene, retinal_scene
     from lfjax.vision.viewing import Viewing
@@ -393,8 +394,8 @@ def _library_inputs():
                       {"config", "changes"}),
         "optimise": ([layout_opt.OptimisationSettings, layout_opt.optimise_and_save],
                      {"settings", "progress", "command"}),
-        "sweep": ([check_store_target, sweep.run_sweep],
-                  {"config", "progress", "devices", "on_plan"}),
+        "sweep": ([check_store_target, check_store_writable, start_distributed, sweep.run_sweep],
+                  {"config", "progress", "devices", "on_plan", "on_timeout"}),
         "sweep-report": ([sweep_report], {"sample_size", "dpi", "progress"}),
         "retina": ([retinal_scene, LayeredScene.from_depth_map, LayeredScene.from_layers,
                     read_depth_map_scene, read_layers_file, Viewing, check_output_folder],
