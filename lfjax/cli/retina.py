@@ -11,7 +11,7 @@ import numpy as np
 
 from lfjax.base.errors import ParameterError
 from lfjax.base.files import check_output_folder, staged_output
-from lfjax.cli import common
+from lfjax.cli import common, flags
 from lfjax.display.panel import PRESETS
 from lfjax.display.spectra import DISPLAY_NAMES
 from lfjax.model.eyes import average_eye, sample_eyes
@@ -55,30 +55,30 @@ def add_parser(sub) -> None:
                      help=".npz with layers, alpha and depths_D (nearest first)")
     src.add_argument("--demo", action="store_true", help="the synthetic three-depth scene")
     rp.add_argument("--depth", metavar="DEPTH.npy", help="depth map, D, .npy of the image's shape")
-    rp.add_argument("--size", metavar="N", type=common.positive_int, default=256,
+    rp.add_argument("--size", metavar="N", type=flags.positive_int, default=256,
                     help="pixels across the --demo scene (default 256)")
-    rp.add_argument("--n-layers", metavar="N", type=common.positive_int, default=8,
+    rp.add_argument("--n-layers", metavar="N", type=flags.positive_int, default=8,
                     help="layers cut from a depth map (default 8)")
-    rp.add_argument("--pixel-arcmin", metavar="A", type=common.finite_float, default=1.0,
+    rp.add_argument("--pixel-arcmin", metavar="A", type=flags.finite_float, default=1.0,
                     help="visual angle of one scene pixel, arcmin (default 1)")
     rp.add_argument("--display", choices=DISPLAY_CHOICES, default="3x3",
                     help="natural viewing, the paper's n x n views (CDP --cdp) or a panel preset "
                          "(its own CDP, lenslet diffraction and pixels) (default 3x3)")
-    rp.add_argument("--cdp", metavar="D", type=common.finite_float, default=2.0,
+    rp.add_argument("--cdp", metavar="D", type=flags.finite_float, default=2.0,
                     help="CDP of the n x n layouts, D (default 2)")
     rp.add_argument("--primaries", choices=DISPLAY_NAMES, default="oled",
                     help="the display's primaries (default oled)")
     rp.add_argument("--eye", metavar="N", default="average",
                     help="'average' (default) or the index of a Thibos virtual eye (seed 0)")
-    rp.add_argument("--accommodation", metavar="D", type=common.finite_float, default=None,
+    rp.add_argument("--accommodation", metavar="D", type=flags.finite_float, default=None,
                     help="accommodation, D (default: the eye's predicted one)")
-    rp.add_argument("--fixation", metavar="D", type=common.finite_float, default=None,
+    rp.add_argument("--fixation", metavar="D", type=flags.finite_float, default=None,
                     help="fixated depth for the predicted accommodation, D (default: the depth "
                          "at the image centre)")
     rp.add_argument("--no-occlusion", action="store_true",
                     help="add the layers instead of compositing them with occlusion")
-    common.add_out(rp, "lfjax-retina", "output folder (default lfjax-retina)")
-    common.add_force(rp, "write into a non-empty --out (files of the same names are replaced)")
+    flags.add_out(rp, "lfjax-retina", "output folder (default lfjax-retina)")
+    flags.add_force(rp, "write into a non-empty --out (files of the same names are replaced)")
 
 
 def _eye(text: str):

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from lfjax.base.files import atomic_write_text, check_writable
-from lfjax.cli import common
+from lfjax.cli import cache, common, flags
 from lfjax.sweep import (
     StoreMismatchError,
     SweepConfigError,
@@ -64,24 +64,24 @@ def add_parser(sub) -> None:
                          "(--resume recomputes those)")
     sw.add_argument("--template", action="store_true",
                     help="write CONFIG.toml: a commented config with every key and its default")
-    common.add_out(sw, None, "Zarr store to write (default: CONFIG's name with .zarr, in the "
+    flags.add_out(sw, None, "Zarr store to write (default: CONFIG's name with .zarr, in the "
                              "current folder); must not exist unless --resume", metavar="STORE")
     sw.add_argument("--resume", action="store_true",
                     help="complete an existing STORE made by the same config (finished chunks "
                          "are skipped, those whose data fail their checksum recomputed; a store "
                          "of another config is refused, listing the differences)")
-    sw.add_argument("--max-chunks", metavar="N", type=common.positive_int, default=None,
+    sw.add_argument("--max-chunks", metavar="N", type=flags.positive_int, default=None,
                     help="stop after computing N chunks (continue later with --resume)")
-    common.add_no_progress(sw)
+    flags.add_no_progress(sw)
     sw.add_argument("--distributed", action="store_true",
                     help="call jax.distributed.initialize first (one process per host)")
     sw.add_argument("--coordinator", metavar="HOST:PORT", default=None,
                     help="with --distributed: address of process 0's coordinator service")
-    sw.add_argument("--num-processes", metavar="N", type=common.positive_int, default=None,
+    sw.add_argument("--num-processes", metavar="N", type=flags.positive_int, default=None,
                     help="with --distributed: total number of processes")
-    sw.add_argument("--process-id", metavar="I", type=common.count, default=None,
+    sw.add_argument("--process-id", metavar="I", type=flags.count, default=None,
                     help="with --distributed: this process's index, 0 ... N-1")
-    sw.add_argument("--distributed-timeout", metavar="S", type=common.positive_int,
+    sw.add_argument("--distributed-timeout", metavar="S", type=flags.positive_int,
                     default=DISTRIBUTED_TIMEOUT_S,
                     help=f"with --distributed: seconds to wait for every process to connect "
                          f"to the coordinator before stopping with an error that names it "
@@ -162,7 +162,7 @@ def run(args) -> int:
         check_store_target(out, args.resume)
     except FileExistsError as err:
         return common.refuse(prog, err, COMMAND)
-    common.enable_compilation_cache()
+    cache.enable_compilation_cache()
     try:
         previous = signal.signal(signal.SIGTERM, _terminated)
     except ValueError:  # not the main thread: leave signals alone

@@ -17,7 +17,7 @@ from helpers import execute_notebook_tiny, percent_cells
 from lfjax import cli
 from lfjax import reproduce as rep
 from lfjax.base.errors import ParameterError
-from lfjax.cli import common
+from lfjax.cli import flags
 
 ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK = ROOT / "notebooks" / "reproduce_paper.ipynb"
@@ -219,7 +219,7 @@ def test_settle_verdicts_reaches_the_configuration(capsys, tmp_path, monkeypatch
         raise KeyboardInterrupt  # stop before any work; the guard reports it
 
     monkeypatch.setattr(cli_reproduce, "reproduce", capture)
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     for flags, want in (([], False), (["--settle-verdicts"], True)):
         run_main(capsys, "reproduce", *flags, "--out", str(tmp_path / f"o{len(seen)}"))
         assert seen[-1].settle_verdicts is want and seen[-1].accuracy == "claims"
@@ -261,7 +261,7 @@ def test_failure_mid_run_leaves_nothing(capsys, tmp_path, monkeypatch):
 
     monkeypatch.setattr(rep, "compute_examples", boom)
     monkeypatch.setattr(rep, "run_study", lambda config, options=None, stage=None: None)
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "new" / "deeper"
     code, _, stderr = run_main(capsys, "reproduce", "--quick", "--no-progress", "--out", str(out))
     assert code == 1
@@ -410,8 +410,8 @@ def _library_inputs():
 
 
 def test_the_flag_table_names_flags_that_exist():
-    assert set(common.FLAGS) == set(cli.SUBCOMMANDS)
-    for command, table in common.FLAGS.items():
+    assert set(flags.FLAGS) == set(cli.SUBCOMMANDS)
+    for command, table in flags.FLAGS.items():
         assert set(table.values()) <= _options(command), command
 
 
@@ -420,7 +420,7 @@ def test_the_flag_table_covers_every_parameter_a_check_can_name():
     its table: a library check names one of them, and the command line names the flag."""
     for command, (calls, not_flags) in _library_inputs().items():
         for call in calls:
-            missing = _parameters(call) - not_flags - set(common.FLAGS[command])
+            missing = _parameters(call) - not_flags - set(flags.FLAGS[command])
             assert not missing, f"{command}: {call.__qualname__} {sorted(missing)}"
 
 
@@ -446,7 +446,7 @@ def test_a_refused_optimisation_names_a_parameter_of_the_table(command, make):
 
     with pytest.raises(ParameterError) as err:
         make(layout_opt)
-    assert set(err.value.parameters) <= set(common.FLAGS[command]), err.value.parameters
+    assert set(err.value.parameters) <= set(flags.FLAGS[command]), err.value.parameters
 
 
 @pytest.mark.parametrize("make", [
@@ -466,7 +466,7 @@ def test_a_refused_design_names_a_parameter_of_the_table(make):
 
     with pytest.raises(ParameterError) as err:
         make(design)
-    assert set(err.value.parameters) <= set(common.FLAGS["design"]), err.value.parameters
+    assert set(err.value.parameters) <= set(flags.FLAGS["design"]), err.value.parameters
 
 
 def test_a_library_caller_reads_the_library_name_and_the_command_line_the_flag(capsys, tmp_path):
