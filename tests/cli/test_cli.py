@@ -1,6 +1,8 @@
 """The command line: `lfjax reproduce` end to end (quick run, outputs complete and finite),
 bad input, the parameter↔flag table every subcommand names library errors through, the
-notebook."""
+notebook. Covers lfjax.cli (its main), lfjax.cli.flags (the table and argument types),
+lfjax.cli.common (the one-line errors and the guard) and lfjax.cli.cache (through every run
+that turns the compilation cache on)."""
 
 import argparse
 import dataclasses
