@@ -35,7 +35,8 @@ from lfjax.model.eyes import average_eye
 from lfjax.model.layouts import grid_layout
 from lfjax.vision.images import psf_on_grid
 from lfjax.vision.scene_blur import rest_of_scene
-from lfjax.vision.scene_images import demo_scene, predicted_accommodation, retinal_scene
+from lfjax.vision.scene_images import (LayeredScene, demo_scene, predicted_accommodation,
+                                       retinal_scene)
 
 SIZE = os.environ.get("LFJAX_NOTEBOOK_SIZE", "small")
 tiny = SIZE == "tiny"
@@ -89,7 +90,7 @@ image, depth = demo_scene(n_pixels)
 a = 1.95 if tiny else predicted_accommodation(eye, grid_layout(2), 2.0, primaries, cdp_D=2.0)
 panels = [("scene", image)]
 for name, display in [("natural", "natural")] + list(layouts.items()):
-    out = retinal_scene(eye, 0.75, image=image, depth_map_D=depth, display=display,
+    out = retinal_scene(eye, LayeredScene.from_depth_map(image, depth, 0.75), display=display,
                         primaries=primaries, accommodation_D=a)
     panels.append((name, np.asarray(out["retina"])))
 fig, ax = plt.subplots(1, len(panels), figsize=(3 * len(panels), 3.2))

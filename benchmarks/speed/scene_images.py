@@ -37,17 +37,16 @@ def main() -> None:
     img, _ = si.demo_scene(args.size)
     y = np.linspace(0, 1, args.size)[:, None] * np.ones((1, args.size))
     depth = 0.5 + 4.5 * y  # a floor receding: every layer populated
+    scene = si.LayeredScene.from_depth_map(img, depth, args.pixel_arcmin, args.layers)
     for name, display in (("natural", "natural"), ("3x3", grid_layout(3))):
         t0 = time.perf_counter()
-        first = si.retinal_scene(eye, args.pixel_arcmin, image=img, depth_map_D=depth,
-                                 n_layers=args.layers, display=display, fixation_D=2.0)
+        first = si.retinal_scene(eye, scene, display=display, fixation_D=2.0)
         jax.block_until_ready(first["retina"])
         cold = time.perf_counter() - t0
         warm = []
         for _ in range(args.repeats):
             t0 = time.perf_counter()
-            out = si.retinal_scene(eye, args.pixel_arcmin, image=img, depth_map_D=depth,
-                                   n_layers=args.layers, display=display,
+            out = si.retinal_scene(eye, scene, display=display,
                                    accommodation_D=first["accommodation_D"])
             jax.block_until_ready(out["retina"])
             warm.append(time.perf_counter() - t0)

@@ -86,7 +86,7 @@ def main() -> None:
     from _common import header
 
     header("Layouts in threads: programs, eager host work and compilation on two cores")
-    from lfjax.cli.common import enable_compilation_cache
+    from lfjax.cli.cache import enable_compilation_cache
 
     enable_compilation_cache()
     single, two = concurrency(False)

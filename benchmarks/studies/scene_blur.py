@@ -81,8 +81,8 @@ def scene_figure(out: Path, n: int = 192) -> str:
     panels = [("scene", np.moveaxis(img, 0, -1))]
     for name, display in (("natural", "natural"), ("3x3 display", grid_layout(3)),
                           ("2x2 display", grid_layout(2))):
-        r = si.retinal_scene(eye, 0.75, image=img, depth_map_D=depth, display=display,
-                             accommodation_D=a)
+        r = si.retinal_scene(eye, si.LayeredScene.from_depth_map(img, depth, 0.75),
+                             display=display, accommodation_D=a)
         panels.append((name, np.clip(np.moveaxis(np.asarray(r["retina"]), 0, -1), 0, 1)))
     fig, ax = plt.subplots(1, len(panels), figsize=(3.2 * len(panels), 3.5))
     for k, (name, im) in enumerate(panels):

@@ -39,7 +39,7 @@ def main() -> None:
     header("accommodation_sa=unscaled: verdicts at 5 nm against the plan and the 20 nm reference")
     import pandas as pd
 
-    from lfjax.cli.common import enable_compilation_cache
+    from lfjax.cli.cache import enable_compilation_cache
     from lfjax.reproduce.alternatives import ALTERNATIVES
     from lfjax.reproduce.config import StudyConfig
     from lfjax.reproduce.study import run_study_variants

@@ -76,7 +76,7 @@ def main() -> None:
     header("claim margins: the planned spectra against the reference, in what the claims read")
     import xarray as xr
 
-    from lfjax.cli.common import enable_compilation_cache
+    from lfjax.cli.cache import enable_compilation_cache
     from lfjax.reproduce.alternatives import ALTERNATIVES, BASELINE
     from lfjax.reproduce.config import StudyConfig
     from lfjax.reproduce.settling import mark_unsettled, settle

@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from lfjax.cli import common
+from lfjax.cli import cache
 from lfjax.design import fit as F
 from lfjax.display.panel import Panel
 from lfjax.layout_opt import evaluate_layout
@@ -29,7 +29,7 @@ from lfjax.model.eyes import Eyes, sample_eyes
 def main(argv):
     preset, n, lo, hi, n_test, modes = argv[0], int(argv[1]), float(argv[2]), float(argv[3]), int(argv[4]), argv[5].split(",")
     print("command: python benchmarks/validation/design_report_setting.py " + " ".join(argv), flush=True)
-    common.enable_compilation_cache()
+    cache.enable_compilation_cache()
     cdp = F.design_cdp_D((lo, hi))
     panel = F.design_panel(preset, cdp)
     depths = np.linspace(lo, hi, 3)

@@ -5,7 +5,7 @@
 name it passed. It also keeps the parameter apart from the sentence: the message is a
 template whose fields are either values or parameter names, and :meth:`ParameterError.naming`
 renders it with other names for the parameters. The command line renders it with its
-flags, through one declared table (:data:`lfjax.cli.common.FLAGS`), never by editing
+flags, through one declared table (:data:`lfjax.cli.flags.FLAGS`), never by editing
 message text::
 
     err = ParameterError("n_depths", "{n_depths} must be >= 2 for a depth range, got {got}", got=1)

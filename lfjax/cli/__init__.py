@@ -8,9 +8,10 @@ population sweep into a resumable Zarr store), ``lfjax sweep-report``
 (:mod:`~lfjax.cli.sweep_report`: its distributions, percentiles and what ten eyes cannot
 tell) and ``lfjax design`` (:mod:`~lfjax.cli.design`: a buildable lenslet display fitted to
 a panel and eyes) and ``lfjax retina`` (:mod:`~lfjax.cli.retina`: the retinal image of a
-scene with depth through a display or in natural viewing). What they share — flags declared once, argument types, the
-parameter↔flag table, the error and exit conventions, the compilation cache — is in
-:mod:`~lfjax.cli.common`.
+scene with depth through a display or in natural viewing). What they share: the flags
+declared once, their argument types and the parameter↔flag table (:mod:`~lfjax.cli.flags`),
+the error and exit conventions and the one guard of every subcommand's work
+(:mod:`~lfjax.cli.common`), and the compilation cache (:mod:`~lfjax.cli.cache`).
 
 Usage errors print one line and exit with status 2; failures during the run print one line
 and exit with status 1, leaving no partial output. Ctrl-C exits with status 130 within about
@@ -25,7 +26,7 @@ import time
 
 from lfjax._version import __version__
 from lfjax.cli import common, design, optimise, reproduce, retina, sweep, sweep_report
-from lfjax.cli.common import enable_compilation_cache
+from lfjax.cli.cache import enable_compilation_cache
 
 SUBCOMMANDS = {module.COMMAND: module for module in (reproduce, optimise, sweep, sweep_report, design,
                                                    retina)}

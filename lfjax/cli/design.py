@@ -11,7 +11,7 @@ import time
 from lfjax.base.errors import ParameterError
 from lfjax.base.files import check_output_folder
 from lfjax.base.sampling import Sampling
-from lfjax.cli import common
+from lfjax.cli import cache, common, flags
 from lfjax.design import (
     REPORT_ACCURACIES,
     REPORT_COUNTS,
@@ -93,36 +93,36 @@ def add_parser(sub) -> None:
                      help="starting panel preset (default near-eye; phone with --lenticular: a "
                           "near-eye lenticular's y focus, at the panel 3 cm away, is beyond any "
                           "accommodation)")
-    des.add_argument("--pixel-pitch", metavar="MM", type=common.finite_float, default=None,
+    des.add_argument("--pixel-pitch", metavar="MM", type=flags.finite_float, default=None,
                      help="override the preset's pixel pitch, mm")
-    des.add_argument("--pixel-count", metavar=("W", "H"), nargs=2, type=common.positive_int,
+    des.add_argument("--pixel-count", metavar=("W", "H"), nargs=2, type=flags.positive_int,
                      default=None, help="override the preset's pixel count (horizontal, vertical)")
-    des.add_argument("--distance", metavar="MM", type=common.finite_float, default=None,
+    des.add_argument("--distance", metavar="MM", type=flags.finite_float, default=None,
                      help="viewing distance, eye pupil to lenslets, mm (default the preset's)")
-    des.add_argument("--distance-range", metavar=("LO", "HI"), nargs=2, type=common.finite_float,
+    des.add_argument("--distance-range", metavar=("LO", "HI"), nargs=2, type=flags.finite_float,
                      default=None, help="fit the viewing distance too, within LO ... HI mm")
-    common.add_depths(des, None, 3, "rendered depth range in D, 0 <= LOW < HIGH")
-    des.add_argument("--cdp", metavar="D", type=common.finite_float, default=None,
+    flags.add_depths(des, None, 3, "rendered depth range in D, 0 <= LOW < HIGH")
+    des.add_argument("--cdp", metavar="D", type=flags.finite_float, default=None,
                      help="central depth plane, D, within the depth range (default: the "
                           "range's dioptric middle)")
-    des.add_argument("--views", metavar="N", nargs="+", type=common.positive_int,
+    des.add_argument("--views", metavar="N", nargs="+", type=flags.positive_int,
                      default=[1, 2, 3, 4],
                      help="views-per-side counts to design, 1 ... 8 (default 1 2 3 4)")
-    des.add_argument("--min-eye-box", metavar="MM", type=common.finite_float, default=10.0,
+    des.add_argument("--min-eye-box", metavar="MM", type=flags.finite_float, default=10.0,
                      help="smallest eye box (viewing zone) allowed, mm (default 10)")
-    des.add_argument("--min-fill", metavar="F", type=common.finite_float, default=0.5,
+    des.add_argument("--min-fill", metavar="F", type=flags.finite_float, default=0.5,
                      help="smallest lenslet fill, aperture/pitch in (0, 1] (default 0.5)")
-    des.add_argument("--f-number", metavar=("LO", "HI"), nargs=2, type=common.finite_float,
+    des.add_argument("--f-number", metavar=("LO", "HI"), nargs=2, type=flags.finite_float,
                      default=(1.0, 8.0), help="lenslet f-number range (default 1 8)")
     des.add_argument("--lens-form", choices=LENS_FORMS, default=None,
                      help="the lenslets' form: each view then carries its lenslet's spherical "
                           "aberration (lfjax.display.aberrations; default: aberration-free lenslets)")
-    des.add_argument("--refractive-index", metavar="N", type=common.finite_float, default=1.5,
+    des.add_argument("--refractive-index", metavar="N", type=flags.finite_float, default=1.5,
                      help="the lenslets' refractive index with --lens-form, in (1, 4] (default 1.5)")
     des.add_argument("--diffraction", choices=DIFFRACTION_MODES, default="fresnel",
                      help="lenslet diffraction in the model (default fresnel)")
-    common.add_eyes(des, 10, 20, "held-out eyes, >= 0 (default 20; 0: report on the training eyes)")
-    common.add_fit_setting(
+    flags.add_eyes(des, 10, 20, "held-out eyes, >= 0 (default 20; 0: report on the training eyes)")
+    flags.add_fit_setting(
         des, 10, "L-BFGS-B steps per count, >= 0 (default 10)",
         wavelengths_help="the fit's wavelengths, nm, increasing, 400-700 (default 550)",
         report_help="setting of the held-out report: fast (11 wavelengths, 400-700 nm in 30 nm "
@@ -136,10 +136,10 @@ def add_parser(sub) -> None:
                           f"{100 * SCREEN_MARGIN:.0f}%% of it; "  # argparse formats help: %% is %
                           "the rest are listed as not reported) or "
                           "all (every count; several times slower)")
-    common.add_out(des, "lfjax-design", "output folder; must be new or empty unless --force "
+    flags.add_out(des, "lfjax-design", "output folder; must be new or empty unless --force "
                                         "(default ./lfjax-design)")
-    common.add_force(des, "write into a non-empty DIR")
-    common.add_no_progress(des, "print the plan only, no progress per step and per count")
+    flags.add_force(des, "write into a non-empty DIR")
+    flags.add_no_progress(des, "print the plan only, no progress per step and per count")
 
 
 def _inputs(args):
@@ -175,7 +175,7 @@ def run(args) -> int:
         check_design(panel, report_counts=args.report_counts, **fit)
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
-    common.enable_compilation_cache()
+    cache.enable_compilation_cache()
     kept = counts_folder(out)
 
     def work():
@@ -227,7 +227,7 @@ def _run_lenticular(args, prog: str) -> int:
         depths, _, counts = check_lenticular_design(panel, **fit)
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
-    common.enable_compilation_cache()
+    cache.enable_compilation_cache()
     held_out = args.test_eyes > 0
     eyes = sample_eyes(args.seed + 1, args.test_eyes) if held_out else sample_eyes(args.seed, args.train_eyes)
     grid = accommodation_grid_D(depths)

@@ -8,7 +8,7 @@ import time
 from lfjax import layout_opt as lo
 from lfjax.base.errors import ParameterError
 from lfjax.base.files import check_output_folder
-from lfjax.cli import common
+from lfjax.cli import cache, common, flags
 
 COMMAND = "optimise"
 
@@ -20,7 +20,7 @@ def objective(text: str) -> lo.Objective:
         for part in text.split(","):
             name, _, weight = part.partition("=")
             try:
-                weights[name.strip()] = common.finite_float(weight)
+                weights[name.strip()] = flags.finite_float(weight)
             except argparse.ArgumentTypeError as err:
                 raise argparse.ArgumentTypeError(f"weight of {name.strip()!r}: {err}") from None
         text = weights
@@ -68,15 +68,15 @@ def add_parser(sub) -> None:
                      help="accommodation_aware (default), image_at_peak, depth_of_field, "
                           "accommodation, resolution, or weights name=w,name=w "
                           "(loss = -w*VSOTF + w*D^2 - w*cpd)")
-    opt.add_argument("--accommodation-tolerance", metavar="D", type=common.finite_float,
+    opt.add_argument("--accommodation-tolerance", metavar="D", type=flags.finite_float,
                      default=None,
                      help="constrain the training eyes' accommodation RMSE to D dioptres "
                           "(default 0.25 for accommodation_aware, none for the others)")
-    opt.add_argument("--front", metavar="N", type=common.positive_int, default=None,
+    opt.add_argument("--front", metavar="N", type=flags.positive_int, default=None,
                      help="also fit N layouts along the trade-off (tolerances 0.1 ... 1 D), "
                           "score them and the tangent 2x2-4x4 grids and natural viewing on the "
                           "held-out eyes, and draw front.png")
-    opt.add_argument("--views", metavar="N", type=common.positive_int, default=4,
+    opt.add_argument("--views", metavar="N", type=flags.positive_int, default=4,
                      help="number of views, >= 1 (square lattice: n*n, e.g. 4, 9, 16; hex: any, "
                           "7 and 19 fill rings; default 4)")
     opt.add_argument("--parametrisation", choices=lo.PARAMETRISATIONS, default="lattice",
@@ -84,28 +84,28 @@ def add_parser(sub) -> None:
                           "(default lattice)")
     opt.add_argument("--lattice", choices=lo.LATTICES, default="square",
                      help="lattice of the start (and of the fit with --parametrisation lattice)")
-    common.add_depths(opt, (0.0, 4.0), 5,
+    flags.add_depths(opt, (0.0, 4.0), 5,
                       "rendered depth range in D, 0 <= LOW < HIGH (default 0 4)")
-    opt.add_argument("--cdp", metavar="D", type=common.finite_float, default=2.0,
+    opt.add_argument("--cdp", metavar="D", type=flags.finite_float, default=2.0,
                      help="central depth plane of the display, D >= 0 (default 2)")
-    opt.add_argument("--pupil", metavar="MM", type=common.finite_float, default=3.0,
+    opt.add_argument("--pupil", metavar="MM", type=flags.finite_float, default=3.0,
                      help="pupil diameter, mm, in (0, 3] for the 3 mm eye statistics (default 3)")
-    opt.add_argument("--max-diameter", metavar="MM", type=common.finite_float, default=None,
+    opt.add_argument("--max-diameter", metavar="MM", type=flags.finite_float, default=None,
                      help="largest subaperture diameter, mm (default 1.2 x the tangent lattice's, "
                           "at most the pupil: it sizes every FFT window, so smaller is faster)")
-    opt.add_argument("--min-diameter", metavar="MM", type=common.finite_float, default=0.5,
+    opt.add_argument("--min-diameter", metavar="MM", type=flags.finite_float, default=0.5,
                      help="smallest subaperture diameter, mm (default 0.5)")
     opt.add_argument("--containment", choices=lo.CONTAINMENTS, default="centre",
                      help="centre: |centre| <= pupil radius, the pupil crops the rest "
                           "(default); contained: |centre| + d/2 <= pupil radius")
     opt.add_argument("--non-overlap", action="store_true", help="subapertures must not overlap")
-    common.add_eyes(opt, 10, 50, "held-out eyes, >= 0 (default 50; 0: none). Scored at the full "
+    flags.add_eyes(opt, 10, 50, "held-out eyes, >= 0 (default 50; 0: none). Scored at the full "
                                  "accuracy, each costs about 9 s per layout (start and fit) on 2 "
                                  "busy CPU cores")
-    opt.add_argument("--display-distance", metavar="MM", type=common.finite_float, default=None,
+    opt.add_argument("--display-distance", metavar="MM", type=flags.finite_float, default=None,
                      help="optimise for a lenslet-array display at MM from the eye: each view "
                           "is its lenslet's Fresnel pattern (default: the paper's ideal display)")
-    opt.add_argument("--pixel-arcmin", metavar="A", type=common.finite_float, default=0.0,
+    opt.add_argument("--pixel-arcmin", metavar="A", type=flags.finite_float, default=0.0,
                      help="emitters of this angular width, arcmin (default 0: points)")
     opt.add_argument("--spectrum", metavar="NAME", default=None,
                      help="a display's white (crt, lcd, oled, laser) instead of the V(lambda)-"
@@ -115,7 +115,7 @@ def add_parser(sub) -> None:
                           "optimistix BFGS in unconstrained coordinates, which reach a bound "
                           "only asymptotically (prefer lbfgsb when the start or the optimum "
                           "sits on one, e.g. tangent discs with --non-overlap)")
-    common.add_fit_setting(
+    flags.add_fit_setting(
         opt, 30, "solver steps, >= 0 (default 30)",
         wavelengths_help="the fit's wavelengths, nm, increasing, 400-700 (default 550, the LCA "
                          "reference; the held-out report uses 31 wavelengths)",
@@ -123,10 +123,10 @@ def add_parser(sub) -> None:
                     "default) or fit (the training setting, much faster)",
         freq_step_help="frequency step, cpd (default: the planner's aliasing guard for every "
                        "feasible layout)")
-    common.add_out(opt, "lfjax-layout", "output folder; must be new or empty unless --force "
+    flags.add_out(opt, "lfjax-layout", "output folder; must be new or empty unless --force "
                                         "(default: ./lfjax-layout)")
-    common.add_force(opt, "write into a non-empty DIR (files of the same names are replaced)")
-    common.add_no_progress(opt)
+    flags.add_force(opt, "write into a non-empty DIR (files of the same names are replaced)")
+    flags.add_no_progress(opt)
 
 
 def settings(args) -> lo.OptimisationSettings:
@@ -152,7 +152,7 @@ def run(args) -> int:
         check_output_folder(args.out, args.force, need_bytes=lo.estimated_output_bytes(chosen))
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
-    common.enable_compilation_cache()
+    cache.enable_compilation_cache()
     result, status = common.guarded(
         prog, COMMAND, lambda: lo.optimise_and_save(chosen, args.out, force=args.force,
                                                     progress=not args.no_progress,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from lfjax.cli import common
+from lfjax.cli import cache, common, flags
 from lfjax.reproduce import OutputError, StudyConfig, check_reproduce, reproduce
 from lfjax.reproduce.config import ACCURACY_PLANS
 
@@ -42,13 +42,13 @@ def add_parser(sub) -> None:
             "so later runs start faster."
         ),
     )
-    common.add_out(rep, DEFAULT_OUT, f"output folder; must be new or empty unless --force "
+    flags.add_out(rep, DEFAULT_OUT, f"output folder; must be new or empty unless --force "
                                      f"(default: ./{DEFAULT_OUT})")
-    rep.add_argument("--eyes", metavar="N", type=common.positive_int, default=None,
+    rep.add_argument("--eyes", metavar="N", type=flags.positive_int, default=None,
                      help="number of virtual eyes drawn from the Thibos et al. (2002) "
                           "statistics, >= 1; the average eye is always added "
                           "(default: 10, or 2 with --quick)")
-    common.add_seed(rep, "seed of the random eye draw, integer 0 ... 2^32-1 (default: 0); "
+    flags.add_seed(rep, "seed of the random eye draw, integer 0 ... 2^32-1 (default: 0); "
                          "same seed, same eyes")
     rep.add_argument("--quick", action="store_true",
                      help="small version for testing: 2 eyes + average eye, depths CDP-2, "
@@ -69,9 +69,9 @@ def add_parser(sub) -> None:
     rep.add_argument("--no-alternatives", action="store_true",
                      help="skip the reruns under alternative modelling choices (Stiles-"
                           "Crawford form, accommodation spherical aberration, LCA constant)")
-    common.add_force(rep, "replace DIR if it is a non-empty folder written by an earlier "
+    flags.add_force(rep, "replace DIR if it is a non-empty folder written by an earlier "
                           "'lfjax reproduce' (other non-empty folders are never replaced)")
-    common.add_no_progress(rep)
+    flags.add_no_progress(rep)
     rep.add_argument("--population", metavar="STORE", default=None,
                      help="a population sweep store (lfjax sweep): REPORT.md adds 'What ten "
                           "eyes cannot tell', how often random samples of N eyes from it "
@@ -82,7 +82,7 @@ def add_parser(sub) -> None:
                           "3x3 and 4x4 (on the average eye and the first --display-eyes "
                           "eyes), and the 2x2 lenslet-size sweep; display_effects.csv, "
                           "display_lenslet_sweep.csv and two figures")
-    rep.add_argument("--display-eyes", metavar="N", type=common.count, default=2,
+    rep.add_argument("--display-eyes", metavar="N", type=flags.count, default=2,
                      help="virtual eyes (besides the average eye) in the display-effects "
                           "section, 0 ... --eyes (default: 2; each costs minutes)")
 
@@ -103,7 +103,7 @@ def run(args) -> int:
                         display_effects_eyes=display_eyes)
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
-    common.enable_compilation_cache()
+    cache.enable_compilation_cache()
     result, status = common.guarded(
         prog, COMMAND,
         lambda: reproduce(args.out, config, force=args.force, progress=not args.no_progress,

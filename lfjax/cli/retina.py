@@ -6,18 +6,19 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
 
 from lfjax.base.errors import ParameterError
 from lfjax.base.files import check_output_folder, staged_output
-from lfjax.cli import common
+from lfjax.cli import common, flags
 from lfjax.display.panel import PRESETS
 from lfjax.display.spectra import DISPLAY_NAMES
 from lfjax.model.eyes import average_eye, sample_eyes
 from lfjax.model.layouts import grid_layout
-from lfjax.vision.scene_images import demo_scene, retinal_scene
+from lfjax.vision.scene_files import read_depth_map_scene, read_layers_file, save_retina_figure
+from lfjax.vision.scene_images import LayeredScene, demo_scene, retinal_scene
+from lfjax.vision.viewing import Viewing
 
 COMMAND = "retina"
 DISPLAY_CHOICES = ("natural", "2x2", "3x3", "4x4") + tuple(PRESETS)
@@ -54,30 +55,30 @@ def add_parser(sub) -> None:
                      help=".npz with layers, alpha and depths_D (nearest first)")
     src.add_argument("--demo", action="store_true", help="the synthetic three-depth scene")
     rp.add_argument("--depth", metavar="DEPTH.npy", help="depth map, D, .npy of the image's shape")
-    rp.add_argument("--size", metavar="N", type=common.positive_int, default=256,
+    rp.add_argument("--size", metavar="N", type=flags.positive_int, default=256,
                     help="pixels across the --demo scene (default 256)")
-    rp.add_argument("--n-layers", metavar="N", type=common.positive_int, default=8,
+    rp.add_argument("--n-layers", metavar="N", type=flags.positive_int, default=8,
                     help="layers cut from a depth map (default 8)")
-    rp.add_argument("--pixel-arcmin", metavar="A", type=common.finite_float, default=1.0,
+    rp.add_argument("--pixel-arcmin", metavar="A", type=flags.finite_float, default=1.0,
                     help="visual angle of one scene pixel, arcmin (default 1)")
     rp.add_argument("--display", choices=DISPLAY_CHOICES, default="3x3",
                     help="natural viewing, the paper's n x n views (CDP --cdp) or a panel preset "
                          "(its own CDP, lenslet diffraction and pixels) (default 3x3)")
-    rp.add_argument("--cdp", metavar="D", type=common.finite_float, default=2.0,
+    rp.add_argument("--cdp", metavar="D", type=flags.finite_float, default=2.0,
                     help="CDP of the n x n layouts, D (default 2)")
     rp.add_argument("--primaries", choices=DISPLAY_NAMES, default="oled",
                     help="the display's primaries (default oled)")
     rp.add_argument("--eye", metavar="N", default="average",
                     help="'average' (default) or the index of a Thibos virtual eye (seed 0)")
-    rp.add_argument("--accommodation", metavar="D", type=common.finite_float, default=None,
+    rp.add_argument("--accommodation", metavar="D", type=flags.finite_float, default=None,
                     help="accommodation, D (default: the eye's predicted one)")
-    rp.add_argument("--fixation", metavar="D", type=common.finite_float, default=None,
+    rp.add_argument("--fixation", metavar="D", type=flags.finite_float, default=None,
                     help="fixated depth for the predicted accommodation, D (default: the depth "
                          "at the image centre)")
     rp.add_argument("--no-occlusion", action="store_true",
                     help="add the layers instead of compositing them with occlusion")
-    common.add_out(rp, "lfjax-retina", "output folder (default lfjax-retina)")
-    common.add_force(rp, "write into a non-empty --out (files of the same names are replaced)")
+    flags.add_out(rp, "lfjax-retina", "output folder (default lfjax-retina)")
+    flags.add_force(rp, "write into a non-empty --out (files of the same names are replaced)")
 
 
 def _eye(text: str):
@@ -93,31 +94,13 @@ def _eye(text: str):
     return sample_eyes(0, index + 1, 3.0)[index:index + 1]
 
 
-def _load(path: str, parameter: str):
-    try:
-        return np.load(path)
-    except (OSError, ValueError) as err:
-        raise ParameterError(parameter, "{" + parameter + "} {path} cannot be read: {why}",
-                             path=path, why=err) from None
-
-
-def _scene(args) -> dict:
+def _scene(args) -> LayeredScene:
     if args.demo:
-        img, depth = demo_scene(args.size)
-        return dict(image=img, depth_map_D=depth, n_layers=args.n_layers)
+        return LayeredScene.from_depth_map(*demo_scene(args.size), args.pixel_arcmin,
+                                           args.n_layers)
     if args.layers_file:
-        data = _load(args.layers_file, "layers_file")
-        missing = [k for k in ("layers", "alpha", "depths_D") if k not in data]
-        if missing:
-            raise ParameterError("layers_file", "{layers_file} lacks {missing}",
-                                 missing=", ".join(missing))
-        return dict(layers=data["layers"], alpha=data["alpha"], depths_D=data["depths_D"])
-    if not args.depth:
-        raise ParameterError("depth_map_D", "{depth_map_D} is required with {image}")
-    img = _load(args.image, "image")
-    if img.ndim == 3 and img.shape[-1] == 3 and img.shape[0] != 3:
-        img = np.moveaxis(img, -1, 0)
-    return dict(image=img, depth_map_D=_load(args.depth, "depth_map_D"), n_layers=args.n_layers)
+        return read_layers_file(args.layers_file, args.pixel_arcmin)
+    return read_depth_map_scene(args.image, args.depth, args.pixel_arcmin, args.n_layers)
 
 
 def _display(name: str):
@@ -128,24 +111,6 @@ def _display(name: str):
     return grid_layout(int(name[0]))
 
 
-def _figure(path: Path, scene, retina, title: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(1, 2, figsize=(8, 4.2))
-    for a, im, name in ((ax[0], scene, "scene"), (ax[1], retina, "retina")):
-        im = np.moveaxis(np.asarray(im), 0, -1)
-        a.imshow(np.clip(im / max(float(np.max(scene)), 1e-12), 0, 1), origin="lower")
-        a.set_title(name)
-        a.set_xticks([]), a.set_yticks([])
-    fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
     def work():
@@ -153,12 +118,11 @@ def run(args) -> int:
         eye = _eye(args.eye)
         scene = _scene(args)
         display = _display(args.display)
-        result = retinal_scene(eye, args.pixel_arcmin, display=display,
+        result = retinal_scene(eye, scene, viewing=Viewing(cdp_D=args.cdp), display=display,
                                primaries=args.primaries, accommodation_D=args.accommodation,
-                               fixation_D=args.fixation, cdp_D=args.cdp,
-                               occlusion=not args.no_occlusion,
+                               fixation_D=args.fixation, occlusion=not args.no_occlusion,
                                progress=lambda line: print(f"{prog}: {line}", file=sys.stderr,
-                                                           flush=True), **scene)
+                                                           flush=True))
         return out, scene, result
 
     done, status = common.guarded(prog, COMMAND, work)
@@ -166,13 +130,6 @@ def run(args) -> int:
         return status
     out, scene, result = done
     retina = np.asarray(result["retina"])
-    shown = scene.get("image")
-    if shown is None:  # the layers seen through a pinhole: front to back, no blur
-        alpha = np.asarray(scene["alpha"], float)[:, None]
-        behind = np.cumprod(np.concatenate([np.ones_like(alpha[:1]), 1 - alpha[:-1]]), axis=0)
-        shown = np.sum(behind * np.asarray(scene["layers"], float), axis=0)
-    shown = np.asarray(shown, float)
-    shown = shown if shown.ndim == 3 else np.repeat(shown[None], 3, axis=0)
     summary = dict(accommodation_D=result["accommodation_D"], fixation_D=result["fixation_D"],
                    layer_depths_D=[float(d) for d in result["depths_D"]],
                    freq_step_cpd=result["freq_step_cpd"], display=args.display,
@@ -182,9 +139,9 @@ def run(args) -> int:
         with staged_output(out, args.force) as tmp:
             np.save(tmp / "retina.npy", retina)
             (tmp / "retina.json").write_text(json.dumps(summary, indent=1) + "\n")
-            _figure(tmp / "retina.png", shown, retina,
-                    f"{args.display}, eye {args.eye} at {result['accommodation_D']:.2f} D "
-                    f"(fixating {result['fixation_D']:.2f} D), {args.primaries} primaries")
+            save_retina_figure(tmp / "retina.png", scene, retina,
+                               f"{args.display}, eye {args.eye} at {result['accommodation_D']:.2f} D "
+                               f"(fixating {result['fixation_D']:.2f} D), {args.primaries} primaries")
 
     _, status = common.guarded(prog, COMMAND, write, refused=())
     if status is not None:

@@ -3,19 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import os
 import signal
-import socket
 import sys
-import threading
 import time
 from pathlib import Path
 
-import jax
-
-from lfjax.base.errors import ParameterError
 from lfjax.base.files import atomic_write_text, check_writable
-from lfjax.cli import common
+from lfjax.cli import cache, common, flags
 from lfjax.sweep import (
     StoreMismatchError,
     SweepConfigError,
@@ -25,9 +19,10 @@ from lfjax.sweep import (
     run_sweep,
 )
 from lfjax.sweep.config import config_template
-from lfjax.sweep.run import check_store_target
+from lfjax.sweep.distributed import DISTRIBUTED_TIMEOUT_S, start_distributed
 from lfjax.sweep.store import (StoreDamagedError, StoreLockedError, StoreRaceError,
                                is_disk_full, verify_store)
+from lfjax.sweep.target import check_store_target, check_store_writable
 
 COMMAND = "sweep"
 
@@ -69,118 +64,28 @@ def add_parser(sub) -> None:
                          "(--resume recomputes those)")
     sw.add_argument("--template", action="store_true",
                     help="write CONFIG.toml: a commented config with every key and its default")
-    common.add_out(sw, None, "Zarr store to write (default: CONFIG's name with .zarr, in the "
+    flags.add_out(sw, None, "Zarr store to write (default: CONFIG's name with .zarr, in the "
                              "current folder); must not exist unless --resume", metavar="STORE")
     sw.add_argument("--resume", action="store_true",
                     help="complete an existing STORE made by the same config (finished chunks "
                          "are skipped, those whose data fail their checksum recomputed; a store "
                          "of another config is refused, listing the differences)")
-    sw.add_argument("--max-chunks", metavar="N", type=common.positive_int, default=None,
+    sw.add_argument("--max-chunks", metavar="N", type=flags.positive_int, default=None,
                     help="stop after computing N chunks (continue later with --resume)")
-    common.add_no_progress(sw)
+    flags.add_no_progress(sw)
     sw.add_argument("--distributed", action="store_true",
                     help="call jax.distributed.initialize first (one process per host)")
     sw.add_argument("--coordinator", metavar="HOST:PORT", default=None,
                     help="with --distributed: address of process 0's coordinator service")
-    sw.add_argument("--num-processes", metavar="N", type=common.positive_int, default=None,
+    sw.add_argument("--num-processes", metavar="N", type=flags.positive_int, default=None,
                     help="with --distributed: total number of processes")
-    sw.add_argument("--process-id", metavar="I", type=common.count, default=None,
+    sw.add_argument("--process-id", metavar="I", type=flags.count, default=None,
                     help="with --distributed: this process's index, 0 ... N-1")
-    sw.add_argument("--distributed-timeout", metavar="S", type=common.positive_int,
+    sw.add_argument("--distributed-timeout", metavar="S", type=flags.positive_int,
                     default=DISTRIBUTED_TIMEOUT_S,
                     help=f"with --distributed: seconds to wait for every process to connect "
                          f"to the coordinator before stopping with an error that names it "
                          f"(default {DISTRIBUTED_TIMEOUT_S})")
-
-
-DISTRIBUTED_TIMEOUT_S = 60
-"""Default of ``--distributed-timeout``: seconds a process waits for its peers at start-up."""
-
-
-def _reachable(address: str | None) -> str:
-    """Whether something accepts connections at ``address`` (HOST:PORT), in words."""
-    host, _, port = (address or "").rpartition(":")
-    if not host or not port.isdigit():
-        return "the coordinator's address is unknown"
-    try:
-        with socket.create_connection((host.strip("[]"), int(port)), timeout=1.0):
-            return "the coordinator accepts connections"
-    except OSError as err:
-        return f"the coordinator does not answer ({err.strerror or err})"
-
-
-def _clients_connected(address: str | None) -> int | None:
-    """Connections the coordinator running in this process holds at ``address`` (HOST:PORT):
-    the established TCP sockets whose local port is the coordinator's (one per process that
-    reached it, this one included), read from Linux's /proc/net/tcp and tcp6. None where
-    that cannot be read."""
-    port = (address or "").rpartition(":")[2]
-    if not port.isdigit():
-        return None
-    wanted = f"{int(port):04X}"
-    peers = set()
-    try:
-        for table in ("/proc/net/tcp", "/proc/net/tcp6"):
-            with open(table) as f:
-                next(f)
-                for line in f:
-                    field = line.split()
-                    local, remote, state = field[1], field[2], field[3]
-                    if state == "01" and local.rpartition(":")[2] == wanted:
-                        peers.add(remote)
-    except OSError:
-        return None
-    return len(peers)
-
-
-def start_distributed(prog: str, kwargs: dict, timeout_s: float) -> None:
-    """``jax.distributed.initialize(**kwargs)``, given ``timeout_s`` seconds for every
-    process to connect. XLA's own time-out (300 s by default) ends the process with SIGABRT
-    and a C++ stack trace; instead, a watcher thread stops this process after
-    ``timeout_s`` with one line naming the coordinator, the processes seen and the time
-    waited, and exit status 1 (XLA's time-out is set later than the watcher's)."""
-    started = time.monotonic()
-    connected = threading.Event()
-
-    def give_up() -> None:
-        if connected.wait(timeout_s):
-            return
-        # as given (none: from the cluster environment, which JAX does not expose)
-        address, n, i = (kwargs.get(k) for k in ("coordinator_address", "num_processes",
-                                                 "process_id"))
-        role = " (this process runs it)" if i == 0 else ""
-        total = n if n is not None else "?"
-        seen = _clients_connected(address) if i == 0 else None
-        if seen:
-            # the coordinator sees who reached it; a peer sees only itself
-            saw = (f"{seen} of {total} processes connected to it (this one, process 0, "
-                   f"included)")
-        else:
-            saw = (f"this process (process {i if i is not None else '?'} of {total}) "
-                   f"cannot see which others did; {_reachable(address)}")
-        print(f"{prog}: error: distributed start-up: not every process connected to the "
-              f"coordinator {address or '(from the cluster environment)'}{role} within "
-              f"{time.monotonic() - started:.0f} s: {saw}. Start all {n if n is not None else ''} processes with "
-              f"the same --coordinator and --num-processes, each with its own --process-id, "
-              f"or wait longer (--distributed-timeout)", file=sys.stderr, flush=True)
-        os._exit(1)
-
-    threading.Thread(target=give_up, name="lfjax-distributed-start", daemon=True).start()
-    try:
-        jax.distributed.initialize(**kwargs, initialization_timeout=int(timeout_s) + 60)
-    finally:
-        connected.set()
-
-
-def check_store_writable(out: Path) -> None:
-    """``out`` can be written: a new store's folder (the nearest existing one above it: the
-    store is created beside it and renamed), or an existing store and the folder holding its
-    lock file; else a :class:`~lfjax.base.errors.ParameterError` naming ``store``."""
-    if out.exists() and not out.is_dir():
-        raise ParameterError("store", "{store} {path} exists and is not a folder", path=out)
-    check_writable(out.absolute().parent if out.exists() else out, parameter="store")
-    if out.is_dir():
-        check_writable(out, parameter="store")
 
 
 def _terminated(signum, frame):
@@ -199,11 +104,12 @@ def run(args) -> int:
                                    "--distributed-timeout need --distributed")
     if args.distributed:
         # before anything touches a JAX device (loading a layout file does)
-        kwargs = {k: v for k, v in (("coordinator_address", args.coordinator),
-                                    ("num_processes", args.num_processes),
-                                    ("process_id", args.process_id)) if v is not None}
+        def timed_out(err) -> None:
+            print(f"{prog}: error: {common.message(err, COMMAND)}", file=sys.stderr, flush=True)
+
         try:
-            start_distributed(prog, kwargs, args.distributed_timeout)
+            start_distributed(args.coordinator, args.num_processes, args.process_id,
+                              timeout_s=args.distributed_timeout, on_timeout=timed_out)
         except Exception as err:  # noqa: BLE001 - report any start-up failure in one line
             return common.refuse(prog, f"jax.distributed.initialize failed: {err}")
 
@@ -256,38 +162,39 @@ def run(args) -> int:
         check_store_target(out, args.resume)
     except FileExistsError as err:
         return common.refuse(prog, err, COMMAND)
-    common.enable_compilation_cache()
+    cache.enable_compilation_cache()
     try:
         previous = signal.signal(signal.SIGTERM, _terminated)
     except ValueError:  # not the main thread: leave signals alone
         previous = None
-    try:
-        run = run_sweep(config, out, resume=args.resume, progress=not args.no_progress,
-                        max_chunks=args.max_chunks,
-                        on_plan=lambda est: print(f"{prog}: plan\n{est.summary(out)}",
-                                                  flush=True))
-    except KeyboardInterrupt:
+    def kept() -> str:
         if out.exists():
-            note = f"; finished chunks are kept in {out} (continue with --resume)"
-        else:
-            note = " before any chunk finished; no store was kept"
-        return common.interrupted(prog, note)
-    except (StoreMismatchError, SweepTooLargeError, StoreLockedError) as err:
-        return common.refuse(prog, err, COMMAND)
-    except (StoreRaceError, StoreDamagedError) as err:  # found as the run starts: one line
-        print(f"{prog}: error: {' '.join(str(err).split())}", file=sys.stderr)
-        return 1
-    except Exception as err:  # one line, no traceback
+            return f"; finished chunks are kept in {out} (continue with --resume)"
+        return " before any chunk finished; no store was kept"
+
+    def failed(err: Exception) -> str | None:
+        if isinstance(err, (StoreRaceError, StoreDamagedError)):  # found as the run starts
+            return " ".join(str(err).split())
         if is_disk_full(err):
-            kept = (f"finished chunks are kept in {out}; free space and continue with --resume"
-                    if out.exists() else "no chunk had finished, so no store was kept")
-            print(f"{prog}: error: the disk is full: {kept}", file=sys.stderr)
-            return 1
-        notes = " ".join(getattr(err, "__notes__", []))
-        return common.unexpected_error(prog, err, f" ({notes})" if notes else "")
+            return ("the disk is full: " +
+                    (f"finished chunks are kept in {out}; free space and continue with --resume"
+                     if out.exists() else "no chunk had finished, so no store was kept"))
+        return None
+
+    try:
+        run, status = common.guarded(
+            prog, COMMAND,
+            lambda: run_sweep(config, out, resume=args.resume, progress=not args.no_progress,
+                              max_chunks=args.max_chunks,
+                              on_plan=lambda est: print(f"{prog}: plan\n{est.summary(out)}",
+                                                        flush=True)),
+            note=kept, refused=(StoreMismatchError, SweepTooLargeError, StoreLockedError),
+            failed=failed)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+    if status is not None:
+        return status
     who = f" (process {run.process_index} of {run.process_count})" if run.process_count > 1 else ""
     print(f"{prog}: {run.eyes_computed} eyes in {len(run.computed_chunks)} chunks computed"
           f"{who}, {len(run.skipped_chunks)} chunks already complete; "

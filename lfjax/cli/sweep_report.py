@@ -8,7 +8,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from lfjax.cli import common
+from lfjax.cli import common, flags
 from lfjax.sweep.report import FlatCurveWarning, default_out_dir, sweep_report
 
 COMMAND = "sweep-report"
@@ -33,12 +33,12 @@ def add_parser(sub) -> None:
         ),
     )
     rp.add_argument("store", metavar="STORE", help="sweep store (a Zarr folder)")
-    common.add_out(rp, None, "output folder (default: STORE's name with -report, beside it); "
+    flags.add_out(rp, None, "output folder (default: STORE's name with -report, beside it); "
                              "files of the same names in it are replaced")
-    rp.add_argument("--draws", metavar="N", type=common.positive_int, default=1000,
+    rp.add_argument("--draws", metavar="N", type=flags.positive_int, default=1000,
                     help="samples of 10 eyes drawn for the ten-eye table, >= 1 (default 1000)")
-    common.add_seed(rp, "seed of the samples (default 0)")
-    common.add_no_progress(rp, "do not show the progress bar of the draws (on stderr)")
+    flags.add_seed(rp, "seed of the samples (default 0)")
+    flags.add_no_progress(rp, "do not show the progress bar of the draws (on stderr)")
 
 
 def run(args) -> int:

@@ -42,6 +42,7 @@ from lfjax.sweep.store import (
     verify_store,
     write_chunk,
 )
+from lfjax.sweep.target import check_store_target
 
 
 @dataclass
@@ -134,18 +135,6 @@ def plan_sweep(config: SweepConfig, store=None, devices=None, samplings: dict | 
     est = estimate(config, tasks, n_devices=n_devices)
     check_fits(est, store=store)
     return eyes, is_average, spectrum, tasks, est
-
-
-def check_store_target(store, resume: bool = False) -> bool:
-    """Whether the store ``store`` exists; a ``FileExistsError`` when it does and ``resume``
-    is not set (:func:`run_sweep` checks it first; a command line checks it before any
-    work)."""
-    exists = Path(store).exists()
-    if exists and not resume:
-        raise FileExistsError(
-            f"{store} already exists: pass --resume (resume=True) to complete it, or choose "
-            f"another --out")
-    return exists
 
 
 def run_sweep(
@@ -309,4 +298,4 @@ def _run_chunks(config, store, tasks, eyes, spectrum, devices, max_chunks, progr
     return run
 
 
-__all__ = ["SweepRun", "plan_sweep", "check_store_target", "run_sweep", "peak_rss_mb"]
+__all__ = ["SweepRun", "plan_sweep", "run_sweep", "peak_rss_mb"]

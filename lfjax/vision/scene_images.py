@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
@@ -47,6 +48,7 @@ from lfjax.model.layouts import Layout
 from lfjax.model.options import ModelOptions
 from lfjax.vision.focus import through_focus
 from lfjax.vision.images import retinal_image
+from lfjax.vision.viewing import Viewing
 from lfjax.vision.scene_blur import (
     single_eye,
     channel_spectra,
@@ -193,14 +195,28 @@ def composite_layers(layers, alpha, otf, freq_step_cpd: float, pixel_arcmin: flo
     return jnp.sum(before * colour, axis=0)
 
 
-def resolve_display(display, pupil_diameter_mm: float, cdp_D: float):
-    """(layout or None, DisplayOptics or None, cdp_D, pupil_diameter_mm) of a display given as
-    ``"natural"``/None, a :class:`~lfjax.model.layouts.Layout` or a
-    :class:`~lfjax.display.panel.Panel` (its central views, lenslet diffraction and pixels)."""
-    if display is None or (isinstance(display, str) and display == "natural"):
-        return None, None, cdp_D, pupil_diameter_mm
+def resolve_display(display, viewing: Viewing):
+    """(layout or None, DisplayOptics or None, cdp_D, pupil_diameter_mm) of a display seen
+    under ``viewing``.
+
+    ``display`` is ``"natural"``/None (real surfaces: no layout, no display optics), a
+    :class:`~lfjax.model.layouts.Layout` (``viewing``'s CDP, pupil and display optics: None
+    for the paper's ideal display) or a :class:`~lfjax.display.panel.Panel`. A panel fixes
+    its own CDP, pupil and optics (its central views, lenslet diffraction and pixels): they
+    replace ``viewing``'s CDP and pupil, and ``viewing.display`` must be None there, as it
+    must be for natural viewing (a ``ParameterError`` naming ``viewing`` otherwise)."""
+    natural = display is None or (isinstance(display, str) and display == "natural")
+    if not isinstance(viewing, Viewing):
+        raise ParameterError("viewing", "{viewing} must be lfjax.vision.viewing.Viewing, got "
+                             "{got}", got=type(viewing).__name__)
+    if (natural or isinstance(display, Panel)) and viewing.display is not None:
+        raise ParameterError("viewing", "{viewing}.display must be None with display={got}: "
+                             "natural viewing has no display optics and a Panel brings its own",
+                             got="'natural'" if natural else "a Panel")
+    if natural:
+        return None, None, viewing.cdp_D, viewing.pupil_diameter_mm
     if isinstance(display, Layout):
-        return display, None, cdp_D, pupil_diameter_mm
+        return display, viewing.display, viewing.cdp_D, viewing.pupil_diameter_mm
     if isinstance(display, Panel):
         return (display.layout(), display.optics(), float(display.cdp_D),
                 float(display.pupil_diameter_mm))
@@ -251,30 +267,95 @@ def scene_otfs(eye: Eyes, layout: Layout | None, accommodation_D: float, depths_
     return embed_otf(otf, max(int(otf.shape[-2]), sampling.n_fft or 0)), sampling.freq_step_cpd
 
 
-def retinal_scene(eye: Eyes, pixel_arcmin: float, *, image=None, depth_map_D=None, layers=None,
-                  alpha=None, depths_D=None, n_layers: int = 8, display="natural",
-                  primaries: DisplayPrimaries | str = "oled", accommodation_D: float | None = None,
-                  fixation_D: float | None = None, pupil_diameter_mm: float = 3.0,
-                  cdp_D: float = 2.0, options: ModelOptions = ModelOptions(),
-                  occlusion: bool = True, boundary: str = "edge",
-                  memory_limit_bytes: int | None = None, progress=None) -> dict:
+@dataclass(frozen=True, eq=False)
+class LayeredScene:
+    """A scene with depth: fronto-parallel layers at depths, nearest first, checked when built.
+
+    Attributes
+    ----------
+    layers : (n_layers, n_channel, H, W) premultiplied colour α·I per primary (n_channel 1:
+        grey, or 3: R, G, B), non-negative luminance
+    alpha : (n_layers, H, W) coverage in [0, 1]
+    depths_D : (n_layers,) strictly decreasing depths, D, in [0, 10] (nearest first)
+    pixel_arcmin : one scene pixel's visual angle, arcmin, > 0
+
+    Build one with :meth:`from_depth_map` (an image cut into layers by its depth map) or
+    :meth:`from_layers`; the arrays are kept as given (NumPy, host side).
+    """
+
+    layers: np.ndarray
+    alpha: np.ndarray
+    depths_D: np.ndarray
+    pixel_arcmin: float
+
+    def __post_init__(self):
+        try:
+            pixel = float(self.pixel_arcmin)
+        except (TypeError, ValueError):
+            pixel = math.nan
+        if not (pixel > 0 and math.isfinite(pixel)):
+            raise ParameterError("pixel_arcmin", "{pixel_arcmin} must be > 0 arcmin, got {got}",
+                                 got=self.pixel_arcmin)
+        lay, _, _ = check_layers(self.layers, self.alpha, self.depths_D)
+        if lay.shape[1] not in (1, 3):
+            raise ParameterError("image", "{image} must have 1 or 3 channels (R, G, B), got {got}",
+                                 got=lay.shape[1])
+        object.__setattr__(self, "pixel_arcmin", pixel)
+
+    @classmethod
+    def from_depth_map(cls, image, depth_map_D, pixel_arcmin: float,
+                       n_layers: int = 8) -> LayeredScene:
+        """An image with a depth map cut into layers (:func:`layers_from_depth_map`).
+
+        image : (n_channel, H, W) or (H, W) non-negative luminance per primary;
+        depth_map_D : (H, W) depths, D, in [0, 10]; pixel_arcmin : arcmin per pixel;
+        n_layers : layers cut from the depth map, >= 1."""
+        return cls(*layers_from_depth_map(image, depth_map_D, n_layers), pixel_arcmin)
+
+    @classmethod
+    def from_layers(cls, layers, alpha, depths_D, pixel_arcmin: float) -> LayeredScene:
+        """Layers given as arrays (the attributes' shapes and units), converted to float."""
+        return cls(*check_layers(layers, alpha, depths_D), pixel_arcmin)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W), pixels."""
+        return tuple(np.shape(self.alpha)[-2:])
+
+    def pinhole_view(self) -> np.ndarray:
+        """(3, H, W) the layers composited front to back without blur (seen through a
+        pinhole): for a scene cut from a depth map, the image itself (grey repeated per
+        primary)."""
+        alpha = np.asarray(self.alpha, float)[:, None]
+        behind = np.cumprod(np.concatenate([np.ones_like(alpha[:1]), 1 - alpha[:-1]]), axis=0)
+        shown = np.sum(behind * np.asarray(self.layers, float), axis=0)
+        return shown if shown.shape[0] == 3 else np.repeat(shown, 3, axis=0)
+
+
+def retinal_scene(eye: Eyes, scene: LayeredScene, *, viewing: Viewing = Viewing(),
+                  display="natural", primaries: DisplayPrimaries | str = "oled",
+                  accommodation_D: float | None = None, fixation_D: float | None = None,
+                  options: ModelOptions = ModelOptions(), occlusion: bool = True,
+                  boundary: str = "edge", memory_limit_bytes: int | None = None,
+                  progress=None) -> dict:
     """The retinal image of a scene with depth (module docstring), per display primary.
 
     Parameters
     ----------
     eye : one eye (``Eyes`` of one member: ``average_eye(3.0)``, ``sample_eyes(...)[i:i+1]``)
-    pixel_arcmin : the scene's pixel, arcmin of visual angle
-    image, depth_map_D : (n_channel, H, W) or (H, W) luminance and (H, W) depths (D); or
-    layers, alpha, depths_D : (n_layers, n_channel, H, W) premultiplied colour, (n_layers,
-        H, W) coverage and (n_layers,) strictly decreasing depths (D), nearest first
-    n_layers : layers cut from a depth map (default 8)
-    display : ``"natural"`` (real surfaces), a :class:`~lfjax.model.layouts.Layout` (ideal
-        display; its CDP ``cdp_D``) or a :class:`~lfjax.display.panel.Panel`
+    scene : the :class:`LayeredScene` (its layers, depths and pixel size)
+    viewing : the calculation pupil and the CDP of a layout
+        (:class:`~lfjax.vision.viewing.Viewing`; its ``display`` optics for a Layout);
+        see :func:`resolve_display` for how it combines with ``display``
+    display : ``"natural"`` (real surfaces), a :class:`~lfjax.model.layouts.Layout` (the
+        display at ``viewing.cdp_D``) or a :class:`~lfjax.display.panel.Panel` (its own CDP,
+        pupil and optics replace ``viewing``'s)
     primaries : the display's primaries (a built-in name or ``DisplayPrimaries``)
     accommodation_D : where the eye focuses, D; default its predicted accommodation
         (:func:`predicted_accommodation`) for the depth at ``fixation_D``
     fixation_D : the fixated depth, D; default the depth at the image centre
     occlusion : composite with occlusion (default) or add the layers
+    boundary : as :func:`lfjax.vision.images.retinal_image`
     memory_limit_bytes : refuse scenes whose working set exceeds it (default half the RAM)
     progress : None, or a callable taking one line: told before each stage (the predicted
         accommodation, the layers' OTFs), which compile on a first run
@@ -284,26 +365,12 @@ def retinal_scene(eye: Eyes, pixel_arcmin: float, *, image=None, depth_map_D=Non
     dict: ``retina`` (n_channel, H, W), ``accommodation_D``, ``fixation_D``, ``depths_D``
     of the layers, ``freq_step_cpd``, ``otf``.
     """
-    pixel = float(pixel_arcmin)
-    if not (pixel > 0 and math.isfinite(pixel)):
-        raise ParameterError("pixel_arcmin", "{pixel_arcmin} must be > 0 arcmin, got {got}",
-                             got=pixel_arcmin)
+    if not isinstance(scene, LayeredScene):
+        raise ParameterError("scene", "{scene} must be a LayeredScene (LayeredScene.from_depth_map "
+                             "or .from_layers), got {got}", got=type(scene).__name__)
     eye = single_eye(eye)
-    if (image is None) == (layers is None):
-        raise ParameterError("image", "give either {image} with depth_map_D, or layers with "
-                             "alpha and depths_D")
-    if image is not None:
-        if depth_map_D is None:
-            raise ParameterError("depth_map_D", "{depth_map_D} is required with image")
-        lay, a, d = layers_from_depth_map(image, depth_map_D, n_layers)
-    else:
-        if alpha is None or depths_D is None:
-            raise ParameterError("alpha", "{alpha} and depths_D are required with layers")
-        lay, a, d = check_layers(layers, alpha, depths_D)
-    if lay.shape[1] not in (1, 3):
-        raise ParameterError("image", "{image} must have 1 or 3 channels (R, G, B), got {got}",
-                             got=lay.shape[1])
-    layout, optics, cdp, pupil = resolve_display(display, pupil_diameter_mm, cdp_D)
+    lay, a, d = scene.layers, scene.alpha, scene.depths_D
+    layout, optics, cdp, pupil = resolve_display(display, viewing)
     # memory bound before any optics: the kernel spans the PSF field, at most the image
     h, w = lay.shape[-2:]
     pad = max(h, w)
@@ -329,8 +396,8 @@ def retinal_scene(eye: Eyes, pixel_arcmin: float, *, image=None, depth_map_D=Non
     otf, df = scene_otfs(eye, layout, accommodation_D, d, primaries, pupil_diameter_mm=pupil,
                          cdp_D=cdp, options=options, display=optics)
     colour = jnp.asarray(lay if lay.shape[1] == 3 else np.repeat(lay, 3, axis=1))
-    retina = composite_layers(colour, jnp.asarray(a), otf, df, pixel, occlusion=occlusion,
-                              boundary=boundary)
+    retina = composite_layers(colour, jnp.asarray(a), otf, df, scene.pixel_arcmin,
+                              occlusion=occlusion, boundary=boundary)
     return dict(retina=retina, accommodation_D=float(accommodation_D), fixation_D=float(fixation_D),
                 depths_D=d, freq_step_cpd=float(df), otf=otf)
 
@@ -366,6 +433,7 @@ __all__ = [
     "predicted_accommodation",
     "scene_otfs",
     "retinal_scene",
+    "LayeredScene",
     "working_bytes",
     "default_memory_limit_bytes",
     "demo_scene",

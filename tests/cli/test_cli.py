@@ -1,8 +1,11 @@
 """The command line: `lfjax reproduce` end to end (quick run, outputs complete and finite),
 bad input, the parameter↔flag table every subcommand names library errors through, the
-notebook.
+notebook. Covers lfjax.cli (its main), lfjax.cli.flags (the table and argument types),
+lfjax.cli.common (the one-line errors and the guard) and lfjax.cli.cache (through every run
+that turns the compilation cache on).
 
-Covers: lfjax.cli.common, lfjax.cli.reproduce, lfjax.reproduce, lfjax.reproduce.config
+Covers: lfjax.cli.common, lfjax.cli.flags, lfjax.cli.cache, lfjax.cli.reproduce
+Covers: lfjax.reproduce, lfjax.reproduce.config
 Covers: lfjax.reproduce.study, lfjax.reproduce.report, lfjax.reproduce.figures
 """
 
@@ -21,7 +24,7 @@ from helpers import execute_notebook_tiny, percent_cells
 from lfjax import cli
 from lfjax import reproduce as rep
 from lfjax.base.errors import ParameterError
-from lfjax.cli import common
+from lfjax.cli import flags
 
 ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK = ROOT / "notebooks" / "reproduce_paper.ipynb"
@@ -223,7 +226,7 @@ def test_settle_verdicts_reaches_the_configuration(capsys, tmp_path, monkeypatch
         raise KeyboardInterrupt  # stop before any work; the guard reports it
 
     monkeypatch.setattr(cli_reproduce, "reproduce", capture)
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     for flags, want in (([], False), (["--settle-verdicts"], True)):
         run_main(capsys, "reproduce", *flags, "--out", str(tmp_path / f"o{len(seen)}"))
         assert seen[-1].settle_verdicts is want and seen[-1].accuracy == "claims"
@@ -265,7 +268,7 @@ def test_failure_mid_run_leaves_nothing(capsys, tmp_path, monkeypatch):
 
     monkeypatch.setattr(rep, "compute_examples", boom)
     monkeypatch.setattr(rep, "run_study", lambda config, options=None, stage=None: None)
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "new" / "deeper"
     code, _, stderr = run_main(capsys, "reproduce", "--quick", "--no-progress", "--out", str(out))
     assert code == 1
@@ -387,20 +390,25 @@ def _library_inputs():
     from lfjax.base.files import check_output_folder
     from lfjax.base.sampling import Sampling
     from lfjax.sweep.report import sweep_report
-    from lfjax.sweep.run import check_store_target
-    from lfjax.vision.scene_images import retinal_scene
+    from lfjax.sweep.distributed import start_distributed
+    from lfjax.sweep.target import check_store_target, check_store_writable
+    from lfjax.vision.scene_files import read_depth_map_scene, read_layers_file
+    from lfjax.vision.scene_images import LayeredScene, retinal_scene
+    from lfjax.vision.viewing import Viewing
 
     return {
         "reproduce": ([rep.check_reproduce, rep.StudyConfig.quick],
                       {"config", "changes"}),
         "optimise": ([layout_opt.OptimisationSettings, layout_opt.optimise_and_save],
                      {"settings", "progress", "command"}),
-        "sweep": ([check_store_target, sweep.run_sweep],
-                  {"config", "progress", "devices", "on_plan"}),
+        "sweep": ([check_store_target, check_store_writable, start_distributed, sweep.run_sweep],
+                  {"config", "progress", "devices", "on_plan", "on_timeout"}),
         "sweep-report": ([sweep_report], {"sample_size", "dpi", "progress"}),
-        "retina": ([retinal_scene, check_output_folder],
-                   {"pupil_diameter_mm", "options", "boundary", "memory_limit_bytes",
-                    "need_bytes", "parameter", "progress"}),
+        "retina": ([retinal_scene, LayeredScene.from_depth_map, LayeredScene.from_layers,
+                    read_depth_map_scene, read_layers_file, Viewing, check_output_folder],
+                   {"scene", "viewing", "pupil_diameter_mm", "options", "boundary",
+                    "memory_limit_bytes", "need_bytes", "parameter", "progress", "cls",
+                    "image_path", "depth_path", "path"}),
         "design": ([check_output_folder, design.design_cdp_D, design.design_panel,
                     design.DesignConstraints, Sampling, design.check_design],
                    {"min_gap_fraction", "panel", "n_fft", "transform", "mft_pupil_samples",
@@ -409,8 +417,8 @@ def _library_inputs():
 
 
 def test_the_flag_table_names_flags_that_exist():
-    assert set(common.FLAGS) == set(cli.SUBCOMMANDS)
-    for command, table in common.FLAGS.items():
+    assert set(flags.FLAGS) == set(cli.SUBCOMMANDS)
+    for command, table in flags.FLAGS.items():
         assert set(table.values()) <= _options(command), command
 
 
@@ -419,7 +427,7 @@ def test_the_flag_table_covers_every_parameter_a_check_can_name():
     its table: a library check names one of them, and the command line names the flag."""
     for command, (calls, not_flags) in _library_inputs().items():
         for call in calls:
-            missing = _parameters(call) - not_flags - set(common.FLAGS[command])
+            missing = _parameters(call) - not_flags - set(flags.FLAGS[command])
             assert not missing, f"{command}: {call.__qualname__} {sorted(missing)}"
 
 
@@ -445,7 +453,7 @@ def test_a_refused_optimisation_names_a_parameter_of_the_table(command, make):
 
     with pytest.raises(ParameterError) as err:
         make(layout_opt)
-    assert set(err.value.parameters) <= set(common.FLAGS[command]), err.value.parameters
+    assert set(err.value.parameters) <= set(flags.FLAGS[command]), err.value.parameters
 
 
 @pytest.mark.parametrize("make", [
@@ -465,7 +473,7 @@ def test_a_refused_design_names_a_parameter_of_the_table(make):
 
     with pytest.raises(ParameterError) as err:
         make(design)
-    assert set(err.value.parameters) <= set(common.FLAGS["design"]), err.value.parameters
+    assert set(err.value.parameters) <= set(flags.FLAGS["design"]), err.value.parameters
 
 
 def test_a_library_caller_reads_the_library_name_and_the_command_line_the_flag(capsys, tmp_path):

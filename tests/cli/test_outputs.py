@@ -60,7 +60,7 @@ def no_work(monkeypatch):
     for module, name in ((layout_opt, "optimise_and_save"), (design, "fit_design"),
                          (reproduce, "reproduce"), (sweep, "run_sweep"), (sweep, "plan_sweep")):
         monkeypatch.setattr(module, name, work)
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
 
 
 @pytest.mark.parametrize("name", list(COMMANDS))

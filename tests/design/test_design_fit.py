@@ -222,7 +222,7 @@ TINY = ["design", "--panel", "near-eye", "--depths", "1", "2", "--n-depths", "2"
 
 
 def test_cli_design_tiny_case(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "design"
     code = cli.main([*TINY, "--out", str(out)])
     captured = capsys.readouterr()
@@ -306,7 +306,7 @@ def test_cli_design_f_number_range_names_the_flag_and_the_end():
         DesignConstraints(min_f_number=8.0, max_f_number=1.0)
     assert str(err.value) == ("max_f_number: high end (at least the low end) must be finite and "
                               "in [8, inf], got 1.0")
-    assert err.value.naming(cli.common.FLAGS["design"]) == (
+    assert err.value.naming(cli.flags.FLAGS["design"]) == (
         "--f-number: high end (at least the low end) must be finite and in [8, inf], got 1.0")
     with pytest.raises(ParameterError, match=r"^min_f_number: low end must be finite and in \(0, inf\]"):
         DesignConstraints(min_f_number=0.0)
@@ -423,7 +423,7 @@ def test_cli_lenticular_design_refuses_report_counts(capsys, tmp_path):
 def test_cli_design_exits_non_zero_when_no_count_qualifies(capsys, tmp_path, monkeypatch):
     """``--views 1`` exited 0 with "chosen: none": one view is refused before any fit, the
     report is written, and the command says why nothing qualifies and exits 1."""
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "design"
     code = cli.main(["design", "--depths", "1", "2", "--views", "1", "--train-eyes", "1",
                      "--test-eyes", "0", "--no-progress", "--out", str(out)])
@@ -475,7 +475,7 @@ def test_design_outputs_are_whole_or_absent_and_a_failed_run_resumes_its_counts(
 
     from lfjax.design.resume import counts_folder
 
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "design"
     real_savefig = Figure.savefig
 

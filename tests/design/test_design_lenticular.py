@@ -74,7 +74,7 @@ def test_cli_lenticular_design_tiny_case(capsys, tmp_path, monkeypatch):
     """The report says the design is HPO, names the strips' width and the y defocus, and
     gives the x and y answers; horizontal structure (the y band) focuses near the panel's
     y focus whatever the rendered depth."""
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "hpo"
     code = cli.main([*TINY, "--out", str(out)])
     captured = capsys.readouterr()

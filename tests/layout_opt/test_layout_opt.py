@@ -508,7 +508,7 @@ TINY_CLI = ["optimise", "--train-eyes", "1", "--test-eyes", "1", "--wavelengths"
 
 
 def test_cli_optimise_tiny_case(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "fit"
     code = cli.main([*TINY_CLI, "--out", str(out)])
     captured = capsys.readouterr()

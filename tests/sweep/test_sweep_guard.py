@@ -286,7 +286,7 @@ def test_a_killed_reproduce_leaves_no_hidden_folder_after_the_next_run(tmp_path,
 
     monkeypatch.setattr(rep, "compute_examples", boom)
     monkeypatch.setattr(rep, "run_study", lambda config, options=None, stage=None: None)
-    monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
+    monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     code = cli.main(["reproduce", "--quick", "--no-progress", "--out", str(tmp_path / "res")])
     assert code == 1
     assert "removed 1 folder(s) left by an interrupted lfjax reproduce" in capsys.readouterr().err

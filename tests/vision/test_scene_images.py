@@ -2,6 +2,8 @@
 synthetic OTFs, the diffraction-limited layer against an independent PSF, gradients and
 refusals of bad input before any optics."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -10,11 +12,14 @@ import pytest
 from lfjax.base.errors import ParameterError
 from lfjax.base.sampling import Sampling
 from lfjax.kernel.metrics import diffraction_limited_mtf
+from lfjax.display.panel import PRESETS
+from lfjax.model.layouts import grid_layout
 from lfjax.model.eyes import aberration_free_eye, average_eye
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import monochromatic_spectrum
 from lfjax.vision.images import retinal_image
 from lfjax.vision.scene_blur import natural_otfs
+from lfjax.vision.viewing import Viewing
 from lfjax.vision import scene_images as si
 
 L, DF, PIXEL = 32, 2.0, 0.5  # synthetic OTF grid: 32 samples of 2 cpd; scene pixel 0.5 arcmin
@@ -108,17 +113,57 @@ def test_depth_map_layers_are_ordered_and_cover_every_pixel():
     (dict(depth_map_D=np.ones((8, 9))), "depth_map_D"),
     (dict(depth_map_D=np.where(np.eye(8) > 0, np.nan, 1.0)), "depth_map_D"),
     (dict(depth_map_D=-np.ones((8, 8))), "depth_map_D"),
-    (dict(memory_limit_bytes=1000), "image"),
+    (dict(pixel_arcmin=0.0), "pixel_arcmin"),
+    (dict(pixel_arcmin="wide"), "pixel_arcmin"),
+    (dict(image=np.ones((2, 8, 8))), "image"),  # neither grey nor R, G, B
 ])
-def test_bad_input_is_refused_before_any_work(change, parameter):
-    kwargs = dict(image=np.ones((3, 8, 8)), depth_map_D=np.ones((8, 8)))
+def test_a_bad_scene_is_refused_when_built(change, parameter):
+    kwargs = dict(image=np.ones((3, 8, 8)), depth_map_D=np.ones((8, 8)), pixel_arcmin=1.0)
     kwargs.update(change)
     with pytest.raises(ParameterError) as info:
-        si.retinal_scene(average_eye(3.0), 1.0, **kwargs)
+        si.LayeredScene.from_depth_map(**kwargs)
     assert info.value.parameter == parameter
 
 
 def test_layers_out_of_order_are_refused():
     layers, alpha = random_layers(2, 8)
     with pytest.raises(ParameterError, match="strictly decreasing"):
-        si.retinal_scene(average_eye(3.0), 1.0, layers=layers, alpha=alpha, depths_D=[1.0, 2.0])
+        si.LayeredScene.from_layers(layers, alpha, [1.0, 2.0], 1.0)
+
+
+def test_a_scene_keeps_its_arrays_and_its_pinhole_view_is_the_image():
+    img, depth = si.demo_scene(16)
+    scene = si.LayeredScene.from_depth_map(img, depth, 0.5, n_layers=2)
+    assert scene.layers.dtype == np.float32 and scene.depths_D.tolist() == [4.0, 0.5]
+    assert scene.shape == (16, 16) and scene.pixel_arcmin == 0.5
+    np.testing.assert_allclose(scene.pinhole_view(), img, rtol=1e-6)
+    grey = si.LayeredScene.from_depth_map(img[0], depth, 0.5)
+    np.testing.assert_allclose(grey.pinhole_view(), np.stack([img[0]] * 3), rtol=1e-6)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        scene.pixel_arcmin = 1.0
+
+
+@pytest.mark.parametrize("change, parameter", [
+    (dict(memory_limit_bytes=1000), "image"),
+    (dict(scene="not a scene"), "scene"),
+    (dict(display="phone"), "display"),
+    (dict(viewing=Viewing(display=PRESETS["near-eye"]().optics())), "viewing"),  # natural: no display optics
+    (dict(viewing=(3.0, 2.0)), "viewing"),
+])
+def test_bad_input_is_refused_before_any_optics(change, parameter):
+    kwargs = dict(scene=si.LayeredScene.from_depth_map(np.ones((3, 8, 8)), np.ones((8, 8)), 1.0))
+    kwargs.update(change)
+    with pytest.raises(ParameterError) as info:
+        si.retinal_scene(average_eye(3.0), **kwargs)
+    assert info.value.parameter == parameter
+
+
+def test_a_panel_brings_its_own_cdp_pupil_and_optics():
+    panel = PRESETS["near-eye"]()
+    layout, optics, cdp, pupil = si.resolve_display(panel, Viewing(pupil_diameter_mm=2.0,
+                                                                   cdp_D=3.0))
+    assert (cdp, pupil) == (float(panel.cdp_D), float(panel.pupil_diameter_mm))
+    assert optics is not None and layout is not None
+    layout, optics, cdp, pupil = si.resolve_display(grid_layout(2), Viewing(cdp_D=3.0))
+    assert (optics, cdp, pupil) == (None, 3.0, 3.0)
+    assert si.resolve_display("natural", Viewing())[:2] == (None, None)
