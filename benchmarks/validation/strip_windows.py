@@ -1,7 +1,7 @@
 """Strips on narrow transforms against the square, pupil-wide windows: same OTFs, less work.
 
 A strip view (a lenticular display's) is as wide as one view along x and as tall as the
-pupil along y. ``PipelineConfig.build(window_x_diameter_mm=…)`` gives its wavelength bands
+pupil along y. ``PipelineConfig.build(widest_view_mm=…)`` gives its wavelength bands
 FFTs with fewer columns (the strip's width) than rows (the pupil's height); before, every
 strip was transformed on a square window the size of the pupil. For a few strip scenes this
 runs :func:`lfjax.vision.orientation.orientation_through_focus` both ways, side by side in
@@ -39,11 +39,11 @@ from lfjax.vision.viewing import Viewing
 
 @contextlib.contextmanager
 def square_windows():
-    """The pipeline as it was: strips on square, pupil-wide windows (the narrow window's
-    width is not passed on)."""
+    """The pipeline as it was: strips on square, pupil-wide windows (the widest view is
+    not passed on, so no window is narrowed)."""
     build = prepare_module.PipelineConfig.build
 
-    def square(*args, window_x_diameter_mm=None, **kwargs):
+    def square(*args, widest_view_mm=None, **kwargs):
         return build(*args, **kwargs)
 
     prepare_module.PipelineConfig.build = square

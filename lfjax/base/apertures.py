@@ -1,4 +1,9 @@
-"""Apertures in the pupil plane: soft-edged discs and squares, and Fresnel propagation.
+"""Apertures in the pupil plane: the shapes a view can have, soft edges, Fresnel propagation.
+
+:data:`APERTURES` declares every subaperture shape once (:class:`ApertureShape`): a disc, a
+square, and the strip of a lenticular view, which spans the pupil's height; what a caller
+needs to know of a shape (what its size measures, whether it spans the pupil's height, its
+numerical window along x) is read from there, not decided again by name.
 
 Every aperture is anti-aliased (docs/design.md#conventions): a sample on the edge is weighted
 by a logistic of its signed distance (mm) inside the edge, whose scale is a fraction of a
@@ -12,12 +17,58 @@ on arrays; nothing here knows about eyes, scenes or displays.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from lfjax.base.sampling import next_fast_size
+
+
+@dataclass(frozen=True)
+class ApertureShape:
+    """One subaperture shape, with what the pipeline, the plots and the displays read of it.
+
+    Attributes
+    ----------
+    name : the value of ``aperture=`` that selects it (``DisplayOptics``, ``LensletArray``)
+    size : what a layout's ``diameters_mm`` (mm) measures for it: ``"diameter"``,
+        ``"side"`` or ``"width along x"``
+    spans_pupil_height : the view is bounded along x only and the pupil crops it to its
+        chord (a lenticular view: its cylindrical lenslet has no power along y, so no edge
+        limits the beam there, and lenslet diffraction acts along x only)
+    """
+
+    name: str
+    size: str
+    spans_pupil_height: bool = False
+
+    def window_x_mm(self, widest_mm: float, pupil_diameter_mm: float) -> float | None:
+        """Width (mm) of the views' numerical window along x where it is narrower than
+        along y, or None (a square window). A shape spanning the pupil's height is as wide
+        as its widest view (``widest_mm``, mm; at most the pupil, ``pupil_diameter_mm``)
+        and as tall as the pupil; a bounded shape's window is square."""
+        if not self.spans_pupil_height:
+            return None
+        return min(float(widest_mm), float(pupil_diameter_mm))
+
+
+CIRCLE = ApertureShape("circle", "diameter")
+SQUARE = ApertureShape("square", "side")
+STRIP = ApertureShape("strip", "width along x", spans_pupil_height=True)
+APERTURES = {shape.name: shape for shape in (CIRCLE, SQUARE, STRIP)}
+"""Every subaperture shape by name: ``"circle"`` (diameter), ``"square"`` (side, axis
+aligned) and ``"strip"`` (width along x, spanning the pupil's height: a lenticular view)."""
+
+
+def aperture_shape(name: str) -> ApertureShape:
+    """The declared :class:`ApertureShape` called ``name`` (one of :data:`APERTURES`);
+    ``ValueError`` naming the allowed ones otherwise."""
+    try:
+        return APERTURES[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"aperture={name!r}; allowed: {', '.join(APERTURES)}") from None
 
 
 def safe_sqrt(x):
@@ -50,10 +101,11 @@ def aperture_edge_distance(dx_mm, dy_mm, size_mm, edge_scale_mm, shape: str):
     keeps the area exactly; the four corners are off by O(edge²)).
     Strip (width ``size_mm`` along x, unbounded along y: a lenticular view, which the pupil
     crops to its chord): the distance to the nearer vertical side.
+    ``shape``: a name of :data:`APERTURES`.
     """
-    if shape == "strip":
+    if aperture_shape(shape).spans_pupil_height:
         return 0.5 * size_mm - jnp.abs(dx_mm)
-    if shape == "square":
+    if shape == SQUARE.name:
         half = 0.5 * size_mm
         return jnp.minimum(half - jnp.abs(dx_mm), half - jnp.abs(dy_mm))
     return disk_edge_distance(dx_mm * dx_mm + dy_mm * dy_mm, 0.5 * size_mm, edge_scale_mm)
@@ -122,6 +174,12 @@ def fresnel_propagate(field, dx_mm, wavelength_mm, distance_mm, extent_mm=None,
 
 
 __all__ = [
+    "ApertureShape",
+    "APERTURES",
+    "CIRCLE",
+    "SQUARE",
+    "STRIP",
+    "aperture_shape",
     "safe_sqrt",
     "disk_edge_distance",
     "soft_disk",

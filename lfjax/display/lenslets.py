@@ -58,6 +58,7 @@ import numpy as np
 from lfjax.base.errors import ParameterError
 from lfjax.base.types import as_real_array
 from lfjax.base.types import is_concrete as _concrete
+from lfjax.base.apertures import APERTURES, ApertureShape, aperture_shape
 from lfjax.base.apertures import aperture_edge_distance as aperture_edge_distance
 from lfjax.base.apertures import fresnel_propagate as fresnel_propagate
 from lfjax.base.apertures import fresnel_transfer_1d as fresnel_transfer_1d
@@ -89,17 +90,25 @@ def _check_optional(name: str, value, lo: float, hi: float, unit: str, why: str,
                              owner=owner, lo=lo, hi=hi, got=x)
 
 DIFFRACTION_MODES = ("off", "fresnel", "modulus")
-APERTURE_SHAPES = ("circle", "square")
+APERTURE_SHAPES = tuple(APERTURES)
+"""Every subaperture shape (:data:`lfjax.base.apertures.APERTURES`): circle, square, strip."""
+SPHERICAL_APERTURE_SHAPES = tuple(n for n, a in APERTURES.items() if not a.spans_pupil_height)
+"""The shapes a lenslet with power along both axes can have (a :class:`~lfjax.display.panel.Panel`'s);
+a strip is a cylindrical lenticule's view (:class:`lfjax.display.lenticular.LenticularPanel`)."""
 _CHOICES = {"aperture": APERTURE_SHAPES, "diffraction": DIFFRACTION_MODES}
 
 
-def check_choices(owner: str, **values: str) -> None:
-    """Refuse a static option outside its choices (``aperture``: :data:`APERTURE_SHAPES`,
-    ``diffraction``: :data:`DIFFRACTION_MODES`), in the order given: ``ValueError``
+def check_choices(owner: str, *, spherical: bool = False, **values: str) -> None:
+    """Refuse a static option outside its choices (``aperture``: :data:`APERTURE_SHAPES`, or
+    :data:`SPHERICAL_APERTURE_SHAPES` with ``spherical``; ``diffraction``:
+    :data:`DIFFRACTION_MODES`), in the order given: ``ValueError``
     ``"Owner.name='value'; allowed: …"``."""
     for name, value in values.items():
-        if value not in _CHOICES[name]:
-            raise ValueError(f"{owner}.{name}={value!r}; allowed: {', '.join(_CHOICES[name])}")
+        allowed = SPHERICAL_APERTURE_SHAPES if spherical and name == "aperture" else _CHOICES[name]
+        if value not in allowed:
+            why = ("" if value not in _CHOICES[name] else
+                   " (a strip is a cylindrical lenticule's view: lfjax.display.lenticular.LenticularPanel)")
+            raise ValueError(f"{owner}.{name}={value!r}; allowed: {', '.join(allowed)}{why}")
 
 
 class DisplayOptics(eqx.Module):
@@ -112,8 +121,10 @@ class DisplayOptics(eqx.Module):
         complex Fresnel pattern of each lenslet aperture) or ``"modulus"`` (its modulus, the
         paper's Eq. 2 read literally).
     aperture : str (static)
-        Subaperture shape, ``"circle"`` (diameter) or ``"square"`` (side, axis-aligned);
-        applies to the geometric subapertures too.
+        Subaperture shape, one of :data:`APERTURE_SHAPES`: ``"circle"`` (diameter),
+        ``"square"`` (side, axis-aligned) or ``"strip"`` (width along x, spanning the
+        pupil's height: a lenticular view, diffracting along x only); applies to the
+        geometric subapertures too (:attr:`shape`).
     fresnel_distance_mm : () effective propagation distance z_eff = z_m·M in pupil
         coordinates, mm (> 0; used when ``diffraction`` is on).
     pixel_width_arcmin : () angular width of one emitter's image on the CDP seen from the
@@ -145,9 +156,7 @@ class DisplayOptics(eqx.Module):
     pixel_height_arcmin: jnp.ndarray | None = eqx.field(converter=_optional_real, default=None)
 
     def __check_init__(self):
-        # "strip": a lenticular view (lfjax.display.lenticular), for DisplayOptics only
-        check_choices("DisplayOptics", diffraction=self.diffraction,
-                      **({} if self.aperture == "strip" else {"aperture": self.aperture}))
+        check_choices("DisplayOptics", diffraction=self.diffraction, aperture=self.aperture)
         if self.aberration is not None and not isinstance(self.aberration, LensletAberration):
             raise ParameterError("aberration", "{aberration} must be a LensletAberration or None, got "
                                  "{got}", owner="DisplayOptics", got=type(self.aberration).__name__)
@@ -193,16 +202,30 @@ class DisplayOptics(eqx.Module):
         return self.pixel_height_arcmin / ARCMIN_PER_RADIAN
 
     @property
+    def shape(self) -> ApertureShape:
+        """The declared :class:`~lfjax.base.apertures.ApertureShape` of ``aperture``."""
+        return aperture_shape(self.aperture)
+
+    @property
     def strips(self) -> bool:
         """The views are strips spanning the pupil's height (a lenticular display): lenslet
         diffraction acts along x only."""
-        return self.aperture == "strip"
+        return self.shape.spans_pupil_height
 
     @property
     def fills_pupil(self) -> bool:
         """A view's light may reach any point of the pupil (diffracted beams, or strips
         along y): each view is computed on a window the pupil's size."""
         return self.diffracts or self.strips
+
+    def window_x_mm(self, widest_mm: float, pupil_diameter_mm: float) -> float | None:
+        """Width (mm) of every view's numerical window along x where it is narrower than
+        along y, or None (square windows): the shape's rule
+        (:meth:`~lfjax.base.apertures.ApertureShape.window_x_mm`, ``widest_mm`` the widest
+        view, mm), except that diffracted beams fill the pupil both ways."""
+        if self.diffracts:
+            return None
+        return self.shape.window_x_mm(widest_mm, pupil_diameter_mm)
 
     def beam_wavefront_um(self, zernike_um, measured_pupil_mm: float):
         """The eye's coefficients (…, n_modes) µm plus the views' common astigmatism
@@ -304,11 +327,16 @@ class LensletArray(eqx.Module):
     gap_mm : () panel–lenslet distance z_0, ≤ f (the CDP is a virtual image behind the
         display, or at infinity when z_0 = f)
     distance_mm : () eye pupil–lenslet distance z_m
-    aperture : "circle" or "square" (static)
+    aperture : one of :data:`APERTURE_SHAPES` (static): ``"circle"`` or ``"square"``
+        (spherical lenslets), or ``"strip"``: cylindrical lenticules with power along x
+        only (a lenticular sheet, :class:`lfjax.display.lenticular.LenticularPanel`), the
+        aperture its width along x
     diffraction : "fresnel" or "modulus" (static, see :class:`DisplayOptics`)
 
     All derived quantities are written with the image vergence V = 1/z_0 − 1/f (1/mm), so a
-    collimating lenslet (V = 0, CDP at infinity) needs no special case.
+    collimating lenslet (V = 0, CDP at infinity) needs no special case. Along x every shape
+    has the same thin-lens geometry; along y a strip's lenticule has none (:attr:`y_defocus_D`,
+    :meth:`pixel_height_arcmin`).
     """
 
     pitch_mm: jnp.ndarray = eqx.field(converter=as_real_array)
@@ -356,6 +384,26 @@ class LensletArray(eqx.Module):
         return 1000.0 * v_per_mm / (1.0 + self.distance_mm * v_per_mm)
 
     @property
+    def shape(self) -> ApertureShape:
+        """The declared :class:`~lfjax.base.apertures.ApertureShape` of ``aperture``."""
+        return aperture_shape(self.aperture)
+
+    @property
+    def panel_D(self):
+        """Vergence of the pixel plane at the eye, 1000/(z_m + z_0) D: what focuses a beam
+        along an axis where the lenslet has no power."""
+        return 1000.0 / (self.distance_mm + self.gap_mm)
+
+    @property
+    def y_defocus_D(self):
+        """The views' extra defocus along y relative to x, D: CDP − :attr:`panel_D` for
+        lenticules (a strip: no power along y, the beam keeps the pixel's divergence there;
+        ≤ 0 for z_0 ≤ f), 0 for spherical lenslets."""
+        if self.shape.spans_pupil_height:
+            return self.cdp_D - self.panel_D
+        return jnp.zeros_like(self.cdp_D)
+
+    @property
     def subaperture_pitch_mm(self):
         """Spacing of the views in the pupil, M·Δu (paper Eq. 1 at the CDP), mm."""
         return self.magnification * self.pitch_mm
@@ -383,6 +431,15 @@ class LensletArray(eqx.Module):
         width = pixel_pitch_mm * jnp.sqrt(fill_factor)
         return width / (self.gap_mm * self.magnification) * ARCMIN_PER_RADIAN
 
+    def pixel_height_arcmin(self, pixel_pitch_mm, fill_factor=1.0):
+        """Angular height (arcmin) of one emitter seen from the eye: its image on the CDP,
+        as :meth:`pixel_width_arcmin`, for spherical lenslets; for lenticules (a strip, no
+        power along y) the pixel itself, w/(z_m + z_0) rad."""
+        if not self.shape.spans_pupil_height:
+            return self.pixel_width_arcmin(pixel_pitch_mm, fill_factor)
+        width = pixel_pitch_mm * jnp.sqrt(fill_factor)
+        return width / (self.distance_mm + self.gap_mm) * ARCMIN_PER_RADIAN
+
     def optics(self, pixel_pitch_mm=0.0, fill_factor=1.0, diffraction: str | None = None) -> DisplayOptics:
         """The :class:`DisplayOptics` of this array (pixels of ``pixel_pitch_mm``, mm, and
         area ``fill_factor``; 0 mm: point emitters). ``diffraction`` overrides the array's."""
@@ -397,25 +454,34 @@ class LensletArray(eqx.Module):
                 )
             if not (0 < f <= 1):
                 raise ValueError(f"fill_factor must be in (0, 1] (emitting area fraction), got {f}")
-        return DisplayOptics(
-            self.diffraction if diffraction is None else diffraction, self.aperture,
-            self.fresnel_distance_mm, self.pixel_width_arcmin(pixel_pitch_mm, fill_factor),
-        )
+        width = self.pixel_width_arcmin(pixel_pitch_mm, fill_factor)
+        if not self.shape.spans_pupil_height:
+            return DisplayOptics(self.diffraction if diffraction is None else diffraction,
+                                 self.aperture, self.fresnel_distance_mm, width)
+        return DisplayOptics(self.diffraction if diffraction is None else diffraction,
+                             self.aperture, self.fresnel_distance_mm, width,
+                             y_defocus_D=self.y_defocus_D,
+                             pixel_height_arcmin=self.pixel_height_arcmin(pixel_pitch_mm, fill_factor))
 
     def layout(self, pupil_diameter_mm: float, n_per_side: int, offset_mm=(0.0, 0.0),
                name: str | None = None) -> Layout:
-        """The n×n views nearest the pupil centre: centres M·Δu apart shifted by ``offset_mm``
-        (mm), diameters M·a (a side for square apertures). Differentiable in the array's
-        parameters; the numerical window is the pupil (what diffraction needs)."""
+        """The n×n views nearest the pupil centre (1×n side by side along x for strips,
+        which span the pupil's height): centres M·Δu apart shifted by ``offset_mm`` (mm),
+        diameters M·a (a side for square apertures, a width for strips). Differentiable in
+        the array's parameters; the numerical window is the pupil (what diffraction needs)."""
         n = int(n_per_side)
         if n != n_per_side or n < 1:
             raise ValueError(f"n_per_side must be an integer >= 1, got {n_per_side}")
         k = jnp.arange(n, dtype=jnp.result_type(float)) - (n - 1) / 2.0
-        xx, yy = jnp.meshgrid(k, k)
+        if self.shape.spans_pupil_height:
+            xx, yy, label = k, jnp.zeros_like(k), f"1x{n} lenticules"
+        else:
+            xx, yy = jnp.meshgrid(k, k)
+            label = f"{n}x{n} lenslets"
         centres = jnp.stack([xx.ravel(), yy.ravel()], axis=1) * self.subaperture_pitch_mm
         centres = centres + jnp.asarray(offset_mm, centres.dtype)
-        diameters = jnp.full((n * n,), 1.0, centres.dtype) * self.subaperture_diameter_mm
-        return Layout(centres, diameters, float(pupil_diameter_mm), name or f"{n}x{n} lenslets")
+        diameters = jnp.full((centres.shape[0],), 1.0, centres.dtype) * self.subaperture_diameter_mm
+        return Layout(centres, diameters, float(pupil_diameter_mm), name or label)
 
 
 def lenslets_for_layout(n_per_side: int, pupil_diameter_mm: float, cdp_D: float, distance_mm: float,
@@ -485,5 +551,6 @@ __all__ = [
     "pixel_transfer",
     "DIFFRACTION_MODES",
     "APERTURE_SHAPES",
+    "SPHERICAL_APERTURE_SHAPES",
     "check_choices",
 ]

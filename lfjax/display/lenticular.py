@@ -44,10 +44,10 @@ import numpy as np
 from lfjax.base.errors import ParameterError
 from lfjax.base.types import as_real_array
 from lfjax.base.types import is_concrete as _concrete
-from lfjax.display.lenslets import MAX_Y_DEFOCUS_D, DisplayOptics
+from lfjax.base.apertures import STRIP
+from lfjax.display.lenslets import MAX_Y_DEFOCUS_D, DisplayOptics, LensletArray
 from lfjax.model.layouts import Layout
 from lfjax.model.strips import neighbour_matrix, strip_layout
-from lfjax.base.units import ARCMIN_PER_RADIAN
 
 
 class ViewOptics(DisplayOptics):
@@ -76,7 +76,7 @@ class ViewOptics(DisplayOptics):
 
 
 def strip_display(layout: Layout | None = None, *, y_defocus_D=0.0, leakage_weight=0.0,
-                  aperture: str = "strip", diffraction: str = "off", fresnel_distance_mm=1.0,
+                  aperture: str = STRIP.name, diffraction: str = "off", fresnel_distance_mm=1.0,
                   pixel_width_arcmin=0.0, pixel_height_arcmin=None) -> ViewOptics:
     """The :class:`ViewOptics` of a layout: strips (``aperture="strip"``, the default) or
     circles, with the views' y defocus (D) and leakage weight; the neighbours are the
@@ -155,40 +155,52 @@ class LenticularPanel(eqx.Module):
                    leakage_weight)
 
     @property
-    def vergence_per_mm(self):
-        return 1.0 / self.gap_mm - 1.0 / self.focal_length_mm
+    def lenslets(self) -> LensletArray:
+        """The sheet's thin-lens geometry: a :class:`~lfjax.display.lenslets.LensletArray` of
+        strip apertures (cylindrical lenticules, aperture fill·Δu along x), whose numbers
+        every derived quantity below is."""
+        return LensletArray(self.lens_pitch_mm, self.fill * self.lens_pitch_mm,
+                            self.focal_length_mm, self.gap_mm, self.distance_mm, STRIP.name)
+
+    @property
+    def image_vergence_per_mm(self):
+        """V = 1/z_0 − 1/f, 1/mm (0: the CDP at infinity)."""
+        return self.lenslets.image_vergence_per_mm
 
     @property
     def magnification(self):
         """M = 1 + z_m·V: a lenticule's aperture is M times wider in the pupil."""
-        return 1.0 + self.distance_mm * self.vergence_per_mm
+        return self.lenslets.magnification
 
     @property
     def cdp_D(self):
         """The CDP along x, D: 1000·V/(1 + z_m V)."""
-        return 1000.0 * self.vergence_per_mm / self.magnification
+        return self.lenslets.cdp_D
 
     @property
     def panel_D(self):
         """Vergence of the pixel plane at the eye (what focuses the beam along y), D."""
-        return 1000.0 / (self.distance_mm + self.gap_mm)
+        return self.lenslets.panel_D
 
     @property
     def y_defocus_D(self):
         """Δ = CDP − panel vergence, D: the views' extra defocus along y."""
-        return self.cdp_D - self.panel_D
+        return self.lenslets.y_defocus_D
 
     @property
     def view_pitch_mm(self):
-        return self.magnification * self.lens_pitch_mm
+        """Spacing of the strips in the pupil, M·Δu, mm."""
+        return self.lenslets.subaperture_pitch_mm
 
     @property
     def view_width_mm(self):
-        return self.magnification * self.fill * self.lens_pitch_mm
+        """Width of each strip in the pupil, M·fill·Δu, mm."""
+        return self.lenslets.subaperture_diameter_mm
 
     @property
     def fresnel_distance_mm(self):
-        return self.distance_mm * self.magnification
+        """z_eff = z_m·M, the distance over which a strip's edge diffracts, mm."""
+        return self.lenslets.fresnel_distance_mm
 
     def eye_box_mm(self):
         """Δu(1 + z_m/z_0): where a pixel seen through the adjacent lenticule lands, mm."""
@@ -196,12 +208,12 @@ class LenticularPanel(eqx.Module):
 
     def pixel_arcmin(self):
         """One pixel's image on the CDP along x, arcmin: p/(z_0·M)."""
-        return self.pixel_pitch_mm / (self.gap_mm * self.magnification) * ARCMIN_PER_RADIAN
+        return self.lenslets.pixel_width_arcmin(self.pixel_pitch_mm)
 
     def pixel_height_arcmin(self):
         """One pixel along y, arcmin: the lenticule has no power there, so the eye sees the
         pixel itself, p/(z_m + z_0) (about 1/45 of :meth:`pixel_arcmin` for the phone)."""
-        return self.pixel_pitch_mm / (self.distance_mm + self.gap_mm) * ARCMIN_PER_RADIAN
+        return self.lenslets.pixel_height_arcmin(self.pixel_pitch_mm)
 
     def views_across(self, pupil_diameter_mm: float) -> int:
         """Whole strips across the pupil (host), ⌊D/(M·Δu)⌋, at least 1 required."""

@@ -138,7 +138,7 @@ class Panel(eqx.Module):
     name: str = eqx.field(static=True, default="panel")
 
     def __check_init__(self):
-        check_choices("Panel", aperture=self.aperture, diffraction=self.diffraction)
+        check_choices("Panel", aperture=self.aperture, diffraction=self.diffraction, spherical=True)
         counts = tuple(self.pixel_count)
         if (len(counts) != 2 or any(isinstance(c, bool) or int(c) != c or c < 1 for c in counts)):
             raise ParameterError("pixel_count", "{pixel_count} must be two integers >= 1 (horizontal, "

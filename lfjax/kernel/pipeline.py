@@ -91,33 +91,32 @@ class PipelineConfig:
         cls, wavelengths_nm, window_diameter_mm: float, pupil_diameter_mm: float,
         sampling: Sampling, options: ModelOptions = ModelOptions(), eye_chunk: int | None = None,
         traced_checks: bool = True, display: DisplayOptics | None = None,
-        window_x_diameter_mm: float | None = None,
+        widest_view_mm: float | None = None,
     ) -> PipelineConfig:
         """Bands for a spectrum (nm) and a layout whose largest window is
         ``window_diameter_mm`` (mm), on a calculation pupil of ``pupil_diameter_mm`` (mm);
         everything here is concrete host data. With lenslet diffraction (``display``) every
         view's window is the pupil; the reference (an ideal display) keeps the layout's.
 
-        ``window_x_diameter_mm`` (mm): the views' largest extent along x where it is less
-        than their window along y — strips (``display.strips``), as wide as the
-        strip and as tall as the pupil. Their bands then carry a narrower FFT along x
+        ``widest_view_mm`` (mm, host; None: unknown): the widest view of the layout. Where
+        the display's views are narrower along x than their window along y
+        (:meth:`~lfjax.display.lenslets.DisplayOptics.window_x_mm`: strips, as wide as the
+        widest strip and as tall as the pupil) their bands carry a narrower FFT along x
         (``(start, stop, n_fft, n_fft_x)``): the same OTF on the columns its support needs,
-        a third of the transforms for 1×3 strips. Not with the MFT, a user-fixed ``n_fft``
-        or diffracting beams (they fill the pupil both ways)."""
+        a third of the transforms for 1×3 strips. Not with the MFT or a user-fixed ``n_fft``."""
         wl = np.asarray(wavelengths_nm, float)
         pupil = float(pupil_diameter_mm)
         reference_window = window_diameter_mm if options.vsotf_reference == "paper" else pupil
         if display is not None and display.diffracts:
             window_diameter_mm = pupil
-            window_x_diameter_mm = None
+        window_x = (None if display is None or widest_view_mm is None
+                    else display.window_x_mm(widest_view_mm, pupil))
         bands = wavelength_bands(wl, float(window_diameter_mm), pupil, sampling)
         reference_bands = wavelength_bands(wl, float(reference_window), pupil, sampling)
-        if (window_x_diameter_mm is not None and sampling.transform == "fft" and sampling.n_fft is None
-                and display is not None and display.strips):
-            bands = _narrow_bands(bands, wl, float(window_x_diameter_mm), pupil, sampling)
+        if window_x is not None and sampling.transform == "fft" and sampling.n_fft is None:
+            bands = _narrow_bands(bands, wl, window_x, pupil, sampling)
             if options.vsotf_reference == "paper":  # the reference keeps the strips' shape
-                reference_bands = _narrow_bands(reference_bands, wl, float(window_x_diameter_mm),
-                                                pupil, sampling)
+                reference_bands = _narrow_bands(reference_bands, wl, window_x, pupil, sampling)
         return cls(
             sampling,
             bands,

@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 from typing import TYPE_CHECKING
 
+from lfjax.base.apertures import CIRCLE, SQUARE, aperture_shape
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
@@ -28,23 +30,27 @@ def _new_figure(**kwargs) -> Figure:
 
 
 def draw_layout(ax, layout, pupil_diameter_mm: float, colour: str = "tab:red", title: str | None = None,
-                aperture: str = "circle"):
-    """Subaperture discs (filled, cropped by the pupil) and the pupil outline on ``ax`` (mm);
-    ``aperture="strip"``: vertical strips ``d`` wide spanning the pupil's height (a 1×n
-    HPO layout, :mod:`lfjax.model.strips`), their edges drawn within the pupil."""
+                aperture: str = CIRCLE.name):
+    """Subapertures (filled, cropped by the pupil) and the pupil outline on ``ax`` (mm), in
+    the shape ``aperture`` (a name of :data:`lfjax.base.apertures.APERTURES`): discs,
+    squares, or — for a shape spanning the pupil's height — vertical strips ``d`` wide (a
+    1×n HPO layout, :mod:`lfjax.model.strips`), their edges drawn within the pupil."""
     from matplotlib.patches import Circle, Rectangle
 
+    declared = aperture_shape(aperture)
     radius = 0.5 * float(pupil_diameter_mm)
     pupil = Circle((0.0, 0.0), radius, fill=False, lw=1.5, color="black")
     ax.add_patch(pupil)
     centres = np.asarray(layout.centres_mm, float).reshape(-1, 2)
     diameters = np.asarray(layout.diameters_mm, float).reshape(-1)
     for i, ((x, y), d) in enumerate(zip(centres, diameters)):
-        if aperture == "strip":
-            shape = dict(xy=(x - 0.5 * d, -radius), width=d, height=2.0 * radius)
+        if declared.spans_pupil_height or declared == SQUARE:
+            low, height = (-radius, 2.0 * radius) if declared.spans_pupil_height else (y - 0.5 * d, d)
+            shape = dict(xy=(x - 0.5 * d, low), width=d, height=height)
             area, edge = (Rectangle(**shape, color=colour, alpha=0.35, lw=0),
                           Rectangle(**shape, fill=False, color=colour, lw=0.8, ls="--"))
-            edge.set_clip_path(pupil)
+            if declared.spans_pupil_height:  # its ends are the pupil's: drawn only within it
+                edge.set_clip_path(pupil)
         else:
             area = Circle((x, y), 0.5 * d, color=colour, alpha=0.35, lw=0)
             edge = Circle((x, y), 0.5 * d, fill=False, color=colour, lw=0.8, ls="--")

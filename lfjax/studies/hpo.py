@@ -30,6 +30,7 @@ from dataclasses import asdict, dataclass, field
 import jax
 import numpy as np
 
+from lfjax.base.apertures import CIRCLE, STRIP
 from lfjax.base.errors import ParameterError
 from lfjax.base.sampling import AliasingError, Sampling, finer_step
 from lfjax.display.lenticular import lenticular_phone, strip_display
@@ -236,7 +237,7 @@ def run_crosstalk_study(config: HpoConfig = HpoConfig(), progress=print) -> dict
         grid = make_layout(np.asarray(grid.centres_mm), np.full(n * n, ratio * pitch), pupil,
                            name=f"{n}x{n} w/p {ratio:g}")
         strips = strip_layout(n, pupil, width_mm=ratio * pitch)
-        return {"grid": (grid, "circle"), "strips": (strips, "strip")}
+        return {"grid": (grid, CIRCLE.name), "strips": (strips, STRIP.name)}
 
     for kind in ("grid", "strips"):
         for scan, values in (("width", config.widths), ("leakage", config.leakage_weights)):

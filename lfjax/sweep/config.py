@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lfjax.base.apertures import STRIP
 from lfjax.base.errors import ParameterError
 from lfjax.base.grids import DepthGrid, inclusive_grid
 from lfjax.base.units import check_dioptres
@@ -485,7 +486,7 @@ class SweepConfig(DepthGrid):
             return shared
         base = DisplayOptics() if shared is None else shared
         return ViewOptics(diffraction=base.diffraction,
-                          aperture="strip" if strips else base.aperture,
+                          aperture=STRIP.name if strips else base.aperture,
                           fresnel_distance_mm=base.fresnel_distance_mm,
                           pixel_width_arcmin=base.pixel_width_arcmin, aberration=base.aberration,
                           y_defocus_D=self.strip_y_defocus_D if strips else 0.0,

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lfjax.base.apertures import CIRCLE, STRIP
 from lfjax.base.errors import ParameterError
 from lfjax.base.tables import printable
 from lfjax.model.layout_plots import draw_layout
@@ -328,7 +329,7 @@ def fig_layouts(layouts: dict, pupils_mm, strip_labels=()) -> object:
             title = (f"{label}, {pupil:g} mm pupil\n{d.size} {'strip' if strips else 'view'}"
                      f"{'s' if d.size > 1 else ''}, {'w' if strips else 'd'} = {d.max():.3g} mm")
             draw_layout(ax, layout, pupil, _colour(label, c), title,
-                        aperture="strip" if strips else "circle")
+                        aperture=STRIP.name if strips else CIRCLE.name)
     return fig
 
 

@@ -458,14 +458,13 @@ def prepare(
         traced_checks = not (concrete and is_concrete(eyes, layout, display))
     if not traced_checks:
         _check_layout(layout)
-    # strips are narrower along x than their window (the pupil's height): a narrower FFT
-    window_x = (min(float(np.max(np.asarray(layout.diameters_mm))), pupil_static)
-                if display is not None and display.strips
-                and is_concrete(layout.diameters_mm) else None)
+    # views narrower along x than their window (strips) get a narrower FFT: PipelineConfig.build
+    widest = (float(np.max(np.asarray(layout.diameters_mm)))
+              if display is not None and is_concrete(layout.diameters_mm) else None)
     config = PipelineConfig.build(spectrum.wavelengths_nm, layout.window_diameter_mm,
                                   pupil_static, sampling, options, eye_chunk,
                                   traced_checks=traced_checks, display=display,
-                                  window_x_diameter_mm=window_x)
+                                  widest_view_mm=widest)
     scene = Scene.from_layout(layout, states.depths_D, cdp_D, pupil_diameter_mm, display)
     return Prepared(scene, states, sampling, config, layout, spectrum, pupil_diameter_mm, cdp_D)
 
