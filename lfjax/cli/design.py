@@ -17,6 +17,9 @@ from lfjax.design import (
     REPORT_COUNTS,
     SCREEN_MARGIN,
     DesignConstraints,
+    DesignTarget,
+    FitSettings,
+    ReportSettings,
     check_design,
     design_cdp_D,
     design_panel,
@@ -34,7 +37,7 @@ from lfjax.design.resume import counts_folder
 from lfjax.display.aberrations import LENS_FORMS
 from lfjax.display.lenslets import DIFFRACTION_MODES
 from lfjax.display.panel import PRESETS
-from lfjax.model.eyes import sample_eyes
+from lfjax.layout_opt import EyeDraw
 
 COMMAND = "design"
 
@@ -169,23 +172,22 @@ def run(args) -> int:
         return _run_lenticular(args, prog)
     try:
         out, cdp, panel, constraints, sampling = _inputs(args)
-        fit = dict(depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
-                   views_per_side=tuple(args.views), wavelengths_nm=tuple(args.wavelengths),
-                   steps=args.steps, report_accuracy=args.report_accuracy)
-        check_design(panel, report_counts=args.report_counts, **fit)
+        target = DesignTarget(tuple(args.depths), args.n_depths, cdp, tuple(args.views),
+                              tuple(args.wavelengths))
+        fit = FitSettings(steps=args.steps)
+        report = ReportSettings(args.report_accuracy, args.report_counts)
+        draw = EyeDraw(args.seed, args.train_eyes, args.test_eyes)
+        check_design(panel, target)
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
     common.enable_compilation_cache()
     kept = counts_folder(out)
 
     def work():
-        result = fit_design(
-            panel, train_eyes=sample_eyes(args.seed, args.train_eyes),
-            test_eyes=sample_eyes(args.seed + 1, args.test_eyes) if args.test_eyes > 0 else None,
-            constraints=constraints, sampling=sampling, progress=_printer(args.no_progress),
-            counts_dir=kept, report_counts=args.report_counts, **fit)
-        result.provenance["seed_train"] = args.seed
-        result.provenance["panel_preset"] = args.panel
+        result = fit_design(panel, target, draw.train(), draw.test(), constraints=constraints,
+                            fit=fit, report=report, sampling=sampling,
+                            progress=_printer(args.no_progress), counts_dir=kept)
+        result.provenance.update(draw.provenance(), panel_preset=args.panel)
         files = save_design(result, out, command=common.command_line(args.argv),
                             force=args.force)
         shutil.rmtree(kept, ignore_errors=True)  # written: the kept counts are not needed
@@ -225,11 +227,12 @@ def _run_lenticular(args, prog: str) -> int:
                    views=tuple(args.views), constraints=constraints,
                    wavelengths_nm=tuple(args.wavelengths), report_accuracy=args.report_accuracy)
         depths, _, counts = check_lenticular_design(panel, **fit)
+        draw = EyeDraw(args.seed, args.train_eyes, args.test_eyes)
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
     common.enable_compilation_cache()
-    held_out = args.test_eyes > 0
-    eyes = sample_eyes(args.seed + 1, args.test_eyes) if held_out else sample_eyes(args.seed, args.train_eyes)
+    held_out = draw.held_out
+    eyes = draw.report()
     grid = accommodation_grid_D(depths)
     print(f"plan: lenticular (horizontal parallax only) 1xN, N in {counts}, on the "
           f"{panel.name}'s pixels at {float(panel.distance_mm):g} mm; no fit (closed form); "
@@ -243,7 +246,7 @@ def _run_lenticular(args, prog: str) -> int:
         result = fit_lenticular_design(panel, eyes=eyes, sampling=sampling, counts_dir=kept,
                                        progress=None if args.no_progress else
                                        (lambda line: print(line, flush=True)), **fit)
-        result.provenance.update(seed=args.seed, panel_preset=args.panel,
+        result.provenance.update(draw.provenance(), panel_preset=args.panel,
                                  scored_on="held-out" if held_out else "training")
         files = save_lenticular_design(result, out, command=common.command_line(args.argv),
                                        force=args.force)

@@ -42,7 +42,6 @@ lenslets), both refused by :func:`check_lenticular_design`.
 from __future__ import annotations
 
 import dataclasses
-import datetime
 import hashlib
 import json
 import math
@@ -52,19 +51,15 @@ from pathlib import Path
 
 import numpy as np
 
-from lfjax._version import __version__
+from lfjax._version import __version__, stamp
 from lfjax.base.errors import ParameterError
 from lfjax.base.files import atomic_write_text, staged_output
 from lfjax.base.sampling import AliasingError, Sampling, finer_step
-from lfjax.design.fit import (
-    FAST_REPORT_WAVELENGTHS_NM,
-    CountVerdict,
-    REPORT_ACCURACIES,
-    DesignConstraints,
-    check_design,
-    feasibility,
-    panel_from_box,
-)
+from lfjax.design.box import feasibility, panel_from_box
+from lfjax.design.fit import check_design
+from lfjax.design.report import CountVerdict
+from lfjax.design.settings import (FAST_REPORT_WAVELENGTHS_NM, REPORT_ACCURACIES, DesignConstraints,
+                                   DesignTarget, ReportSettings)
 from lfjax.display.lenticular import LenticularPanel
 from lfjax.display.panel import Panel, sampling_limit_cpd
 from lfjax.model.eyes import Eyes
@@ -129,8 +124,8 @@ def check_lenticular_design(panel: Panel, depth_range_D, *, n_depths: int = 3,
                              "lenslet aberration model (lfjax.display.aberrations) is of spherical "
                              "lenslets, not cylindrical lenticules")
     try:
-        return check_design(panel, depth_range_D, n_depths, cdp_D, views, wavelengths_nm, 0,
-                            report_accuracy)
+        ReportSettings(report_accuracy)
+        return check_design(panel, DesignTarget(depth_range_D, n_depths, cdp_D, views, wavelengths_nm))
     except ParameterError as err:
         if err.parameter != "views_per_side":
             raise
@@ -479,8 +474,7 @@ def save_lenticular_design(result: LenticularDesign, out_dir, command: str | Non
                         "f_number": {"value": [result.constraints.min_f_number,
                                                result.constraints.max_f_number], "unit": "unitless"}},
         "designs": designs,
-        "provenance": dict(result.provenance, lfjax_version=__version__, command=command,
-                           utc=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")),
+        "provenance": stamp(**result.provenance, command=command),
     }
     names = ["design.json"]
     chosen = best or next((f for f in result.fits if f.panel is not None), None)

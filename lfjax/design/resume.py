@@ -66,21 +66,25 @@ def _digest(array) -> str:
     return hashlib.blake2b(f"{a.shape}|".encode() + a.tobytes(), digest_size=16).hexdigest()
 
 
-def count_key(panel: Panel, n_per_side: int, *, depths_D, cdp_D: float, constraints,
-              objective, wavelengths_nm, steps: int, tol: float, report_accuracy: str,
-              sampling, eye_chunk, train_zernike_um, test_zernike_um) -> str:
-    """The digest naming everything a count's fit and report depend on (hex)."""
+def count_key(panel: Panel, n_per_side: int, target, cdp_D: float, constraints, objective,
+              fit, report, sampling, train_eyes, test_eyes) -> str:
+    """The digest naming everything a count's fit and report depend on (hex): the starting
+    ``panel``, the count, the :class:`~lfjax.design.settings.DesignTarget` (depths and
+    wavelengths), the CDP (D), constraints, objective, the
+    :class:`~lfjax.design.settings.FitSettings`, the report's setting
+    (:class:`~lfjax.design.settings.ReportSettings`), the sampling, and the training and
+    held-out eyes' coefficients (``test_eyes`` None: none)."""
     record = {
         "format": COUNTS_FORMAT, "lfjax_version": __version__, "n_per_side": int(n_per_side),
-        "panel": _panel_record(panel), "depths_D": [float(d) for d in np.asarray(depths_D)],
+        "panel": _panel_record(panel), "depths_D": [float(d) for d in np.asarray(target.depths_D)],
         "cdp_D": float(cdp_D), "constraints": constraints.as_dict(),
         "objective": dict(objective.as_dict(), name=objective.name),
-        "wavelengths_nm": [float(w) for w in wavelengths_nm], "steps": int(steps),
-        "tol": float(tol), "report_accuracy": report_accuracy,
+        "wavelengths_nm": [float(w) for w in target.wavelengths_nm], "steps": int(fit.steps),
+        "tol": float(fit.tol), "report_accuracy": report.accuracy,
         "sampling": None if sampling is None else dataclasses.asdict(sampling),
-        "eye_chunk": None if eye_chunk is None else int(eye_chunk),
-        "train_eyes": _digest(train_zernike_um),
-        "test_eyes": None if test_zernike_um is None else _digest(test_zernike_um),
+        "eye_chunk": None if fit.eye_chunk is None else int(fit.eye_chunk),
+        "train_eyes": _digest(train_eyes.zernike_um),
+        "test_eyes": None if test_eyes is None else _digest(test_eyes.zernike_um),
     }
     text = json.dumps(jsonable(record), sort_keys=True)
     return hashlib.blake2b(text.encode(), digest_size=16).hexdigest()
@@ -130,4 +134,4 @@ def load_count(folder, n_per_side: int, key: str):
 
 
 __all__ = ["COUNTS_FORMAT", "count_key", "counts_folder", "fit_fields", "fit_record",
-           "load_count", "save_count"]
+           "load_count", "save_count", "panel_leaves", "panel_statics"]
