@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from dataclasses import dataclass, field
 
 import jax.numpy as jnp
 import numpy as np
@@ -54,7 +55,6 @@ from lfjax.base.types import finite_scalar
 from lfjax.design.box import (
     design_problem,
     eye_chunk_size,
-    feasibility,
     panel_from_box,
     report_problem,
     start_box,
@@ -67,10 +67,17 @@ from lfjax.design.report import (
     design_failure,
     design_notes,
     perceivable_resolution,
-    report_counts_in_order,
     summary_numbers,
 )
-from lfjax.design.resume import count_key, load_count, panel_leaves, panel_statics, save_count
+from lfjax.design.resume import (
+    COUNTS_FORMAT,
+    count_key,
+    fit_fields,
+    fit_record,
+    panel_leaves,
+    panel_statics,
+)
+from lfjax.design.runner import DesignKind, run_counts
 from lfjax.design.settings import (
     DesignConstraints,
     DesignTarget,
@@ -189,92 +196,115 @@ def fit_design(panel: Panel, target: DesignTarget, train_eyes: Eyes, test_eyes: 
     say = progress if callable(progress) else (
         (lambda line: print(line, flush=True)) if progress else None)
     objective = Objective.parse(objective) if objective is not None else Objective()
-    planning = planning_eyes(train_eyes, test_eyes)
-    report_eyes = test_eyes if test_eyes is not None else train_eyes
-    # The plan first: every count's problems (their sampling) and what they will cost,
-    # before the first fit, so that a run too long or too large is seen at once.
-    prepared, plan = {}, DesignPlan(train_eyes=train_eyes.n_eyes, report_eyes=report_eyes.n_eyes,
-                                    eye_chunk=chunk, steps=fit.steps, report_accuracy=report.accuracy,
-                                    report_counts=report.counts)
-    t_plan = time.perf_counter()
-
-    def prepare_count(n: int):
-        """A count's fit problem and its report's (their sampling planned)."""
-        problem = design_problem(panel, n, train_eyes, depths, cdp, constraints, objective,
-                                 target.wavelengths_nm, "fit", planning, sampling)
-        return problem, (problem if report.accuracy == "fit" and test_eyes is None else
-                         report_problem(problem, report_eyes, report.accuracy, sampling))
-
-    keys, kept = {}, {}
-    if counts_dir is not None:
-        for n in counts:
-            keys[n] = count_key(panel, n, target, cdp, constraints, objective, fit, report,
-                                sampling, train_eyes, test_eyes)
-            found = load_count(counts_dir, n, keys[n])
-            if found is not None:
-                kept[n] = DesignFit(**found)
-    for n in counts:
-        if n in kept:  # finished by an earlier call with the same inputs
-            prepared[n] = kept[n]
-            plan.counts.append(CountPlan(n, resumed=f"fitted earlier, kept in {counts_dir}"))
-            continue
-        why = count_refusal(panel, n, cdp, constraints)
-        if why is not None:
-            prepared[n] = why
-            plan.counts.append(CountPlan(n, refused=why))
-            continue
-        problem, report_p = prepared[n] = prepare_count(n)
-        plan.counts.append(count_plan(n, problem, report_p, train_eyes.n_eyes, report_eyes.n_eyes,
-                                      fit.steps, chunk, REFINEMENT_STATES.get(report_p.peak_method, 0)))
-    if say is not None:
-        say(plan.summary() + f"\n  (planned in {time.perf_counter() - t_plan:.0f} s)")
-    # First every count's fit (its panel and training loss), then the held-out report of
-    # the counts the question reads: the report's transforms are most of a design's cost.
-    fits = {}
-    for n in counts:
-        if n in kept:
-            fits[n] = kept[n]
-        elif isinstance(prepared[n], str):
-            fits[n] = DesignFit(n, refused=prepared[n])
-        else:
-            fits[n] = fit_count(panel, n, prepared[n][0], constraints, fit,
-                                None if fit.eye_chunk is None else chunk,
-                                target.depth_range_D, say)
-            if counts_dir is not None:  # kept at once: a later failure or Ctrl-C loses no count
-                save_count(counts_dir, keys[n], fits[n])
-
-    def report_one(one: DesignFit) -> None:
-        n = one.n_per_side
-        # a count kept by an earlier call before its report has no problems yet
-        _, problem = prepared[n] if isinstance(prepared[n], tuple) else prepare_count(n)
-        report_count(one, problem, constraints, objective, test_eyes is not None, say)
-        if counts_dir is not None:
-            save_count(counts_dir, keys[n], one)
-
-    report_counts_in_order(list(fits.values()), report_one, report.counts)
+    kind = LensletKind(panel, target, cdp, constraints, objective, fit, report, sampling,
+                       train_eyes, test_eyes, chunk)
+    fits = run_counts(kind, counts, counts_dir, say)
     provenance = {"n_train_eyes": train_eyes.n_eyes,
                   "n_test_eyes": 0 if test_eyes is None else test_eyes.n_eyes,
                   "wavelengths_nm": list(target.wavelengths_nm), "steps": fit.steps,
                   "report_accuracy": report.accuracy, "report_counts": report.counts,
                   "eye_chunk": chunk,
                   "freq_step_cpd": None if sampling is None else float(sampling.freq_step_cpd)}
-    return DesignResult([fits[n] for n in counts], cdp, depths.tolist(), constraints, objective,
-                        provenance)
+    return DesignResult(fits, cdp, depths.tolist(), constraints, objective, provenance)
 
 
-def count_refusal(panel: Panel, n: int, cdp_D: float, constraints: DesignConstraints) -> str | None:
-    """Why ``n`` views per side are refused before any fit (a sentence), or None: no panel of
-    these pixels makes them (:func:`~lfjax.design.box.feasibility`), or one view, which is
-    one aperture whatever the lenslets (no parallax, no light field). The n×n and the
-    lenticular designs refuse the same counts."""
-    why = feasibility(panel, n, cdp_D, constraints)
-    if why is not None:
-        return f"infeasible: {why}"
-    if n == 1:
-        return ("the views have collapsed into one aperture: 1x1 puts a single view in the "
-                "pupil, so the rendered depth moves nothing on the retina and the eye focuses "
-                "on the CDP (choose views_per_side >= 2)")
-    return None
+ONE_LENSLET_VIEW = ("the views have collapsed into one aperture: 1x1 puts a single view in the "
+                    "pupil, so the rendered depth moves nothing on the retina and the eye focuses "
+                    "on the CDP (choose views_per_side >= 2)")
+"""Why an n×n design refuses 1×1 (:func:`lfjax.design.runner.count_refusal`)."""
+
+
+@dataclass
+class LensletKind(DesignKind):
+    """The n×n lenslet design as a kind of :func:`lfjax.design.runner.run_counts`: each count's
+    lenslets fitted by L-BFGS-B (:func:`fit_count`) after the plan of every count's problems
+    (:class:`lfjax.design.plan.DesignPlan`), then reported on the held-out eyes
+    (:func:`report_count`) in order of training loss (``report.counts``). The fields are
+    :func:`fit_design`'s (``cdp_D``: the design's CDP, D; ``chunk``: the training eyes per
+    chunk of the gradient)."""
+
+    panel: Panel
+    target: DesignTarget
+    cdp_D: float
+    constraints: DesignConstraints
+    objective: Objective
+    fit: FitSettings
+    report_settings: ReportSettings
+    sampling: object
+    train_eyes: Eyes
+    test_eyes: Eyes | None
+    chunk: int
+    problems: dict = field(default_factory=dict)
+    """{n: (fit problem, report problem)} of the counts planned or reported."""
+
+    counts_format = COUNTS_FORMAT
+    counts_stem = "count"
+    one_view = ONE_LENSLET_VIEW
+
+    @property
+    def report_counts(self) -> str:
+        return self.report_settings.counts
+
+    @property
+    def report_eyes(self) -> Eyes:
+        return self.test_eyes if self.test_eyes is not None else self.train_eyes
+
+    def key(self, n: int) -> str:
+        return count_key(self.panel, n, self.target, self.cdp_D, self.constraints, self.objective,
+                         self.fit, self.report_settings, self.sampling, self.train_eyes, self.test_eyes)
+
+    def record(self, fit: DesignFit) -> dict:
+        return fit_record(fit)
+
+    def from_record(self, record: dict) -> DesignFit:
+        return DesignFit(**fit_fields(record))
+
+    def refused(self, n: int, why: str) -> DesignFit:
+        return DesignFit(n, refused=why)
+
+    def prepare(self, n: int):
+        """Count ``n``'s fit problem and its report's (their sampling planned), kept."""
+        if n not in self.problems:
+            problem = design_problem(self.panel, n, self.train_eyes, self.target.depths_D, self.cdp_D,
+                                     self.constraints, self.objective, self.target.wavelengths_nm,
+                                     "fit", planning_eyes(self.train_eyes, self.test_eyes),
+                                     self.sampling)
+            accuracy = self.report_settings.accuracy
+            self.problems[n] = problem, (
+                problem if accuracy == "fit" and self.test_eyes is None else
+                report_problem(problem, self.report_eyes, accuracy, self.sampling))
+        return self.problems[n]
+
+    def plan(self, counts: list, kept: set, refusals: dict, counts_dir, say) -> None:
+        # every count's problems (their sampling) and what they will cost, before the first
+        # fit, so that a run too long or too large is seen at once
+        t_plan = time.perf_counter()
+        plan = DesignPlan(train_eyes=self.train_eyes.n_eyes, report_eyes=self.report_eyes.n_eyes,
+                          eye_chunk=self.chunk, steps=self.fit.steps,
+                          report_accuracy=self.report_settings.accuracy,
+                          report_counts=self.report_settings.counts)
+        for n in counts:
+            if n in kept:
+                plan.counts.append(CountPlan(n, resumed=f"fitted earlier, kept in {counts_dir}"))
+            elif n in refusals:
+                plan.counts.append(CountPlan(n, refused=refusals[n]))
+            else:
+                problem, report_p = self.prepare(n)
+                plan.counts.append(count_plan(n, problem, report_p, self.train_eyes.n_eyes,
+                                              self.report_eyes.n_eyes, self.fit.steps, self.chunk,
+                                              REFINEMENT_STATES.get(report_p.peak_method, 0)))
+        if say is not None:
+            say(plan.summary() + f"\n  (planned in {time.perf_counter() - t_plan:.0f} s)")
+
+    def make(self, n: int, say) -> DesignFit:
+        return fit_count(self.panel, n, self.prepare(n)[0], self.constraints, self.fit,
+                         None if self.fit.eye_chunk is None else self.chunk,
+                         self.target.depth_range_D, say)
+
+    def report(self, fit: DesignFit, n: int, say) -> None:
+        # a count kept by an earlier call before its report has no problems yet
+        report_count(fit, self.prepare(n)[1], self.constraints, self.objective,
+                     self.test_eyes is not None, say)
 
 
 def fit_count(panel: Panel, n: int, problem, constraints: DesignConstraints, fit: FitSettings,
@@ -337,5 +367,5 @@ def host_panel(panel: Panel) -> Panel:
     return Panel(*panel_leaves(panel), **dict(panel_statics(panel), pixel_count=panel.pixel_count))
 
 
-__all__ = ["SCREEN_MARGIN", "design_cdp_D", "design_panel", "check_design", "fit_design",
-           "count_refusal", "fit_count", "report_count", "host_panel"]
+__all__ = ["SCREEN_MARGIN", "ONE_LENSLET_VIEW", "LensletKind", "design_cdp_D", "design_panel",
+           "check_design", "fit_design", "fit_count", "report_count", "host_panel"]

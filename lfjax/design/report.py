@@ -15,6 +15,7 @@ import numpy as np
 from lfjax.design.box import with_display
 from lfjax.design.plan import SCREEN_MARGIN
 from lfjax.design.settings import DesignConstraints
+from lfjax.design.write import design_record, fig_design
 from lfjax.display.panel import Panel
 from lfjax.kernel.pipeline import retinal_metrics
 from lfjax.kernel.scene import Accommodation
@@ -66,7 +67,8 @@ def summary_numbers(evaluation: dict, resolution: np.ndarray) -> dict:
 
 class CountVerdict:
     """The verdict of one count's design, from its ``refused``, ``failed`` and ``score``
-    fields (shared by :class:`DesignFit` and the lenticular design's count)."""
+    fields (shared by :class:`DesignFit` and the lenticular design's count), what
+    :func:`report_counts_in_order` reads."""
 
     refused: str | None
     failed: str | None
@@ -86,6 +88,11 @@ class CountVerdict:
         if self.failed is not None:
             return f"fails: {self.failed}"
         return "ok" if self.score is not None else "not scored"
+
+    @property
+    def training_loss(self) -> float | None:
+        """The fit's last loss on the training eyes (None: not fitted by gradient)."""
+        return None
 
 
 @dataclass
@@ -204,6 +211,16 @@ class DesignResult:
         lines.append(f"  chosen: {best.n_per_side}x{best.n_per_side}" if best else
                      "  chosen: none (no count is ok)")
         return "\n".join(lines)
+
+    def record(self, command: str | None = None) -> dict:
+        """``design.json``'s record (:func:`lfjax.design.write.design_record`)."""
+        return design_record(self, command)
+
+    def figure(self):
+        """``design.png``: the chosen count's array and views (the first with a panel when
+        none is chosen; :func:`lfjax.design.write.fig_design`), or None without a panel."""
+        chosen = self.best or next((f for f in self.fits if f.panel is not None), None)
+        return None if chosen is None else fig_design(chosen.panel, chosen.n_per_side)
 
 
 def design_notes(panel: Panel, depth_range_D, wavelength_nm: float = 550.0) -> list[str]:

@@ -1,11 +1,13 @@
-"""Finished counts of :func:`lfjax.design.fit_design` kept on disk, so a run interrupted or
-failed after some counts resumes from them instead of fitting them again.
+"""Finished counts of a design (:func:`lfjax.design.runner.run_counts`, both kinds) kept on
+disk, so a run interrupted or failed after some counts resumes from them instead of making
+them again.
 
-Each finished count is written (whole: temporary name, then rename) to
-``FOLDER/count-N.json`` with a key: a BLAKE2b digest of everything its fit depends on
-(the starting panel, the count, depths, CDP, constraints, objective, wavelengths, steps,
-tolerance, report setting, sampling, eye chunk, the training and held-out eyes'
-coefficients and the lfjax version). A later call with the same inputs loads it; a count
+Each finished count is written (whole: temporary name, then rename) to ``FOLDER/STEM-N.json``
+(``count-N.json`` for an n×n design, ``lenticular-N.json`` for a lenticular one) with a
+key: a BLAKE2b digest of everything the count depends on (for an n×n design
+:func:`count_key`: the starting panel, the count, depths, CDP, constraints, objective,
+wavelengths, steps, tolerance, report setting, sampling, eye chunk, the training and
+held-out eyes' coefficients and the lfjax version). A later call with the same inputs loads it; a count
 whose key differs (any input changed) is fitted again. The command line keeps the folder
 beside its output folder (:func:`counts_folder`) and removes it once the outputs are
 written.
@@ -110,25 +112,26 @@ def fit_fields(record: dict) -> dict:
                 notes=list(record["notes"]))
 
 
-def save_count(folder, key: str, fit) -> Path:
-    """Keep a finished count: ``folder/count-N.json`` (written whole)."""
+def save_count(folder, kind, key: str, n: int, fit) -> Path:
+    """Keep a made count ``n`` of a design of ``kind`` (:class:`lfjax.design.runner.DesignKind`):
+    ``folder/STEM-N.json`` (written whole), its record :meth:`kind.record` under ``key``."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    return atomic_write_text(folder / f"count-{fit.n_per_side}.json",
-                             json.dumps({"format": COUNTS_FORMAT, "key": key,
-                                         "fit": fit_record(fit)}) + "\n")
+    return atomic_write_text(folder / f"{kind.counts_stem}-{int(n)}.json",
+                             json.dumps({"format": kind.counts_format, "key": key,
+                                         "fit": kind.record(fit)}) + "\n")
 
 
-def load_count(folder, n_per_side: int, key: str):
-    """The count kept in ``folder`` for ``n_per_side`` if its key is ``key`` (same inputs),
-    as :func:`fit_fields`, else None (none kept, another run's, or unreadable: it is then
-    fitted again)."""
-    path = Path(folder) / f"count-{int(n_per_side)}.json"
+def load_count(folder, kind, n: int, key: str):
+    """The count ``n`` kept in ``folder`` for a design of ``kind`` if its key is ``key`` (same
+    inputs), as :meth:`kind.from_record`, else None (none kept, another run's, or unreadable:
+    it is then made again)."""
+    path = Path(folder) / f"{kind.counts_stem}-{int(n)}.json"
     try:
         record = json.loads(path.read_text())
-        if record.get("format") != COUNTS_FORMAT or record.get("key") != key:
+        if record.get("format") != kind.counts_format or record.get("key") != key:
             return None
-        return fit_fields(record["fit"])
+        return kind.from_record(record["fit"])
     except (OSError, ValueError, KeyError, TypeError):
         return None
 

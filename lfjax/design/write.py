@@ -11,7 +11,6 @@ import numpy as np
 
 from lfjax._version import stamp
 from lfjax.base.files import atomic_write_text, staged_output
-from lfjax.design.report import DesignResult
 from lfjax.display.panel import Panel
 from lfjax.model.layout_files import jsonable
 from lfjax.model.layout_plots import draw_layout
@@ -66,15 +65,10 @@ def _score_units(score: dict | None) -> dict | None:
     return {k: {"value": v, "unit": units[k]} for k, v in score.items()}
 
 
-def save_design(result: DesignResult, out_dir, command: str | None = None,
-                force: bool = False) -> list[Path]:
-    """Write ``design.json`` (every count's specification and scores, every number with its
-    unit; the chosen count marked) and ``design.png`` (the chosen array's lenslets over a few
-    pixels, and its views in the pupil) into ``out_dir``, both or neither (built in a staging
-    folder beside it, then renamed into place: :func:`~lfjax.base.files.staged_output`;
-    ``force``: into a folder with files in it). Returns the paths."""
-
-    out = Path(out_dir)
+def design_record(result, command: str | None = None) -> dict:
+    """``design.json``'s record of an n×n design (a :class:`lfjax.design.report.DesignResult`):
+    every count's specification and scores, every number with its unit, the chosen count
+    marked, and the provenance stamp (:func:`lfjax._version.stamp`, with ``command``)."""
     best = result.best
     held_out = bool(result.provenance.get("n_test_eyes")) or any(f.test is not None for f in result.fits)
     designs = []
@@ -104,12 +98,25 @@ def save_design(result: DesignResult, out_dir, command: str | None = None,
         record["constraints"]["lens_form"] = {"value": result.constraints.lens_form, "unit": None}
         record["constraints"]["refractive_index"] = {"value": result.constraints.refractive_index,
                                                      "unit": "unitless"}
+    return record
+
+
+def save_design(result, out_dir, command: str | None = None, force: bool = False) -> list[Path]:
+    """Write a design's files into ``out_dir``, both or neither (built in a staging folder
+    beside it, then renamed into place: :func:`~lfjax.base.files.staged_output`; ``force``:
+    into a folder with files in it): ``design.json``, ``result.record(command)`` (every
+    count's specification and scores, every number with its unit; the chosen count marked),
+    and ``design.png``, ``result.figure()`` (the chosen count's lenses and its views in the
+    pupil; none when no count has a panel). ``result``: an n×n design
+    (:class:`lfjax.design.report.DesignResult`) or a lenticular one
+    (:class:`lfjax.design.lenticular.LenticularDesign`). Returns the paths."""
+    out = Path(out_dir)
+    record = result.record(command)
     names = ["design.json"]
-    chosen = best or next((f for f in result.fits if f.panel is not None), None)
     with staged_output(out, force) as stage:  # both files, or neither
         atomic_write_text(stage / "design.json", json.dumps(jsonable(record), indent=2) + "\n")
-        if chosen is not None:
-            fig = fig_design(chosen.panel, chosen.n_per_side)
+        fig = result.figure()
+        if fig is not None:
             try:
                 fig.savefig(stage / "design.png", dpi=110)
             finally:
@@ -166,4 +173,4 @@ def fig_design(panel: Panel, n_per_side: int):
 
 
 
-__all__ = ["DESIGN_FORMAT", "panel_specification", "save_design", "fig_design"]
+__all__ = ["DESIGN_FORMAT", "panel_specification", "design_record", "save_design", "fig_design"]

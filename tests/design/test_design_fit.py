@@ -501,8 +501,9 @@ def test_design_outputs_are_whole_or_absent_and_a_failed_run_resumes_its_counts(
 def test_a_kept_count_is_used_only_for_the_same_inputs(tmp_path):
     """The key covers the inputs: the same call loads a kept count (and fits nothing), a
     change of steps or of the training eyes does not."""
-    from lfjax.design.resume import count_key, load_count, panel_leaves, save_count
+    from lfjax.design.fit import LensletKind
     from lfjax.design.report import DesignFit
+    from lfjax.design.resume import count_key, load_count, panel_leaves, save_count
 
     panel = near_eye_microdisplay()
     cdp = float(panel.cdp_D)
@@ -513,12 +514,17 @@ def test_a_kept_count_is_used_only_for_the_same_inputs(tmp_path):
     key = count_key(panel, 2, **common)
     kept = DesignFit(2, panel=panel, start=panel, history=[1.0, 0.5],
                      test={"loss": 0.5, "image_at_peak": 0.3}, notes=["a note"], time_s=3.0)
-    save_count(tmp_path, key, kept)
-    loaded = DesignFit(**load_count(tmp_path, 2, key))
+    kind = LensletKind(panel, common["target"], cdp, common["constraints"], common["objective"],
+                       common["fit"], common["report"], common["sampling"], common["train_eyes"],
+                       common["test_eyes"], 1)
+    assert kind.key(2) == key
+    save_count(tmp_path, kind, key, 2, kept)
+    assert [p.name for p in tmp_path.iterdir()] == ["count-2.json"]
+    loaded = load_count(tmp_path, kind, 2, key)
     assert loaded.history == [1.0, 0.5] and loaded.test == kept.test and loaded.notes == ["a note"]
     assert panel_leaves(loaded.panel) == panel_leaves(panel)
-    assert load_count(tmp_path, 2, count_key(panel, 2, **dict(common, fit=FitSettings(steps=2)))) is None
-    assert load_count(tmp_path, 2, count_key(panel, 2, **dict(
+    assert load_count(tmp_path, kind, 2, count_key(panel, 2, **dict(common, fit=FitSettings(steps=2)))) is None
+    assert load_count(tmp_path, kind, 2, count_key(panel, 2, **dict(
         common, train_eyes=sample_eyes(5, 1)))) is None
     result = fit_design(panel, DesignTarget((1.0, 2.0), n_depths=2, cdp_D=cdp, views_per_side=(2,)),
                         sample_eyes(0, 1), sample_eyes(1, 1), fit=FitSettings(steps=1),
