@@ -20,10 +20,11 @@ from lfjax.design.resume import load_count, save_count
 
 
 class DesignKind:
-    """What one kind of design does with a count; :func:`run_counts` calls these hooks.
+    """What one kind of design does with a count; :func:`run_counts` calls these hooks, and
+    each kind sets these attributes.
 
-    Attributes (set by each kind)
-    -----------------------------
+    Attributes
+    ----------
     panel : the starting :class:`~lfjax.display.panel.Panel` (its pixels and distance are kept)
     cdp_D : the design's CDP, D
     constraints : :class:`~lfjax.design.settings.DesignConstraints`
