@@ -34,6 +34,11 @@ same x geometry; along y the panel's pixel rows seen directly, Nyquist 1/(2·p/(
 A count is ok when its RMSE is within ``accommodation_tolerance_D`` (0.25 D); the chosen one
 has the highest whole VSOTF at the peak among those ok.
 
+The design runs through the one runner of both kinds (:func:`lfjax.design.runner.run_counts`,
+with a :class:`LenticularKind`): the same refusals, kept counts and files
+(:func:`lfjax.design.write.save_design`) as the n×n design; what differs is how a count is
+made (in closed form) and scored (by orientation).
+
 Not for a lenticular design: a fitted viewing distance (``distance_range_mm``) and the
 lenslets' aberration (``lens_form``: :mod:`lfjax.display.aberrations` models spherical
 lenslets), both refused by :func:`check_lenticular_design`.
