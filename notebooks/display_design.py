@@ -35,7 +35,8 @@ import numpy as np
 from IPython.display import Image, display
 
 import lfjax
-from lfjax.design.fit import DesignConstraints, fit_design, panel_specification, save_design
+from lfjax.design import (DesignConstraints, DesignTarget, FitSettings, ReportSettings, fit_design,
+                          panel_specification, save_design)
 from lfjax.model.eyes import sample_eyes
 from lfjax.display.panel import near_eye_microdisplay, sampling_limit_cpd
 from lfjax.base.sampling import Sampling
@@ -45,10 +46,10 @@ SIZE = os.environ.get("LFJAX_NOTEBOOK_SIZE", "small")
 panel = near_eye_microdisplay()
 if SIZE == "tiny":
     panel = dataclasses.replace(panel, diffraction="off")
-    fit_kwargs = dict(views_per_side=(2,), steps=1, sampling=Sampling(2.0))
+    target_kwargs, fit_kwargs, sampling = dict(views_per_side=(2,)), dict(steps=1), Sampling(2.0)
     n_train, n_test = 1, 1
 else:
-    fit_kwargs = dict(views_per_side=(1, 2, 3), steps=2)
+    target_kwargs, fit_kwargs, sampling = dict(views_per_side=(1, 2, 3)), dict(steps=2), None
     n_train, n_test = 2, 4
 print(SIZE, lfjax.__version__)
 
@@ -126,9 +127,10 @@ for n in range(1, 7):
 
 # %%
 train, test = sample_eyes(0, n_train), sample_eyes(1, n_test)
-result = fit_design(panel, depth_range_D=(1.0, 2.0), n_depths=3 if SIZE != "tiny" else 2,
-                    train_eyes=train, test_eyes=test, constraints=DesignConstraints(),
-                    report_accuracy="fit", report_counts="all", **fit_kwargs)
+result = fit_design(panel, DesignTarget((1.0, 2.0), n_depths=3 if SIZE != "tiny" else 2,
+                                        **target_kwargs),
+                    train, test, constraints=DesignConstraints(), fit=FitSettings(**fit_kwargs),
+                    report=ReportSettings("fit", "all"), sampling=sampling)
 print(result.summary())
 
 # %% [markdown]

@@ -35,9 +35,10 @@ import jax, jax.numpy as jnp
 import lfjax.kernel.pipeline as pipeline
 mode, task, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
 pipeline.ELEMENTAL_STACK_BYTES = 2**62 if mode == "together" else 0
-from lfjax.design.fit import (DesignConstraints, design_cdp_D, design_panel, design_problem,
-                              report_problem, start_box, panel_from_box, _chunked_value_and_grad,
-                              _with_display)
+from lfjax.design.box import (design_problem, design_value_and_grad_chunked, panel_from_box,
+                              report_problem, start_box, with_display)
+from lfjax.design.fit import design_cdp_D, design_panel
+from lfjax.design.settings import DesignConstraints
 from lfjax.layout_opt import evaluate_layout
 from lfjax.model.eyes import sample_eyes
 depths = np.linspace(0.0, 3.0, 3)
@@ -50,11 +51,11 @@ x0 = jnp.asarray(start_box(panel, n, cdp, constraints), jnp.float32)
 if task == "report":
     report = report_problem(problem, test, "fast")
     candidate = panel_from_box(np.asarray(x0), panel, n, cdp, constraints)
-    run = lambda: evaluate_layout(candidate.layout(n), _with_display(report, candidate, constraints))
+    run = lambda: evaluate_layout(candidate.layout(n), with_display(report, candidate, constraints))
     numbers = lambda out: [float(v) for v in np.ravel(out["values"]["vsotf"])] + [out["loss"]]
     fft = report.config.n_fft
 else:
-    run = lambda: jax.block_until_ready(_chunked_value_and_grad(x0, problem, panel, n, constraints, 1))
+    run = lambda: jax.block_until_ready(design_value_and_grad_chunked(x0, problem, panel, n, constraints, 1))
     numbers = lambda out: [float(out[0])] + [float(g) for g in np.ravel(out[1])]
     fft = problem.config.n_fft
 t0 = time.perf_counter(); out = run(); first = time.perf_counter() - t0

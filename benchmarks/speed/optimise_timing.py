@@ -50,7 +50,8 @@ def step_costs(n_eyes: int = 10) -> list[dict]:
         constraints = lo.Constraints(3.0, cap_mm, 0.5)
         t0 = time.perf_counter()
         problem = lo.make_problem(eyes, depths, constraints, objective or lo.DEFAULT_OBJECTIVE,
-                                  wavelengths_nm=wavelengths, peak_step_D=step)
+                                  wavelengths_nm=wavelengths,
+                                  setting=lo.ProblemSetting(peak_step_D=step))
         t1 = time.perf_counter()
         start = lo.as_free(lo.initial_lattice("square", 4, constraints))
         jax.block_until_ready(lo.layout_value_and_grad(start, problem))

@@ -160,7 +160,7 @@ def run_fit(args, train, test, tag: str):
     t0 = time.perf_counter()
     problem = lo.make_problem(train, depths, constraints, objective,
                               wavelengths_nm=args.wavelengths, planning_eyes=both,
-                              window_D=args.window)
+                              setting=lo.ProblemSetting(window_D=args.window))
     t_problem = time.perf_counter() - t0
     start = lo.initial_lattice("square", 4, constraints)
     fit = lo.optimise_layout(start, problem, method="lbfgsb", max_steps=args.steps,

@@ -20,7 +20,10 @@ import time
 import numpy as np
 
 from lfjax.cli import cache
-from lfjax.design import fit as F
+from lfjax.design.box import design_problem, panel_from_box, report_problem, start_box, with_display
+from lfjax.design.fit import design_cdp_D, design_panel
+from lfjax.design.report import perceivable_resolution
+from lfjax.design.settings import DesignConstraints
 from lfjax.display.panel import Panel
 from lfjax.layout_opt import evaluate_layout
 from lfjax.model.eyes import Eyes, sample_eyes
@@ -30,15 +33,15 @@ def main(argv):
     preset, n, lo, hi, n_test, modes = argv[0], int(argv[1]), float(argv[2]), float(argv[3]), int(argv[4]), argv[5].split(",")
     print("command: python benchmarks/validation/design_report_setting.py " + " ".join(argv), flush=True)
     cache.enable_compilation_cache()
-    cdp = F.design_cdp_D((lo, hi))
-    panel = F.design_panel(preset, cdp)
+    cdp = design_cdp_D((lo, hi))
+    panel = design_panel(preset, cdp)
     depths = np.linspace(lo, hi, 3)
-    c = F.DesignConstraints()
+    c = DesignConstraints()
     train, test = sample_eyes(0, 10), sample_eyes(1, n_test)
     planning = Eyes(np.concatenate([np.asarray(train.zernike_um), np.asarray(test.zernike_um)]),
                     train.measured_pupil_mm)  # as fit_design plans (training and held-out eyes)
-    problem = F.design_problem(panel, n, train, depths, cdp, c, None, (550.0,), "fit", planning, None)
-    candidate = F.panel_from_box(F.start_box(panel, n, cdp, c), panel, n, cdp, c)
+    problem = design_problem(panel, n, train, depths, cdp, c, None, (550.0,), "fit", planning, None)
+    candidate = panel_from_box(start_box(panel, n, cdp, c), panel, n, cdp, c)
     if len(argv) > 6:
         record = json.loads(open(argv[6]).read())
         build = next(d for d in record["designs"] if d["views_per_side"] == n)["specification"]["build"]
@@ -50,12 +53,12 @@ def main(argv):
                           diffraction=panel.diffraction)
     first = None
     for mode in modes:
-        report = F.report_problem(problem, test, mode)
+        report = report_problem(problem, test, mode)
         t = time.perf_counter()
-        ev = evaluate_layout(candidate.layout(n), F._with_display(report, candidate))
+        ev = evaluate_layout(candidate.layout(n), with_display(report, candidate))
         t_eval = time.perf_counter() - t
         t = time.perf_counter()
-        cpd = F.perceivable_resolution(candidate, n, report, ev["values"]["peak_D"])
+        cpd = perceivable_resolution(candidate, n, report, ev["values"]["peak_D"])
         t_cpd = time.perf_counter() - t
         print(f"{mode}: eval {t_eval:.1f} s + perceivable {t_cpd:.1f} s; FFT {report.config.n_fft}, "
               f"df {report.config.freq_step_cpd:.4g} cpd, {np.asarray(report.spectrum.wavelengths_nm).size} "

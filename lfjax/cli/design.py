@@ -17,24 +17,21 @@ from lfjax.design import (
     REPORT_COUNTS,
     SCREEN_MARGIN,
     DesignConstraints,
+    DesignTarget,
+    FitSettings,
+    ReportSettings,
     check_design,
     design_cdp_D,
     design_panel,
     fit_design,
     save_design,
 )
-from lfjax.design.lenticular import (
-    accommodation_grid_D,
-    check_lenticular_design,
-    fit_lenticular_design,
-    report_wavelengths_nm,
-    save_lenticular_design,
-)
+from lfjax.design.lenticular import check_lenticular_design, fit_lenticular_design, lenticular_target
 from lfjax.design.resume import counts_folder
 from lfjax.display.aberrations import LENS_FORMS
 from lfjax.display.lenslets import DIFFRACTION_MODES
 from lfjax.display.panel import PRESETS
-from lfjax.model.eyes import sample_eyes
+from lfjax.layout_opt import EyeDraw
 
 COMMAND = "design"
 
@@ -169,40 +166,22 @@ def run(args) -> int:
         return _run_lenticular(args, prog)
     try:
         out, cdp, panel, constraints, sampling = _inputs(args)
-        fit = dict(depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
-                   views_per_side=tuple(args.views), wavelengths_nm=tuple(args.wavelengths),
-                   steps=args.steps, report_accuracy=args.report_accuracy)
-        check_design(panel, report_counts=args.report_counts, **fit)
+        target = DesignTarget(tuple(args.depths), args.n_depths, cdp, tuple(args.views),
+                              tuple(args.wavelengths))
+        fit = FitSettings(steps=args.steps)
+        report = ReportSettings(args.report_accuracy, args.report_counts)
+        draw = EyeDraw(args.seed, args.train_eyes, args.test_eyes)
+        check_design(panel, target)
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
-    cache.enable_compilation_cache()
-    kept = counts_folder(out)
 
-    def work():
-        result = fit_design(
-            panel, train_eyes=sample_eyes(args.seed, args.train_eyes),
-            test_eyes=sample_eyes(args.seed + 1, args.test_eyes) if args.test_eyes > 0 else None,
-            constraints=constraints, sampling=sampling, progress=_printer(args.no_progress),
-            counts_dir=kept, report_counts=args.report_counts, **fit)
-        result.provenance["seed_train"] = args.seed
-        result.provenance["panel_preset"] = args.panel
-        files = save_design(result, out, command=common.command_line(args.argv),
-                            force=args.force)
-        shutil.rmtree(kept, ignore_errors=True)  # written: the kept counts are not needed
-        return result, files
+    def design(kept):
+        return fit_design(panel, target, draw.train(), draw.test(), constraints=constraints,
+                          fit=fit, report=report, sampling=sampling,
+                          progress=_printer(args.no_progress), counts_dir=kept)
 
-    done, status = common.guarded(prog, COMMAND, work, note=lambda: _kept_note(kept), fold=True)
-    if status is not None:
-        return status
-    result, files = done
-    print(result.summary())
-    print(f"{prog}: wrote {len(files)} files to {out} in "
-          f"{time.perf_counter() - args.t_start:.1f} s")
-    if result.best is None:  # the report is written, but nothing may be built from it
-        reasons = "; ".join(f"{f.n_per_side}x{f.n_per_side} {f.status}" for f in result.fits)
-        print(f"{prog}: error: no views-per-side count qualifies: {reasons}", file=sys.stderr)
-        return 1
-    return 0
+    return _design_and_write(args, prog, out, draw, design, "views-per-side count",
+                             lambda f: f"{f.n_per_side}x{f.n_per_side}")
 
 
 STEPS_DEFAULT = 10
@@ -221,33 +200,35 @@ def _run_lenticular(args, prog: str) -> int:
                                  "{lenticular} design is set in closed form and has no steps: leave "
                                  "{steps} out")
         out, cdp, panel, constraints, sampling = _inputs(args)
-        fit = dict(depth_range_D=tuple(args.depths), n_depths=args.n_depths, cdp_D=cdp,
-                   views=tuple(args.views), constraints=constraints,
-                   wavelengths_nm=tuple(args.wavelengths), report_accuracy=args.report_accuracy)
-        depths, _, counts = check_lenticular_design(panel, **fit)
+        target = lenticular_target(tuple(args.depths), args.n_depths, cdp, tuple(args.views),
+                                   tuple(args.wavelengths))
+        report = ReportSettings(args.report_accuracy)
+        check_lenticular_design(panel, target, constraints)
+        draw = EyeDraw(args.seed, args.train_eyes, args.test_eyes)
     except ValueError as err:
         return common.refuse(prog, err, COMMAND)
+
+    def design(kept):
+        return fit_lenticular_design(panel, target, draw.report(), held_out=draw.held_out,
+                                     constraints=constraints, report=report, sampling=sampling,
+                                     progress=_printer(args.no_progress), counts_dir=kept)
+
+    return _design_and_write(args, prog, out, draw, design, "view count", lambda f: f"1x{f.n_views}")
+
+
+def _design_and_write(args, prog: str, out, draw, design, what: str, label) -> int:
+    """Both kinds' run after their checks: ``design(counts_dir)`` (the finished counts kept
+    beside ``out`` until the files are written: a failed run resumes from them), its files
+    (:func:`lfjax.design.save_design`), its summary; exit 1 when no count qualifies
+    (``what`` names a count, ``label(fit)`` each one)."""
     cache.enable_compilation_cache()
-    held_out = args.test_eyes > 0
-    eyes = sample_eyes(args.seed + 1, args.test_eyes) if held_out else sample_eyes(args.seed, args.train_eyes)
-    grid = accommodation_grid_D(depths)
-    print(f"plan: lenticular (horizontal parallax only) 1xN, N in {counts}, on the "
-          f"{panel.name}'s pixels at {float(panel.distance_mm):g} mm; no fit (closed form); "
-          f"scored on {eyes.n_eyes} {'held-out' if held_out else 'training'} eyes at "
-          f"{len(report_wavelengths_nm(args.report_accuracy, args.wavelengths))} wavelength(s), "
-          f"{len(depths)} depths, accommodation {grid[0]:g}-{grid[-1]:g} D ({grid.size} states); "
-          f"each count about a minute per 10 eyes on 2 CPU cores", flush=True)
     kept = counts_folder(out)
 
     def work():
-        result = fit_lenticular_design(panel, eyes=eyes, sampling=sampling, counts_dir=kept,
-                                       progress=None if args.no_progress else
-                                       (lambda line: print(line, flush=True)), **fit)
-        result.provenance.update(seed=args.seed, panel_preset=args.panel,
-                                 scored_on="held-out" if held_out else "training")
-        files = save_lenticular_design(result, out, command=common.command_line(args.argv),
-                                       force=args.force)
-        shutil.rmtree(kept, ignore_errors=True)
+        result = design(kept)
+        result.provenance.update(draw.provenance(), panel_preset=args.panel)
+        files = save_design(result, out, command=common.command_line(args.argv), force=args.force)
+        shutil.rmtree(kept, ignore_errors=True)  # written: the kept counts are not needed
         return result, files
 
     done, status = common.guarded(prog, COMMAND, work, note=lambda: _kept_note(kept), fold=True)
@@ -257,9 +238,9 @@ def _run_lenticular(args, prog: str) -> int:
     print(result.summary())
     print(f"{prog}: wrote {len(files)} files to {out} in "
           f"{time.perf_counter() - args.t_start:.1f} s")
-    if result.best is None:
-        reasons = "; ".join(f"1x{f.n_views} {f.status}" for f in result.fits)
-        print(f"{prog}: error: no view count qualifies: {reasons}", file=sys.stderr)
+    if result.best is None:  # the report is written, but nothing may be built from it
+        reasons = "; ".join(f"{label(f)} {f.status}" for f in result.fits)
+        print(f"{prog}: error: no {what} qualifies: {reasons}", file=sys.stderr)
         return 1
     return 0
 

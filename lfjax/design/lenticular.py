@@ -34,6 +34,11 @@ same x geometry; along y the panel's pixel rows seen directly, Nyquist 1/(2·p/(
 A count is ok when its RMSE is within ``accommodation_tolerance_D`` (0.25 D); the chosen one
 has the highest whole VSOTF at the peak among those ok.
 
+The design runs through the one runner of both kinds (:func:`lfjax.design.runner.run_counts`,
+with a :class:`LenticularKind`): the same refusals, kept counts and files
+(:func:`lfjax.design.write.save_design`) as the n×n design; what differs is how a count is
+made (in closed form) and scored (by orientation).
+
 Not for a lenticular design: a fitted viewing distance (``distance_range_mm``) and the
 lenslets' aberration (``lens_form``: :mod:`lfjax.display.aberrations` models spherical
 lenslets), both refused by :func:`check_lenticular_design`.
@@ -42,29 +47,24 @@ lenslets), both refused by :func:`check_lenticular_design`.
 from __future__ import annotations
 
 import dataclasses
-import datetime
 import hashlib
 import json
 import math
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
+from functools import cached_property
 
 import numpy as np
 
-from lfjax._version import __version__
+from lfjax._version import __version__, stamp
 from lfjax.base.errors import ParameterError
-from lfjax.base.files import atomic_write_text, staged_output
 from lfjax.base.sampling import AliasingError, Sampling, finer_step
-from lfjax.design.fit import (
-    FAST_REPORT_WAVELENGTHS_NM,
-    CountVerdict,
-    REPORT_ACCURACIES,
-    DesignConstraints,
-    check_design,
-    feasibility,
-    panel_from_box,
-)
+from lfjax.design.box import panel_from_box
+from lfjax.design.fit import check_design
+from lfjax.design.report import CountVerdict
+from lfjax.design.runner import DesignKind, run_counts
+from lfjax.design.settings import (FAST_REPORT_WAVELENGTHS_NM, REPORT_ACCURACIES, DesignConstraints,
+                                   DesignTarget, ReportSettings)
 from lfjax.display.lenticular import LenticularPanel
 from lfjax.display.panel import Panel, sampling_limit_cpd
 from lfjax.model.eyes import Eyes
@@ -115,13 +115,25 @@ def accommodation_grid_D(depths_D) -> np.ndarray:
     return np.round(lo + ACCOMMODATION_STEP_D * np.arange(n), 9)
 
 
-def check_lenticular_design(panel: Panel, depth_range_D, *, n_depths: int = 3,
-                            cdp_D: float | None = None, views=(2, 3, 4),
-                            constraints: DesignConstraints = DesignConstraints(),  # noqa: B008
-                            wavelengths_nm=(550.0,), report_accuracy: str = "fast"):
+def lenticular_target(depth_range_D, n_depths: int = 3, cdp_D: float | None = None,
+                      views=(2, 3, 4), wavelengths_nm=(550.0,)) -> DesignTarget:
+    """The :class:`~lfjax.design.settings.DesignTarget` of a lenticular design: ``views``
+    are the n of 1×n strips, integers in [1, 8] (a refusal says so); the rest as there."""
+    try:
+        return DesignTarget(depth_range_D, n_depths, cdp_D, views, wavelengths_nm)
+    except ParameterError as err:
+        if err.parameter != "views_per_side":
+            raise
+        raise ParameterError("views_per_side", "{views_per_side} must be integers in [1, 8] "
+                             "(the n of 1xn lenticular views), got {got}", got=list(views)) from None
+
+
+def check_lenticular_design(panel: Panel, target: DesignTarget,
+                            constraints: DesignConstraints = DesignConstraints()):  # noqa: B008
     """:func:`fit_lenticular_design`'s checks, on the host before any work: those of
-    :func:`lfjax.design.fit.check_design` (``views`` are the n of 1×n, 1 … 8) and the
-    constraints a lenticular design cannot honour. Returns (depths_D, cdp_D, counts)."""
+    :func:`lfjax.design.fit.check_design` and the constraints a lenticular design cannot
+    honour (a :class:`~lfjax.base.errors.ParameterError` naming them). Returns (depths_D,
+    cdp_D, counts)."""
     if constraints.distance_range_mm is not None:
         raise ParameterError("distance_range_mm", "{distance_range_mm} is not for a lenticular "
                              "design: its geometry is set in closed form at the panel's viewing "
@@ -130,14 +142,7 @@ def check_lenticular_design(panel: Panel, depth_range_D, *, n_depths: int = 3,
         raise ParameterError("lens_form", "{lens_form} is not for a lenticular design: the "
                              "lenslet aberration model (lfjax.display.aberrations) is of spherical "
                              "lenslets, not cylindrical lenticules")
-    try:
-        return check_design(panel, depth_range_D, n_depths, cdp_D, views, wavelengths_nm, 0,
-                            report_accuracy)
-    except ParameterError as err:
-        if err.parameter != "views_per_side":
-            raise
-        raise ParameterError("views_per_side", "{views_per_side} must be integers in [1, 8] "
-                             "(the n of 1xn lenticular views), got {got}", got=list(views)) from None
+    return check_design(panel, target)
 
 
 def report_wavelengths_nm(report_accuracy: str, wavelengths_nm) -> tuple:
@@ -341,6 +346,74 @@ class LenticularDesign:
         lines.append(f"  chosen: 1x{best.n_views}" if best else "  chosen: none (no count is ok)")
         return "\n".join(lines)
 
+    def record(self, command: str | None = None) -> dict:
+        """``design.json``'s record (format :data:`LENTICULAR_FORMAT`): every count's
+        specification and scores with units, the design marked HPO, the provenance stamp
+        (:func:`lfjax._version.stamp`, with ``command``)."""
+        best = self.best
+        designs = [{"views": f"1x{f.n_views}", "n_views": f.n_views, "status": f.status,
+                    "refused": f.refused, "failed": f.failed,
+                    "specification": None if f.panel is None else panel_record(f.panel),
+                    "scores": None if f.score is None else {k: {"value": v, "unit": score_unit(k)}
+                                                            for k, v in f.score.items()},
+                    "time_s": round(f.time_s, 2)} for f in self.fits]
+        return {
+            "format": LENTICULAR_FORMAT, "parallax": "horizontal only (lenticular, 1xn strips)",
+            "chosen_views": None if best is None else f"1x{best.n_views}",
+            "cdp_D": {"value": self.cdp_D, "unit": "D"},
+            "depths_D": {"value": self.depths_D, "unit": "D"},
+            "accommodation_tolerance_D": {"value": self.tolerance_D, "unit": "D"},
+            "constraints": {"min_eye_box_mm": {"value": self.constraints.min_eye_box_mm, "unit": "mm"},
+                            "f_number": {"value": [self.constraints.min_f_number,
+                                                   self.constraints.max_f_number], "unit": "unitless"}},
+            "designs": designs,
+            "provenance": stamp(**self.provenance, command=command),
+        }
+
+    def figure(self):
+        """``design.png``: the chosen count's strips in the pupil (the first count with a panel
+        when none is chosen), or None when no count has one."""
+        chosen = self.best or next((f for f in self.fits if f.panel is not None), None)
+        if chosen is None:
+            return None
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        p = panel_record(chosen.panel)
+        pupil = float(self.provenance.get("pupil_diameter_mm", 3.0))
+        fig, ax = plt.subplots(figsize=(5, 5))
+        try:
+            draw_layout(ax, chosen.panel.layout(pupil), pupil, aperture="strip",
+                        title=f"1x{chosen.n_views} lenticular strips: width {p['strip_width_mm']['value']:.3g} mm,\n"
+                              f"lenticules {p['lens_pitch_mm']['value']:.4g} mm, f {p['focal_length_mm']['value']:.3g} mm, "
+                              f"gap {p['gap_mm']['value']:.3g} mm;\ny defocus {p['y_defocus_D']['value']:+.3g} D")
+            ax.title.set_fontsize(8)
+            fig.tight_layout()
+        except BaseException:
+            plt.close(fig)
+            raise
+        return fig
+
+
+SCORE_UNITS = {"freq_step_cpd": "cpd", "accommodation_grid_D": "D (first, last)", "n_eyes": "eyes",
+               "relative_accommodation_rmse_D": "D", "image_at_peak": "VSOTF (open-pupil reference)",
+               "sampling_limit_y_cpd": "cpd", "sampling_limit_x_cpd_by_depth": "cpd per depth"}
+"""Units of the scores :func:`score_lenticular` names outright; :func:`score_unit` the rest."""
+
+
+def score_unit(key: str) -> str:
+    """The unit of the score ``key`` of :func:`score_lenticular`."""
+    if key in SCORE_UNITS:
+        return SCORE_UNITS[key]
+    for prefix, unit in (("peak_", "D (mean per depth)"), ("gain_", "unitless (median over eyes)"),
+                         ("edge_", "fraction of peaks on the accommodation grid's edge"),
+                         ("vsotf_", "VSOTF at the whole band's peak (mean)")):
+        if key.startswith(prefix):
+            return unit
+    return "cpd"
+
 
 def _key(template: Panel, n: int, **inputs) -> str:
     record = {"format": LENTICULAR_FORMAT, "lfjax_version": __version__, "n_views": int(n),
@@ -350,174 +423,149 @@ def _key(template: Panel, n: int, **inputs) -> str:
                            digest_size=16).hexdigest()
 
 
-def _load(folder, n: int, key: str) -> LenticularFit | None:
-    try:
-        record = json.loads((Path(folder) / f"lenticular-{int(n)}.json").read_text())
-        if record.get("format") != LENTICULAR_FORMAT or record.get("key") != key:
-            return None
-        f = record["fit"]
-        panel = None if f["panel"] is None else LenticularPanel(*f["panel"])
-        return LenticularFit(int(f["n_views"]), panel, f["refused"], f["failed"], f["score"],
-                             float(f["time_s"]))
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
+ONE_STRIP = "one strip fills the pupil: no parallax, the eye focuses on the CDP (choose views >= 2)"
+"""Why a lenticular design refuses 1×1 (:func:`lfjax.design.runner.count_refusal`)."""
 
 
-def _save(folder, key: str, fit: LenticularFit) -> None:
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    panel = None if fit.panel is None else [float(np.asarray(v)) for v in (
-        fit.panel.pixel_pitch_mm, fit.panel.lens_pitch_mm, fit.panel.fill, fit.panel.focal_length_mm,
-        fit.panel.gap_mm, fit.panel.distance_mm)]
-    atomic_write_text(folder / f"lenticular-{fit.n_views}.json", json.dumps(jsonable({
-        "format": LENTICULAR_FORMAT, "key": key,
-        "fit": {"n_views": fit.n_views, "panel": panel, "refused": fit.refused,
-                "failed": fit.failed, "score": fit.score, "time_s": fit.time_s}})) + "\n")
+@dataclass
+class LenticularKind(DesignKind):
+    """The lenticular design as a kind of :func:`lfjax.design.runner.run_counts`: each count's
+    panel set in closed form (:func:`lenticular_panel`; refused when its eye box falls short),
+    every such count scored on ``eyes`` by orientation (:func:`score_lenticular`) and failed
+    when its accommodation RMSE exceeds ``tolerance_D`` (D). The fields are
+    :func:`fit_lenticular_design`'s (``cdp_D``: the design's CDP, D; ``report``: its
+    spectrum's setting)."""
 
+    panel: Panel
+    target: DesignTarget
+    cdp_D: float
+    constraints: DesignConstraints
+    tolerance_D: float
+    report_accuracy: str
+    sampling: Sampling | None
+    eyes: Eyes
+    held_out: bool = True
+    natural_peak_D: np.ndarray | None = None
+    """Each eye's whole-band peak on a real point at the CDP, (n_eyes,) D, once scored."""
 
-def fit_lenticular_design(panel: Panel, *, depth_range_D, eyes: Eyes, n_depths: int = 3,
-                          cdp_D: float | None = None, views=(2, 3, 4),
-                          constraints: DesignConstraints = DesignConstraints(),  # noqa: B008
-                          tolerance_D: float = 0.25, wavelengths_nm=(550.0,),
-                          report_accuracy: str = "fast", sampling: Sampling | None = None,
-                          progress=None, counts_dir=None) -> LenticularDesign:
-    """Design a lenticular panel of ``panel``'s pixels for each count n of 1×n views
-    (``views``) and score it on ``eyes`` (module docstring). ``panel``: its pixel pitch,
-    viewing distance, design pupil and diffraction mode are kept (its lenslets are
-    replaced). ``tolerance_D``: the display's accommodation RMSE a count must keep, D.
-    ``progress``: a callable receiving a line per stage, or None. ``counts_dir``: finished
-    counts are kept there and a later call with the same inputs loads them."""
-    depths, cdp, counts = check_lenticular_design(
-        panel, depth_range_D, n_depths=n_depths, cdp_D=cdp_D, views=views, constraints=constraints,
-        wavelengths_nm=wavelengths_nm, report_accuracy=report_accuracy)
-    say = progress if callable(progress) else None
-    wavelengths = report_wavelengths_nm(report_accuracy, wavelengths_nm)
-    spectrum = make_spectrum(np.asarray(wavelengths), ModelOptions(vsotf_reference="open_pupil"))
-    pupil = float(panel.pupil_diameter_mm)
-    inputs = dict(depths_D=np.asarray(depths).tolist(), cdp_D=cdp, constraints=constraints.as_dict(),
-                  tolerance_D=tolerance_D, wavelengths_nm=list(wavelengths),
-                  sampling=None if sampling is None else dataclasses.asdict(sampling),
-                  eyes=hashlib.blake2b(np.ascontiguousarray(np.asarray(eyes.zernike_um, np.float64)).tobytes(),
-                                       digest_size=16).hexdigest())
-    natural = None
-    fits = []
-    for n in counts:
-        t0 = time.perf_counter()
-        key = _key(panel, n, **inputs)
-        kept = None if counts_dir is None else _load(counts_dir, n, key)
-        if kept is not None:
-            fits.append(kept)
-            if say is not None:
+    counts_format = LENTICULAR_FORMAT
+    counts_stem = "lenticular"
+    one_view = ONE_STRIP
+    report_counts = "all"  # no training loss to rank the counts by: every count is scored
+
+    @property
+    def wavelengths_nm(self) -> tuple:
+        return report_wavelengths_nm(self.report_accuracy, self.target.wavelengths_nm)
+
+    def key(self, n: int) -> str:
+        eyes = np.ascontiguousarray(np.asarray(self.eyes.zernike_um, np.float64)).tobytes()
+        return _key(self.panel, n, depths_D=np.asarray(self.target.depths_D).tolist(), cdp_D=self.cdp_D,
+                    constraints=self.constraints.as_dict(), tolerance_D=self.tolerance_D,
+                    wavelengths_nm=list(self.wavelengths_nm),
+                    sampling=None if self.sampling is None else dataclasses.asdict(self.sampling),
+                    eyes=hashlib.blake2b(eyes, digest_size=16).hexdigest())
+
+    def record(self, fit: LenticularFit) -> dict:
+        panel = None if fit.panel is None else [float(np.asarray(v)) for v in (
+            fit.panel.pixel_pitch_mm, fit.panel.lens_pitch_mm, fit.panel.fill,
+            fit.panel.focal_length_mm, fit.panel.gap_mm, fit.panel.distance_mm)]
+        return jsonable({"n_views": fit.n_views, "panel": panel, "refused": fit.refused,
+                         "failed": fit.failed, "score": fit.score, "time_s": fit.time_s})
+
+    def from_record(self, record: dict) -> LenticularFit:
+        panel = None if record["panel"] is None else LenticularPanel(*record["panel"])
+        return LenticularFit(int(record["n_views"]), panel, record["refused"], record["failed"],
+                             record["score"], float(record["time_s"]))
+
+    def refused(self, n: int, why: str) -> LenticularFit:
+        return LenticularFit(n, refused=why)
+
+    def plan(self, counts: list, kept: set, refusals: dict, counts_dir, say) -> None:
+        if say is None:
+            return
+        depths = self.target.depths_D
+        grid = accommodation_grid_D(depths)
+        say(f"plan: lenticular (horizontal parallax only) 1xN, N in {list(counts)}, on the "
+            f"{self.panel.name}'s pixels at {float(self.panel.distance_mm):g} mm; no fit (closed "
+            f"form); scored on {self.eyes.n_eyes} {'held-out' if self.held_out else 'training'} "
+            f"eyes at {len(self.wavelengths_nm)} wavelength(s), {len(depths)} depths, accommodation "
+            f"{grid[0]:g}-{grid[-1]:g} D ({grid.size} states); each count about a minute per 10 "
+            f"eyes on 2 CPU cores")
+        for n in counts:
+            if n in kept:
                 say(f"design 1x{n}: resumed, kept in {counts_dir}")
-            continue
-        why = feasibility(panel, n, cdp, constraints)
-        if why is not None:
-            fit = LenticularFit(n, refused=f"infeasible: {why}")
-        elif n == 1:
-            fit = LenticularFit(n, refused="one strip fills the pupil: no parallax, the eye focuses "
-                                           "on the CDP (choose views >= 2)")
-        else:
-            lens = lenticular_panel(panel, n, cdp, constraints)
-            fit = LenticularFit(n, lens)
-            if float(lens.eye_box_mm()) < constraints.min_eye_box_mm * (1 - 1e-3):
-                fit.refused = (f"the eye box {float(lens.eye_box_mm()):.3g} mm is below "
-                               f"min_eye_box_mm = {constraints.min_eye_box_mm:g} mm even at the "
-                               f"fastest lenticules")
-            else:
-                if natural is None:
-                    natural = natural_peaks_D(eyes, cdp, pupil, spectrum, sampling)
-                fit.score = score_lenticular(lens, eyes, depths, cdp, pupil_diameter_mm=pupil,
-                                             spectrum=spectrum, diffraction=panel.diffraction,
-                                             sampling=sampling, natural_peak_D=natural)
-                rmse = fit.score["relative_accommodation_rmse_D"]
-                if not math.isfinite(rmse) or not math.isfinite(fit.score["image_at_peak"]):
-                    fit.failed = "its scores are not finite"
-                elif rmse > tolerance_D:
-                    fit.failed = (f"the display's accommodation RMSE {rmse:.3f} D exceeds the "
-                                  f"tolerance accommodation_tolerance_D = {tolerance_D:g} D")
+            elif n in refusals:
+                say(f"design 1x{n}: refused: {refusals[n]}")
+
+    def make(self, n: int, say) -> LenticularFit:
+        t0 = time.perf_counter()
+        lens = lenticular_panel(self.panel, n, self.cdp_D, self.constraints)
+        fit = LenticularFit(n, lens)
+        if float(lens.eye_box_mm()) < self.constraints.min_eye_box_mm * (1 - 1e-3):
+            fit.refused = (f"the eye box {float(lens.eye_box_mm()):.3g} mm is below "
+                           f"min_eye_box_mm = {self.constraints.min_eye_box_mm:g} mm even at the "
+                           f"fastest lenticules")
         fit.time_s = time.perf_counter() - t0
+        if say is not None and fit.refused is not None:
+            say(f"design 1x{n}: {fit.status} ({fit.time_s:.1f} s)")
+        return fit
+
+    @cached_property
+    def spectrum(self):
+        return make_spectrum(np.asarray(self.wavelengths_nm), ModelOptions(vsotf_reference="open_pupil"))
+
+    def report(self, fit: LenticularFit, n: int, say) -> None:
+        t0 = time.perf_counter()
+        pupil = float(self.panel.pupil_diameter_mm)
+        spectrum = self.spectrum
+        if self.natural_peak_D is None:
+            self.natural_peak_D = natural_peaks_D(self.eyes, self.cdp_D, pupil, spectrum, self.sampling)
+        fit.score = score_lenticular(fit.panel, self.eyes, self.target.depths_D, self.cdp_D,
+                                     pupil_diameter_mm=pupil, spectrum=spectrum,
+                                     diffraction=self.panel.diffraction, sampling=self.sampling,
+                                     natural_peak_D=self.natural_peak_D)
+        rmse = fit.score["relative_accommodation_rmse_D"]
+        if not math.isfinite(rmse) or not math.isfinite(fit.score["image_at_peak"]):
+            fit.failed = "its scores are not finite"
+        elif rmse > self.tolerance_D:
+            fit.failed = (f"the display's accommodation RMSE {rmse:.3f} D exceeds the "
+                          f"tolerance accommodation_tolerance_D = {self.tolerance_D:g} D")
+        fit.time_s += time.perf_counter() - t0
         if say is not None:
             say(f"design 1x{n}: {fit.status} ({fit.time_s:.1f} s)")
-        if counts_dir is not None:
-            _save(counts_dir, key, fit)
-        fits.append(fit)
-    provenance = {"n_eyes": int(eyes.n_eyes), "pupil_diameter_mm": pupil, "wavelengths_nm": list(wavelengths),
-                  "report_accuracy": report_accuracy,
-                  "freq_step_cpd": None if sampling is None else float(sampling.freq_step_cpd)}
+
+
+def fit_lenticular_design(panel: Panel, target: DesignTarget, eyes: Eyes, *, held_out: bool = True,
+                          constraints: DesignConstraints = DesignConstraints(),  # noqa: B008
+                          tolerance_D: float = 0.25,
+                          report: ReportSettings = ReportSettings(),  # noqa: B008 (frozen)
+                          sampling: Sampling | None = None, progress=None,
+                          counts_dir=None) -> LenticularDesign:
+    """Design a lenticular panel of ``panel``'s pixels for each count n of 1×n views and score
+    it on ``eyes`` (module docstring), by the one runner of the designs
+    (:func:`lfjax.design.runner.run_counts` with a :class:`LenticularKind`).
+
+    ``panel``: its pixel pitch, viewing distance, design pupil and diffraction mode are kept
+    (its lenslets are replaced). ``target``: the depths, the CDP, the counts n
+    (``views_per_side``; :func:`lenticular_target`) and the wavelengths of the ``"fit"``
+    report. ``held_out``: whether ``eyes`` are held-out eyes (the report says which).
+    ``tolerance_D``: the display's accommodation RMSE a count must keep, D. ``report``: its
+    ``accuracy`` sets the spectrum (:func:`report_wavelengths_nm`); every count is scored
+    (``report.counts`` is not read: there is no training loss to rank counts by).
+    ``progress``: a callable receiving a line per stage, or None. ``counts_dir``: finished
+    counts are kept there and a later call with the same inputs loads them."""
+    depths, cdp, counts = check_lenticular_design(panel, target, constraints)
+    kind = LenticularKind(panel, target, cdp, constraints, tolerance_D, report.accuracy, sampling,
+                          eyes, held_out)
+    fits = run_counts(kind, counts, counts_dir, progress if callable(progress) else None)
+    provenance = {"n_eyes": int(eyes.n_eyes), "pupil_diameter_mm": float(panel.pupil_diameter_mm),
+                  "wavelengths_nm": list(kind.wavelengths_nm), "report_accuracy": report.accuracy,
+                  "freq_step_cpd": None if sampling is None else float(sampling.freq_step_cpd),
+                  "scored_on": "held-out" if held_out else "training"}
     return LenticularDesign(fits, cdp, np.asarray(depths).tolist(), constraints, tolerance_D, provenance)
 
 
-def save_lenticular_design(result: LenticularDesign, out_dir, command: str | None = None,
-                           force: bool = False) -> list[Path]:
-    """Write ``design.json`` (every count's specification and scores with units; the design
-    is marked HPO) and ``design.png`` (the chosen count's strips in the pupil), both or
-    neither. Returns the paths."""
-    out = Path(out_dir)
-    best = result.best
-    score_units = {"freq_step_cpd": "cpd", "accommodation_grid_D": "D (first, last)", "n_eyes": "eyes",
-                   "relative_accommodation_rmse_D": "D", "image_at_peak": "VSOTF (open-pupil reference)",
-                   "sampling_limit_y_cpd": "cpd", "sampling_limit_x_cpd_by_depth": "cpd per depth"}
-
-    def unit(k: str) -> str:
-        if k in score_units:
-            return score_units[k]
-        if k.startswith("peak_"):
-            return "D (mean per depth)"
-        if k.startswith("gain_"):
-            return "unitless (median over eyes)"
-        if k.startswith("edge_"):
-            return "fraction of peaks on the accommodation grid's edge"
-        if k.startswith("vsotf_"):
-            return "VSOTF at the whole band's peak (mean)"
-        return "cpd"
-
-    designs = [{"views": f"1x{f.n_views}", "n_views": f.n_views, "status": f.status,
-                "refused": f.refused, "failed": f.failed,
-                "specification": None if f.panel is None else panel_record(f.panel),
-                "scores": None if f.score is None else {k: {"value": v, "unit": unit(k)}
-                                                        for k, v in f.score.items()},
-                "time_s": round(f.time_s, 2)} for f in result.fits]
-    record = {
-        "format": LENTICULAR_FORMAT, "parallax": "horizontal only (lenticular, 1xn strips)",
-        "chosen_views": None if best is None else f"1x{best.n_views}",
-        "cdp_D": {"value": result.cdp_D, "unit": "D"},
-        "depths_D": {"value": result.depths_D, "unit": "D"},
-        "accommodation_tolerance_D": {"value": result.tolerance_D, "unit": "D"},
-        "constraints": {"min_eye_box_mm": {"value": result.constraints.min_eye_box_mm, "unit": "mm"},
-                        "f_number": {"value": [result.constraints.min_f_number,
-                                               result.constraints.max_f_number], "unit": "unitless"}},
-        "designs": designs,
-        "provenance": dict(result.provenance, lfjax_version=__version__, command=command,
-                           utc=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")),
-    }
-    names = ["design.json"]
-    chosen = best or next((f for f in result.fits if f.panel is not None), None)
-    with staged_output(out, force) as stage:
-        atomic_write_text(stage / "design.json", json.dumps(jsonable(record), indent=2) + "\n")
-        if chosen is not None:
-            import matplotlib
-
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-
-            p = panel_record(chosen.panel)
-            pupil = float(result.provenance.get("pupil_diameter_mm", 3.0))
-            fig, ax = plt.subplots(figsize=(5, 5))
-            try:
-                draw_layout(ax, chosen.panel.layout(pupil), pupil, aperture="strip",
-                            title=f"1x{chosen.n_views} lenticular strips: width {p['strip_width_mm']['value']:.3g} mm,\n"
-                                  f"lenticules {p['lens_pitch_mm']['value']:.4g} mm, f {p['focal_length_mm']['value']:.3g} mm, "
-                                  f"gap {p['gap_mm']['value']:.3g} mm;\ny defocus {p['y_defocus_D']['value']:+.3g} D")
-                ax.title.set_fontsize(8)
-                fig.tight_layout()
-                fig.savefig(stage / "design.png", dpi=110)
-            finally:
-                plt.close(fig)
-            names.append("design.png")
-    return [out / name for name in names]
-
-
-__all__ = ["LENTICULAR_FORMAT", "LenticularFit", "LenticularDesign", "lenticular_panel",
-           "accommodation_grid_D", "check_lenticular_design", "score_lenticular", "natural_peaks_D",
-           "fit_lenticular_design", "save_lenticular_design", "panel_record", "gain",
-           "x_sampling_limit_cpd", "y_sampling_limit_cpd", "report_wavelengths_nm"]
+__all__ = ["LENTICULAR_FORMAT", "ONE_STRIP", "LenticularFit", "LenticularDesign", "LenticularKind",
+           "lenticular_panel", "lenticular_target", "accommodation_grid_D", "check_lenticular_design",
+           "score_lenticular", "natural_peaks_D", "fit_lenticular_design", "panel_record", "gain",
+           "score_unit", "x_sampling_limit_cpd", "y_sampling_limit_cpd", "report_wavelengths_nm"]

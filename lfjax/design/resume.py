@@ -1,11 +1,13 @@
-"""Finished counts of :func:`lfjax.design.fit_design` kept on disk, so a run interrupted or
-failed after some counts resumes from them instead of fitting them again.
+"""Finished counts of a design (:func:`lfjax.design.runner.run_counts`, both kinds) kept on
+disk, so a run interrupted or failed after some counts resumes from them instead of making
+them again.
 
-Each finished count is written (whole: temporary name, then rename) to
-``FOLDER/count-N.json`` with a key: a BLAKE2b digest of everything its fit depends on
-(the starting panel, the count, depths, CDP, constraints, objective, wavelengths, steps,
-tolerance, report setting, sampling, eye chunk, the training and held-out eyes'
-coefficients and the lfjax version). A later call with the same inputs loads it; a count
+Each finished count is written (whole: temporary name, then rename) to ``FOLDER/STEM-N.json``
+(``count-N.json`` for an n×n design, ``lenticular-N.json`` for a lenticular one) with a
+key: a BLAKE2b digest of everything the count depends on (for an n×n design
+:func:`count_key`: the starting panel, the count, depths, CDP, constraints, objective,
+wavelengths, steps, tolerance, report setting, sampling, eye chunk, the training and
+held-out eyes' coefficients and the lfjax version). A later call with the same inputs loads it; a count
 whose key differs (any input changed) is fitted again. The command line keeps the folder
 beside its output folder (:func:`counts_folder`) and removes it once the outputs are
 written.
@@ -66,21 +68,25 @@ def _digest(array) -> str:
     return hashlib.blake2b(f"{a.shape}|".encode() + a.tobytes(), digest_size=16).hexdigest()
 
 
-def count_key(panel: Panel, n_per_side: int, *, depths_D, cdp_D: float, constraints,
-              objective, wavelengths_nm, steps: int, tol: float, report_accuracy: str,
-              sampling, eye_chunk, train_zernike_um, test_zernike_um) -> str:
-    """The digest naming everything a count's fit and report depend on (hex)."""
+def count_key(panel: Panel, n_per_side: int, target, cdp_D: float, constraints, objective,
+              fit, report, sampling, train_eyes, test_eyes) -> str:
+    """The digest naming everything a count's fit and report depend on (hex): the starting
+    ``panel``, the count, the :class:`~lfjax.design.settings.DesignTarget` (depths and
+    wavelengths), the CDP (D), constraints, objective, the
+    :class:`~lfjax.design.settings.FitSettings`, the report's setting
+    (:class:`~lfjax.design.settings.ReportSettings`), the sampling, and the training and
+    held-out eyes' coefficients (``test_eyes`` None: none)."""
     record = {
         "format": COUNTS_FORMAT, "lfjax_version": __version__, "n_per_side": int(n_per_side),
-        "panel": _panel_record(panel), "depths_D": [float(d) for d in np.asarray(depths_D)],
+        "panel": _panel_record(panel), "depths_D": [float(d) for d in np.asarray(target.depths_D)],
         "cdp_D": float(cdp_D), "constraints": constraints.as_dict(),
         "objective": dict(objective.as_dict(), name=objective.name),
-        "wavelengths_nm": [float(w) for w in wavelengths_nm], "steps": int(steps),
-        "tol": float(tol), "report_accuracy": report_accuracy,
+        "wavelengths_nm": [float(w) for w in target.wavelengths_nm], "steps": int(fit.steps),
+        "tol": float(fit.tol), "report_accuracy": report.accuracy,
         "sampling": None if sampling is None else dataclasses.asdict(sampling),
-        "eye_chunk": None if eye_chunk is None else int(eye_chunk),
-        "train_eyes": _digest(train_zernike_um),
-        "test_eyes": None if test_zernike_um is None else _digest(test_zernike_um),
+        "eye_chunk": None if fit.eye_chunk is None else int(fit.eye_chunk),
+        "train_eyes": _digest(train_eyes.zernike_um),
+        "test_eyes": None if test_eyes is None else _digest(test_eyes.zernike_um),
     }
     text = json.dumps(jsonable(record), sort_keys=True)
     return hashlib.blake2b(text.encode(), digest_size=16).hexdigest()
@@ -106,28 +112,29 @@ def fit_fields(record: dict) -> dict:
                 notes=list(record["notes"]))
 
 
-def save_count(folder, key: str, fit) -> Path:
-    """Keep a finished count: ``folder/count-N.json`` (written whole)."""
+def save_count(folder, kind, key: str, n: int, fit) -> Path:
+    """Keep a made count ``n`` of a design of ``kind`` (:class:`lfjax.design.runner.DesignKind`):
+    ``folder/STEM-N.json`` (written whole), its record :meth:`kind.record` under ``key``."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    return atomic_write_text(folder / f"count-{fit.n_per_side}.json",
-                             json.dumps({"format": COUNTS_FORMAT, "key": key,
-                                         "fit": fit_record(fit)}) + "\n")
+    return atomic_write_text(folder / f"{kind.counts_stem}-{int(n)}.json",
+                             json.dumps({"format": kind.counts_format, "key": key,
+                                         "fit": kind.record(fit)}) + "\n")
 
 
-def load_count(folder, n_per_side: int, key: str):
-    """The count kept in ``folder`` for ``n_per_side`` if its key is ``key`` (same inputs),
-    as :func:`fit_fields`, else None (none kept, another run's, or unreadable: it is then
-    fitted again)."""
-    path = Path(folder) / f"count-{int(n_per_side)}.json"
+def load_count(folder, kind, n: int, key: str):
+    """The count ``n`` kept in ``folder`` for a design of ``kind`` if its key is ``key`` (same
+    inputs), as :meth:`kind.from_record`, else None (none kept, another run's, or unreadable:
+    it is then made again)."""
+    path = Path(folder) / f"{kind.counts_stem}-{int(n)}.json"
     try:
         record = json.loads(path.read_text())
-        if record.get("format") != COUNTS_FORMAT or record.get("key") != key:
+        if record.get("format") != kind.counts_format or record.get("key") != key:
             return None
-        return fit_fields(record["fit"])
+        return kind.from_record(record["fit"])
     except (OSError, ValueError, KeyError, TypeError):
         return None
 
 
 __all__ = ["COUNTS_FORMAT", "count_key", "counts_folder", "fit_fields", "fit_record",
-           "load_count", "save_count"]
+           "load_count", "save_count", "panel_leaves", "panel_statics"]

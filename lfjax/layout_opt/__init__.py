@@ -81,7 +81,7 @@ is seen doing so; a maximum on the window's edge is reported as a failure.
     the frequency step; where the MTF of an off-CDP rendering dips below the threshold and
     rises again, the bands above it count too.
 
-Two settings (:func:`make_problem`'s ``accuracy``): a fit runs on the cheap ``"fit"``
+Two settings (:class:`ProblemSetting`'s ``accuracy``, given to :func:`make_problem`): a fit runs on the cheap ``"fit"``
 setting (550 nm, a 0.25 D peak grid, the grid parabola's vertex), and the report scores
 held-out eyes on the ``"full"`` one (31 wavelengths, a 0.25 D grid refined by the
 ``"local"`` three-state fit) — model no more than the fit needs, verify on what the study
@@ -171,6 +171,7 @@ from lfjax.layout_opt._problem import FULL_WAVELENGTHS_NM as FULL_WAVELENGTHS_NM
 from lfjax.layout_opt._problem import OBJECTIVES as OBJECTIVES
 from lfjax.layout_opt._problem import LayoutProblem as LayoutProblem
 from lfjax.layout_opt._problem import Objective as Objective
+from lfjax.layout_opt._problem import ProblemSetting as ProblemSetting
 from lfjax.layout_opt._problem import check_depth_range as check_depth_range
 from lfjax.layout_opt._problem import check_measured_pupil as check_measured_pupil
 from lfjax.layout_opt._problem import depth_grid as depth_grid
@@ -185,7 +186,10 @@ from lfjax.layout_opt._solver import LayoutWarning as LayoutWarning
 from lfjax.layout_opt._solver import layout_value_and_grad as layout_value_and_grad
 from lfjax.layout_opt._solver import optimise_layout as optimise_layout
 from lfjax.layout_opt._solver import trade_off_front as trade_off_front
-from lfjax.layout_opt._run import MEASURED_PUPIL_MM as MEASURED_PUPIL_MM
+from lfjax.layout_opt._eye_draw import EYE_DRAW_KEYS as EYE_DRAW_KEYS
+from lfjax.layout_opt._eye_draw import MEASURED_PUPIL_MM as MEASURED_PUPIL_MM
+from lfjax.layout_opt._eye_draw import EyeDraw as EyeDraw
+from lfjax.layout_opt._eye_draw import planning_eyes as planning_eyes
 from lfjax.layout_opt._run import PARAMETRISATIONS as PARAMETRISATIONS
 from lfjax.layout_opt._run import OptimisationResult as OptimisationResult
 from lfjax.layout_opt._run import OptimisationSettings as OptimisationSettings
@@ -234,6 +238,10 @@ __all__ = [
     "envelope_layout",
     "guard_sampling",
     "make_problem",
+    "ProblemSetting",
+    "EyeDraw",
+    "EYE_DRAW_KEYS",
+    "planning_eyes",
     "correct_focus_metrics",
     "depth_of_field",
     "soft_cutoff_cpd",

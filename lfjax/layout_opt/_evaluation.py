@@ -4,6 +4,7 @@ Part of :mod:`lfjax.layout_opt` (its public names are re-exported there)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import equinox as eqx
@@ -270,10 +271,9 @@ def natural_evaluation(problem: LayoutProblem, eyes: Eyes | None = None) -> dict
     open_constraints = Constraints(pupil, pupil, min(problem.constraints.min_diameter_mm, pupil))
     parts = []
     depths = np.asarray(problem.depths_D, float)
-    kwargs = dict(options=problem.options, window_D=problem.window_D,
+    kwargs = dict(options=problem.options,
                   spectrum=problem.spectrum if problem.spectrum_given else None,
-                  accuracy=problem.accuracy, peak_step_D=problem.peak_step_D,
-                  peak_margin_D=problem.peak_margin_D, peak_method=problem.peak_method)
+                  setting=dataclasses.replace(problem.setting, eye_chunk=None))
     # One sampling for every depth (the finest of their guards): one compiled program.
     wl = (np.asarray(problem.spectrum.wavelengths_nm, float) if problem.spectrum_given
           else np.asarray(FULL_WAVELENGTHS_NM if problem.accuracy == "full" else
@@ -312,11 +312,9 @@ def tangent_grid_evaluations(problem: LayoutProblem, eyes: Eyes | None = None,
         sub = make_problem(eyes, np.asarray(problem.depths_D, float),
                            Constraints(pupil, d, min(problem.constraints.min_diameter_mm, d)),
                            problem.objective, cdp_D=float(problem.cdp_D), options=problem.options,
-                           window_D=problem.window_D,
                            spectrum=problem.spectrum if problem.spectrum_given else None,
-                           display=problem.display, accuracy=problem.accuracy,
-                           peak_step_D=problem.peak_step_D, peak_margin_D=problem.peak_margin_D,
-                           peak_method=problem.peak_method)
+                           display=problem.display,
+                           setting=dataclasses.replace(problem.setting, eye_chunk=None))
         layout = to_layout(params, sub.constraints, f"tangent {n}x{n}")
         out[f"{n}x{n}"] = (layout, evaluate_layout(params, sub,
                                                    chunk=min(eyes.n_eyes, max(problem.eyes.n_eyes, 8))))

@@ -4,7 +4,6 @@ Part of :mod:`lfjax.layout_opt` (its public names are re-exported there)."""
 
 from __future__ import annotations
 
-import datetime
 import json
 from pathlib import Path
 
@@ -12,7 +11,7 @@ import numpy as np
 
 from lfjax.base.files import atomic_write_text
 from lfjax.base.types import finite_scalar
-from lfjax._version import __version__
+from lfjax._version import stamp
 from lfjax.model.layout_files import LAYOUT_FORMAT, jsonable
 from lfjax.model.layouts import Layout, make_layout
 from lfjax.layout_opt._params import LatticeParams, free_params
@@ -49,7 +48,8 @@ def save_layout_json(path, layout: Layout, pupil_diameter_mm: float, *, objectiv
     provenance (+ parameters when given: LatticeParams/FreeParams or their dict).
 
     ``objective``: an :class:`Objective`, a name, or a dict (e.g. with its values).
-    ``provenance`` gets the lfjax version and a UTC time stamp added.
+    ``provenance`` follows the package's one stamp (:func:`lfjax._version.stamp`: version,
+    commit, JAX, host, UTC time).
     """
     make_layout(layout.centres_mm, layout.diameters_mm, pupil_diameter_mm)  # validates
     if isinstance(objective, Objective):
@@ -58,9 +58,7 @@ def save_layout_json(path, layout: Layout, pupil_diameter_mm: float, *, objectiv
         objective = {"name": objective}
     if parameters is not None and not isinstance(parameters, dict):
         parameters = params_to_dict(parameters)
-    prov = {"lfjax_version": __version__,
-            "written_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
-    prov.update(provenance or {})
+    prov = stamp(**(provenance or {}))
     record = {
         "format": LAYOUT_FORMAT,
         "name": layout.name,

@@ -244,9 +244,16 @@ class LayoutProblem(eqx.Module):
         eyes = self.eyes if eyes is None else eyes
         return make_problem(
             eyes, np.asarray(self.depths_D, float), self.constraints, self.objective,
-            cdp_D=float(self.cdp_D), options=self.options, window_D=self.window_D,
-            spectrum=self.spectrum if self.spectrum_given else None,
-            display=self.display, accuracy=accuracy, sampling=sampling)
+            cdp_D=float(self.cdp_D), options=self.options,
+            spectrum=self.spectrum if self.spectrum_given else None, display=self.display,
+            setting=ProblemSetting(accuracy, window_D=self.window_D), sampling=sampling)
+
+    @property
+    def setting(self) -> ProblemSetting:
+        """This problem's :class:`ProblemSetting` (its peak grid resolved; the eye chunk is
+        the pipeline's, :attr:`config`)."""
+        return ProblemSetting(self.accuracy, self.peak_step_D, self.peak_margin_D,
+                              self.peak_method, self.window_D, self.config.eye_chunk)
 
     def scene(self, layout) -> Scene:
         return Scene(layout.centres_mm, layout.diameters_mm, self.cdp_D, self.depths_D,
@@ -403,10 +410,71 @@ def evaluated_pairs(depths, cdp: float, step_D: float, margin_D: float):
 
 
 _SETTINGS = {
-    # wavelengths (None: as given), peak grid step (D), margin (D), refinement
+    # peak grid step (D), margin (D), refinement
     "fit": dict(peak_step_D=0.25, peak_margin_D=0.5, peak_method="vertex"),
     "full": dict(peak_step_D=0.25, peak_margin_D=0.75, peak_method="local"),
 }
+
+
+@dataclass(frozen=True)
+class ProblemSetting:
+    """How a :class:`LayoutProblem` evaluates a layout (static, hashable), checked when made.
+
+    Attributes
+    ----------
+    accuracy : ``"fit"`` (default) — what a fit needs: :func:`make_problem`'s wavelengths
+        (550 nm by default), predicted accommodation on a 0.25 D grid within 0.5 D around each
+        depth's window, located by the grid parabola's vertex (``"vertex"``: no evaluation
+        beyond the grid); ``"full"`` — what a report needs: 31 wavelengths (400–700 nm,
+        10 nm), a 0.25 D grid within 0.75 D around each window, refined by ``"local"`` (the
+        sweep's and the study's peak finder). Both find the *global* maximum of each eye's
+        through-focus VSOTF over a window holding the rendered depth and the CDP
+        (:func:`peak_window`); a maximum on a window edge is reported as such.
+    peak_step_D : the peak grid's step, D > 0 (None: the accuracy's, 0.25 D)
+    peak_margin_D : the peak grid's margin around each depth's window, D ≥ 0 (None: the
+        accuracy's)
+    peak_method : refinement of the grid peak, a method of :mod:`lfjax.vision.peaks` other
+        than ``"auto"`` (None: the accuracy's)
+    window_D : accommodation offsets (± D) drawn by :func:`through_focus_curves`, > 0
+    eye_chunk : eyes evaluated together inside the pipeline's map, ≥ 1 (None: one at a time)
+    """
+
+    accuracy: str = "fit"
+    peak_step_D: float | None = None
+    peak_margin_D: float | None = None
+    peak_method: str | None = None
+    window_D: float = 0.5
+    eye_chunk: int | None = None
+
+    def __post_init__(self):
+        if self.accuracy not in ACCURACIES:
+            raise ParameterError("accuracy", "{accuracy} must be one of {allowed}, got {got!r}",
+                                 allowed=", ".join(ACCURACIES), got=self.accuracy)
+        methods = tuple(m for m in PEAK_METHODS if m != "auto")
+        if self.peak_method is not None and self.peak_method not in methods:
+            raise ParameterError("peak_method", "{peak_method} must be one of {allowed} or None, "
+                                 "got {got!r}", allowed=", ".join(methods), got=self.peak_method)
+        if self.peak_step_D is not None:
+            object.__setattr__(self, "peak_step_D",
+                               finite_scalar("peak_step_D", self.peak_step_D, 0.0, lo_open=True))
+        if self.peak_margin_D is not None:
+            object.__setattr__(self, "peak_margin_D",
+                               finite_scalar("peak_margin_D", self.peak_margin_D, 0.0))
+        object.__setattr__(self, "window_D",
+                           finite_scalar("window_D", self.window_D, 0.0, None, lo_open=True))
+        chunk = self.eye_chunk
+        if chunk is not None and (isinstance(chunk, bool) or int(chunk) != chunk or chunk < 1):
+            raise ParameterError("eye_chunk", "{eye_chunk} must be an integer >= 1 or None, "
+                                 "got {got!r}", got=chunk)
+
+    def resolved(self) -> dict:
+        """The peak grid's step and margin (D) and the refinement method, the accuracy's
+        values where this setting leaves them None."""
+        setting = dict(_SETTINGS[self.accuracy])
+        for key in setting:
+            if getattr(self, key) is not None:
+                setting[key] = getattr(self, key)
+        return setting
 
 
 FULL_WAVELENGTHS_NM = tuple(float(w) for w in np.arange(400.0, 701.0, 10.0))
@@ -417,11 +485,9 @@ def make_problem(
     eyes: Eyes, depths_D, constraints: Constraints = Constraints(), objective=DEFAULT_OBJECTIVE,
     *, cdp_D: float = 2.0, wavelengths_nm=DEFAULT_WAVELENGTHS_NM,
     options: ModelOptions = ModelOptions(vsotf_reference="open_pupil"),
-    sampling: Sampling | None = None, window_D: float = 0.5, planning_eyes: Eyes | None = None,
-    eye_chunk: int | None = None, spectrum: Spectrum | None = None,
-    display: DisplayOptics | None = None, accuracy: str = "fit",
-    peak_step_D: float | None = None, peak_margin_D: float | None = None,
-    peak_method: str | None = None,
+    sampling: Sampling | None = None, planning_eyes: Eyes | None = None,
+    spectrum: Spectrum | None = None, display: DisplayOptics | None = None,
+    setting: ProblemSetting = ProblemSetting(),  # noqa: B008 (frozen, checked once)
 ) -> LayoutProblem:
     """A layout-optimisation problem, validated on the host.
 
@@ -439,33 +505,20 @@ def make_problem(
     sampling : frequency sampling; default :func:`guard_sampling` for the constraints'
         envelope and every (accommodation, depth) pair the problem evaluates (the peak
         grid and the correct focus), for ``planning_eyes`` (default ``eyes``)
-    window_D : accommodation offsets (± D) drawn by :func:`through_focus_curves`
-    eye_chunk : eyes evaluated together inside the pipeline's map (None: one at a time)
     spectrum : a :class:`~lfjax.model.spectral.Spectrum` instead of ``wavelengths_nm`` (e.g. a
         display's, :func:`lfjax.display.spectra.display_spectrum`); kept by both settings
     display : :class:`~lfjax.display.lenslets.DisplayOptics` of a real display (lenslet diffraction,
         pixels; e.g. ``LensletArray.optics()``) the layout is optimised for; default the
         paper's ideal display. The reference stays the ideal open pupil.
-    accuracy : ``"fit"`` (default) — what a fit needs: the given wavelengths (550 nm by
-        default), predicted accommodation on a 0.25 D grid within 0.5 D around each
-        depth's window, located by the grid parabola's vertex (``"vertex"``: no evaluation
-        beyond the grid); ``"full"`` — what a report needs: 31 wavelengths
-        (400–700 nm, 10 nm), a 0.25 D grid within 0.75 D around each window, refined by
-        ``"local"`` (the sweep's and the study's peak finder). Both find the *global*
-        maximum of each eye's through-focus VSOTF over a window holding the rendered depth
-        and the CDP (:func:`peak_window`); a maximum on a window edge is reported as such.
-    peak_step_D, peak_margin_D, peak_method : override the setting's values
+    setting : :class:`ProblemSetting`: the accuracy (``"fit"``, the default, or ``"full"``,
+        which replaces the wavelengths by :data:`FULL_WAVELENGTHS_NM`), the peak grid and its
+        refinement, the through-focus window and the eye chunk
     """
-    if accuracy not in ACCURACIES:
-        raise ValueError(f"accuracy must be one of {ACCURACIES}, got {accuracy!r}")
-    setting = dict(_SETTINGS[accuracy])
-    for key, value in (("peak_step_D", peak_step_D), ("peak_margin_D", peak_margin_D),
-                       ("peak_method", peak_method)):
-        if value is not None:
-            setting[key] = value
-    if setting["peak_method"] not in PEAK_METHODS or setting["peak_method"] == "auto":
-        raise ValueError(f"peak_method must be one of {tuple(m for m in PEAK_METHODS if m != 'auto')}, "
-                         f"got {setting['peak_method']!r}")
+    if not isinstance(setting, ProblemSetting):
+        raise ParameterError("setting", "{setting} must be lfjax.layout_opt.ProblemSetting, got {got}",
+                             got=type(setting).__name__)
+    accuracy, window_D, eye_chunk = setting.accuracy, setting.window_D, setting.eye_chunk
+    setting = setting.resolved()
     if display is not None and not isinstance(display, DisplayOptics):
         raise ValueError(f"display must be lfjax.display.lenslets.DisplayOptics or None, got {type(display).__name__}")
     if options.vsotf_reference != "open_pupil":
@@ -482,7 +535,6 @@ def make_problem(
     depths = check_depths(depths_D)
     cdp = finite_scalar("cdp_D", cdp_D, 0.0)
     objective = Objective.parse(objective)
-    window_D = finite_scalar("window_D", window_D, 0.0, None, lo_open=True)
     spectrum_given = spectrum is not None
     if spectrum is None:
         wl = FULL_WAVELENGTHS_NM if accuracy == "full" else wavelengths_nm

@@ -30,11 +30,11 @@ from lfjax.base.units import check_dioptres
 from lfjax.display.lenslets import DisplayOptics, display_optics_at
 from lfjax.display.spectra import display_primaries, display_spectrum
 from lfjax.model import layout_plots
-from lfjax.model.eyes import Eyes, sample_eyes
 from lfjax.model.layout_files import jsonable
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import make_spectrum
 from lfjax.layout_opt._evaluation import through_focus_curves
+from lfjax.layout_opt._eye_draw import MEASURED_PUPIL_MM, EyeDraw, planning_eyes
 from lfjax.layout_opt._feasible import Constraints, feasible_start, initial_lattice, to_box
 from lfjax.layout_opt._files import save_layout_json
 from lfjax.layout_opt._params import default_max_diameter_mm, free_params, lattice_sites
@@ -47,10 +47,6 @@ from lfjax.layout_opt._problem import (
     make_problem,
 )
 from lfjax.layout_opt._solver import METHODS, Front, LayoutFit, optimise_layout, trade_off_front
-
-MEASURED_PUPIL_MM = 3.0
-"""The pupil (mm) of the Thibos et al. (2002) fit the eyes are drawn from
-(:func:`lfjax.model.eyes.sample_eyes`): the calculation pupil can be no larger."""
 
 PARAMETRISATIONS = ("lattice", "free")
 """``"lattice"``: pitch, diameter, rotation of the lattice; ``"free"``: every centre and
@@ -173,9 +169,7 @@ class OptimisationSettings:
         set_(self, "objective", objective)
         if self.accommodation_tolerance_D is not None:
             objective = Objective.parse(objective, self.accommodation_tolerance_D)
-        _whole("train_eyes", self.train_eyes, 1)
-        _whole("test_eyes", self.test_eyes, 0)
-        _whole("seed", self.seed, 0, 2**32)
+        eye_draw = EyeDraw(self.seed, self.train_eyes, self.test_eyes)
         if self.front is not None:
             if _whole("front", self.front, 1) < 2:
                 raise ParameterError("front", "{front} must be >= 2 points, got {got}", got=self.front)
@@ -193,7 +187,8 @@ class OptimisationSettings:
         _whole("steps", self.steps, 0)
         _one_of("report_accuracy", self.report_accuracy, ACCURACIES)
         set_(self, "_built", dict(constraints=constraints, depths_D=depths, sampling=sampling,
-                                  fit_objective=objective, display=display))
+                                  fit_objective=objective, display=display,
+                                  eye_draw=eye_draw))
         self.start()  # a feasible start exists (the checks of to_box)
 
     @property
@@ -210,6 +205,11 @@ class OptimisationSettings:
     def fit_objective(self) -> Objective:
         """The objective fitted: :attr:`objective` with ``accommodation_tolerance_D``."""
         return self._built["fit_objective"]
+
+    @property
+    def eye_draw(self) -> EyeDraw:
+        """The training and held-out eyes (seeds ``seed`` and ``seed + 1``)."""
+        return self._built["eye_draw"]
 
     @property
     def sampling(self) -> Sampling | None:
@@ -259,13 +259,6 @@ class OptimisationResult:
     front: Front | None = None
 
 
-def _eyes(settings: OptimisationSettings):
-    train = sample_eyes(settings.seed, settings.train_eyes, MEASURED_PUPIL_MM)
-    test = (sample_eyes(settings.seed + 1, settings.test_eyes, MEASURED_PUPIL_MM)
-            if settings.test_eyes > 0 else None)
-    return train, test
-
-
 def _brief(evaluation):
     return None if evaluation is None else {
         k: {m: v for m, v in evaluation[k].items() if m != "values"} for k in ("before", "after")}
@@ -289,10 +282,8 @@ def optimise_and_save(settings: OptimisationSettings, out_dir, *, force: bool = 
     """
     out = check_output_folder(out_dir, force, need_bytes=estimated_output_bytes(settings))
     start = settings.start()
-    train, test = _eyes(settings)
-    planning = train if test is None else Eyes(
-        np.concatenate([np.asarray(train.zernike_um), np.asarray(test.zernike_um)]),
-        train.measured_pupil_mm)
+    train, test = settings.eye_draw.train(), settings.eye_draw.test()
+    planning = planning_eyes(train, test)
     constraints = settings.constraints
     spectrum = (None if settings.spectrum is None
                 else display_spectrum(settings.spectrum, "white", FIT_OPTIONS))
@@ -331,9 +322,7 @@ def _write_outputs(settings, fit, problem, curves, constraints, command, test, o
                             train=_brief(fit.train), test=_brief(fit.test), warning=fit.warning)
     provenance = {
         "command": command,
-        "seed_train": settings.seed, "n_train_eyes": settings.train_eyes,
-        "seed_test": settings.seed + 1 if test is not None else None,
-        "n_test_eyes": settings.test_eyes,
+        **settings.eye_draw.provenance(),
         "depths_D": settings.depths_D.tolist(), "cdp_D": settings.cdp_D,
         "wavelengths_nm": [float(w) for w in problem.spectrum.wavelengths_nm],
         "report_accuracy": settings.report_accuracy,
@@ -376,7 +365,6 @@ def _front(settings: OptimisationSettings, result: OptimisationResult, start, te
 
 
 __all__ = [
-    "MEASURED_PUPIL_MM",
     "PARAMETRISATIONS",
     "OptimisationSettings",
     "OptimisationResult",

@@ -1,6 +1,8 @@
-"""lfjax.design.fit and ``lfjax design``: fitting a buildable panel to eyes.
+"""lfjax.design.fit, .box, .solve, .report, .write and ``lfjax design``: fitting a buildable
+panel to eyes.
 
-Covers: lfjax.design.plan, lfjax.design.resume, lfjax.cli.design
+Covers: lfjax.design.plan, lfjax.design.resume, lfjax.cli.design, lfjax.design.box
+Covers: lfjax.design.solve, lfjax.design.report, lfjax.design.write
 """
 
 from __future__ import annotations
@@ -17,22 +19,21 @@ import pytest
 import helpers as H
 from lfjax import cli
 from lfjax.base.errors import ParameterError
-from lfjax.design.fit import (
-    FAST_REPORT_WAVELENGTHS_NM,
-    DesignConstraints,
+from lfjax.design.box import (
     design_loss,
     design_loss_chunked,
-    eye_chunk_size,
-    design_notes,
-    design_panel,
     design_problem,
+    eye_chunk_size,
     feasibility,
-    fit_design,
     panel_from_box,
-    panel_specification,
     report_problem,
     start_box,
 )
+from lfjax.design.fit import design_panel, fit_design
+from lfjax.design.report import design_notes
+from lfjax.design.settings import (FAST_REPORT_WAVELENGTHS_NM, DesignConstraints, DesignTarget,
+                                   FitSettings, ReportSettings)
+from lfjax.design.write import panel_specification
 from lfjax.design.plan import COMPILE_SECONDS, DesignPlan, count_plan
 from lfjax.layout_opt import Objective
 from lfjax.display.lenslets import lenslets_for_layout
@@ -94,13 +95,13 @@ def test_infeasible_count_and_cdp_outside_range_are_refused():
     assert why is not None and "smaller than a pixel" in why
     eyes = sample_eyes(0, 1)
     with pytest.raises(ValueError, match=r"cdp_D = 2 D lies outside the depth range \[0.5, 1.5\] D"):
-        fit_design(panel, depth_range_D=(0.5, 1.5), train_eyes=eyes)
+        fit_design(panel, DesignTarget((0.5, 1.5)), eyes)
     with pytest.raises(ValueError, match="views_per_side"):
-        fit_design(panel, depth_range_D=(1.0, 3.0), train_eyes=eyes, views_per_side=(9,))
+        DesignTarget((1.0, 3.0), views_per_side=(9,))
     with pytest.raises(ValueError, match="min_fill"):
         DesignConstraints(min_fill=0.0)
     # one view is refused before anything is fitted, and so is an infeasible count
-    result = fit_design(coarse, depth_range_D=(1.0, 3.0), train_eyes=eyes, views_per_side=(1, 8))
+    result = fit_design(coarse, DesignTarget((1.0, 3.0), views_per_side=(1, 8)), eyes)
     assert [f.refused is not None for f in result.fits] == [True, True]
     assert "collapsed into one aperture" in result.fits[0].refused
     assert "infeasible" in result.fits[1].refused and result.best is None
@@ -272,11 +273,10 @@ def test_fit_design_says_its_plan_before_its_progress():
     are the programs test_cli_design_tiny_case compiled.)"""
     said = []
     panel = design_panel("near-eye", 1.5, diffraction="off")
-    result = fit_design(panel, depth_range_D=(1.0, 2.0), n_depths=2,
-                        views_per_side=(1, 2), train_eyes=sample_eyes(0, 1),
-                        test_eyes=sample_eyes(1, 1), steps=1, report_accuracy="fit",
-                        sampling=Sampling(2.0), progress=said.append,
-                        constraints=DesignConstraints())
+    result = fit_design(panel, DesignTarget((1.0, 2.0), n_depths=2, views_per_side=(1, 2)),
+                        sample_eyes(0, 1), sample_eyes(1, 1), fit=FitSettings(steps=1),
+                        report=ReportSettings("fit"), sampling=Sampling(2.0),
+                        progress=said.append, constraints=DesignConstraints())
     assert said[0].startswith("plan:") and "1x1  refused" in said[0] and "2x2  fit FFT" in said[0]
     rest = said[1:]
     assert rest[0].startswith("design 2x2: start: loss") and rest[1].startswith("design 2x2: step 1/1")
@@ -323,7 +323,7 @@ def test_a_design_that_breaks_its_tolerance_is_never_ok_nor_chosen():
     """``lfjax design`` marked a design "ok" and chose it with a display accommodation RMSE
     of 1.137 D against the objective's 0.25 D tolerance (issue #37): now it fails, by how
     much, and the best count is chosen among the ok ones only."""
-    from lfjax.design.fit import DesignFit, DesignResult, design_failure
+    from lfjax.design.report import DesignFit, DesignResult, design_failure
 
     objective = Objective()
     assert objective.accommodation_tolerance_D == 0.25
@@ -358,7 +358,8 @@ def test_counts_are_reported_in_order_of_training_loss_until_one_passes():
     only those within the margin of it; a count failing its report does not end the search;
     the choice is the one reporting every count makes whenever the held-out order agrees
     with the training order outside the margin."""
-    from lfjax.design.fit import SCREEN_MARGIN, DesignFit, DesignResult, report_counts_in_order
+    from lfjax.design.plan import SCREEN_MARGIN
+    from lfjax.design.report import DesignFit, DesignResult, report_counts_in_order
 
     panel = near_eye_microdisplay()
     held_out = {2: -0.20, 3: -0.30, 4: -0.05, 5: -0.26}  # loss of each count's report
@@ -505,29 +506,34 @@ def test_design_outputs_are_whole_or_absent_and_a_failed_run_resumes_its_counts(
 def test_a_kept_count_is_used_only_for_the_same_inputs(tmp_path):
     """The key covers the inputs: the same call loads a kept count (and fits nothing), a
     change of steps or of the training eyes does not."""
+    from lfjax.design.fit import LensletKind
+    from lfjax.design.report import DesignFit
     from lfjax.design.resume import count_key, load_count, panel_leaves, save_count
-    from lfjax.design.fit import DesignFit
 
     panel = near_eye_microdisplay()
     cdp = float(panel.cdp_D)
-    common = dict(depths_D=np.array([1.0, 2.0]), cdp_D=cdp, constraints=DesignConstraints(),
-                  objective=Objective(), wavelengths_nm=(550.0,), steps=1, tol=1e-4,
-                  report_accuracy="fit", sampling=Sampling(2.0), eye_chunk=1,
-                  train_zernike_um=sample_eyes(0, 1).zernike_um,
-                  test_zernike_um=sample_eyes(1, 1).zernike_um)
+    common = dict(target=DesignTarget((1.0, 2.0), n_depths=2), cdp_D=cdp,
+                  constraints=DesignConstraints(), objective=Objective(),
+                  fit=FitSettings(steps=1), report=ReportSettings("fit"), sampling=Sampling(2.0),
+                  train_eyes=sample_eyes(0, 1), test_eyes=sample_eyes(1, 1))
     key = count_key(panel, 2, **common)
     kept = DesignFit(2, panel=panel, start=panel, history=[1.0, 0.5],
                      test={"loss": 0.5, "image_at_peak": 0.3}, notes=["a note"], time_s=3.0)
-    save_count(tmp_path, key, kept)
-    loaded = DesignFit(**load_count(tmp_path, 2, key))
+    kind = LensletKind(panel, common["target"], cdp, common["constraints"], common["objective"],
+                       common["fit"], common["report"], common["sampling"], common["train_eyes"],
+                       common["test_eyes"], 1)
+    assert kind.key(2) == key
+    save_count(tmp_path, kind, key, 2, kept)
+    assert [p.name for p in tmp_path.iterdir()] == ["count-2.json"]
+    loaded = load_count(tmp_path, kind, 2, key)
     assert loaded.history == [1.0, 0.5] and loaded.test == kept.test and loaded.notes == ["a note"]
     assert panel_leaves(loaded.panel) == panel_leaves(panel)
-    assert load_count(tmp_path, 2, count_key(panel, 2, **dict(common, steps=2))) is None
-    assert load_count(tmp_path, 2, count_key(panel, 2, **dict(
-        common, train_zernike_um=sample_eyes(5, 1).zernike_um))) is None
-    result = fit_design(panel, depth_range_D=(1.0, 2.0), n_depths=2, cdp_D=cdp, views_per_side=(2,),
-                        train_eyes=sample_eyes(0, 1), test_eyes=sample_eyes(1, 1), steps=1,
-                        report_accuracy="fit", sampling=Sampling(2.0), counts_dir=tmp_path)
+    assert load_count(tmp_path, kind, 2, count_key(panel, 2, **dict(common, fit=FitSettings(steps=2)))) is None
+    assert load_count(tmp_path, kind, 2, count_key(panel, 2, **dict(
+        common, train_eyes=sample_eyes(5, 1)))) is None
+    result = fit_design(panel, DesignTarget((1.0, 2.0), n_depths=2, cdp_D=cdp, views_per_side=(2,)),
+                        sample_eyes(0, 1), sample_eyes(1, 1), fit=FitSettings(steps=1),
+                        report=ReportSettings("fit"), sampling=Sampling(2.0), counts_dir=tmp_path)
     assert result.fits[0].history == [1.0, 0.5]  # loaded, not fitted (a fit takes seconds)
 
 
@@ -560,10 +566,10 @@ def test_the_fit_stops_on_a_step_the_float32_loss_cannot_resolve(monkeypatch, fl
     the wiggles for every allowed step, each with its line search."""
     import jax.numpy as jnp
 
-    from lfjax.design import fit
+    from lfjax.design import solve
 
     if flat_step is not None:
-        monkeypatch.setattr(fit, "FLAT_STEP", flat_step)
+        monkeypatch.setattr(solve, "FLAT_STEP", flat_step)
     calls = []
 
     def plateau(x, *args):
@@ -572,8 +578,8 @@ def test_the_fit_stops_on_a_step_the_float32_loss_cannot_resolve(monkeypatch, fl
         grad = jnp.stack([-8e-4 * jnp.sin(40.0 * x[0]), -7.4e-4 * jnp.sin(37.0 * x[1])])
         return value, grad
 
-    monkeypatch.setattr(fit, "_chunked_value_and_grad", plateau)
-    _, history = fit._solve(jnp.asarray([0.31, 0.62]), None, None, 2, None, 10, 1e-4, 1)
+    monkeypatch.setattr(solve, "design_value_and_grad_chunked", plateau)
+    _, history = solve.solve_box(jnp.asarray([0.31, 0.62]), None, None, 2, None, 10, 1e-4, 1)
     assert 2 <= len(history) <= most_steps + 1
     if flat_step is None:  # FLAT_STEP stops at once: one step, then the flat test
         assert len(history) == 2

@@ -114,8 +114,8 @@ def test_cli_lenticular_refuses_what_a_lenticular_design_cannot_honour(capsys, t
 
 
 def test_finished_counts_are_kept_and_resumed(tmp_path, monkeypatch):
-    """Each finished count is kept in counts_dir; the same inputs load it (the score
-    functions are replaced by counters: this tests the keeping, not the optics)."""
+    """Each finished count is kept in counts_dir by the one runner; the same inputs load it
+    (the score functions are replaced by counters: this tests the keeping, not the optics)."""
     calls = []
 
     def fake_score(lens, eyes, depths, cdp, **kw):
@@ -124,14 +124,22 @@ def test_finished_counts_are_kept_and_resumed(tmp_path, monkeypatch):
 
     monkeypatch.setattr(dl, "score_lenticular", fake_score)
     monkeypatch.setattr(dl, "natural_peaks_D", lambda *a, **k: np.zeros(1))
-    kw = dict(depth_range_D=(1.0, 3.0), eyes=sample_eyes(0, 1), views=(1, 2, 3),
-              counts_dir=tmp_path / "kept")
+    target = dl.lenticular_target((1.0, 3.0), views=(1, 2, 3))
+    kw = dict(counts_dir=tmp_path / "kept")
     said = []
-    first = dl.fit_lenticular_design(design_panel("phone", 2.0), progress=said.append, **kw)
+    first = dl.fit_lenticular_design(design_panel("phone", 2.0), target, sample_eyes(0, 1),
+                                     progress=said.append, **kw)
     assert len(calls) == 2 and first.best.n_views == 3
-    second = dl.fit_lenticular_design(design_panel("phone", 2.0), progress=said.append, **kw)
-    assert len(calls) == 2 and all("resumed" in line for line in said[3:])
+    assert said[0].startswith("plan: lenticular") and said[1].startswith("design 1x1: refused: one strip")
+    assert sorted(p.name for p in (tmp_path / "kept").iterdir()) == ["lenticular-2.json", "lenticular-3.json"]
+    said.clear()
+    second = dl.fit_lenticular_design(design_panel("phone", 2.0), target, sample_eyes(0, 1),
+                                      progress=said.append, **kw)
+    assert len(calls) == 2 and [line.split(":")[0] for line in said[1:]] == [
+        "design 1x1", "design 1x2", "design 1x3"]
+    assert all("resumed" in line for line in said[2:])
     assert [f.score for f in second.fits] == [f.score for f in first.fits]
     assert math.isclose(float(second.fits[2].panel.gap_mm), float(first.fits[2].panel.gap_mm))
-    dl.fit_lenticular_design(design_panel("phone", 2.0), tolerance_D=0.2, **kw)  # other inputs
+    dl.fit_lenticular_design(design_panel("phone", 2.0), target, sample_eyes(0, 1),
+                             tolerance_D=0.2, **kw)  # other inputs
     assert len(calls) == 4

@@ -210,14 +210,14 @@ def test_problem_refuses_the_paper_reference_and_bad_depths():
         with pytest.raises(ValueError, match="depths_D"):
             lo.make_problem(eye, depths, CONSTRAINTS, sampling=SAMPLING)
     with pytest.raises(ValueError, match="window_D"):
-        lo.make_problem(eye, DEPTHS, CONSTRAINTS, "accommodation", sampling=SAMPLING, window_D=0.0)
+        lo.ProblemSetting(window_D=0.0)
     with pytest.raises(ValueError, match="accuracy"):
-        lo.make_problem(eye, DEPTHS, CONSTRAINTS, sampling=SAMPLING, accuracy="precise")
+        lo.ProblemSetting(accuracy="precise")
     with pytest.raises(ValueError, match="peak_method"):
-        lo.make_problem(eye, DEPTHS, CONSTRAINTS, sampling=SAMPLING, peak_method="auto")
+        lo.ProblemSetting(peak_method="auto")
     with pytest.raises(ValueError, match="peak_step_D"):
-        lo.make_problem(eye, DEPTHS, CONSTRAINTS, sampling=SAMPLING, peak_step_D=1.0,
-                        peak_margin_D=0.0)
+        lo.make_problem(eye, DEPTHS, CONSTRAINTS, sampling=SAMPLING,
+                        setting=lo.ProblemSetting(peak_step_D=1.0, peak_margin_D=0.0))
 
 
 def test_optimiser_arguments_are_checked(dl_problem):
@@ -369,7 +369,8 @@ def pinhole(diameter_mm=0.94):
 def seeded_problem():
     """Three seeded eyes, depths 0, 2 (the CDP) and 4 D, 550 nm, refined ("local") peaks."""
     return lo.make_problem(lfjax.sample_eyes(11, 3), [0.0, 2.0, 4.0], CONSTRAINTS,
-                           wavelengths_nm=WAVELENGTHS, sampling=SAMPLING, peak_method="local")
+                           wavelengths_nm=WAVELENGTHS, sampling=SAMPLING,
+                           setting=lo.ProblemSetting(peak_method="local"))
 
 
 def test_collapsed_pinhole_is_reported_as_through_focus_sees_it(seeded_problem):
@@ -416,7 +417,8 @@ def test_a_peak_on_the_window_edge_counts_as_a_failure():
     z[0, 4] = -0.3248
     eye = lfjax.Eyes(z, 3.0)
     problem = lo.make_problem(eye, [0.0, 2.0, 4.0], CONSTRAINTS, wavelengths_nm=WAVELENGTHS,
-                              sampling=SAMPLING, peak_margin_D=0.25)
+                              sampling=SAMPLING,
+                              setting=lo.ProblemSetting(peak_margin_D=0.25))
     ev = lo.evaluate_layout(lo.tangent_lattice("square", 4), problem)
     edge = ev["values"]["peak_at_edge"][0]
     assert edge.tolist() == [False, True, True]
