@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lfjax._version import __version__
+from lfjax._version import stamp
 from lfjax.base.errors import ParameterError
 from lfjax.base.parabola import parabola_vertex
 from lfjax.base.programs import in_callers_jax_context
@@ -501,8 +501,6 @@ def _dataset_attrs(config: StudyConfig, options: ModelOptions, eyes: Eyes) -> di
     attrs = {
         "title": "lfjax reproduction of Miyanishi, Sahin & Gotchev: eyes viewing a "
                  "light-field display",
-        "lfjax_version": __version__,
-        "jax_version": jax.__version__,
         "units": "depths and accommodation in dioptres (D, absolute 1/m; 0 D = infinity); "
                  "frequency in cycles per degree (cpd); Zernike coefficients in um",
         "pupil_diameter_mm": float(config.pupil_diameter_mm),
@@ -515,8 +513,10 @@ def _dataset_attrs(config: StudyConfig, options: ModelOptions, eyes: Eyes) -> di
                            "planned per layout: wavelengths_json, spectral_rule, wavelength_step_nm"),
         "accuracy_plan": config.accuracy,
         "model_options_json": json.dumps(options.as_dict()),
-        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
+    # the one provenance stamp (lfjax._version.stamp); netCDF attributes cannot hold None,
+    # so a source tree that is no git checkout records its commit as ""
+    attrs.update({key: "" if value is None else value for key, value in stamp().items()})
     for key, value in options.as_dict().items():
         attrs[f"option_{key}"] = str(value) if isinstance(value, bool) else value
     attrs.update(config.as_attrs())

@@ -22,6 +22,7 @@ import jax
 import numpy as np
 from jax.experimental import multihost_utils
 
+from lfjax._version import utc_now
 from lfjax.sweep.compute import ChunkEvaluator, build_tasks, population
 from lfjax.sweep.config import SweepConfig
 from lfjax.sweep.guard import check_fits, estimate
@@ -38,7 +39,6 @@ from lfjax.sweep.store import (
     stored_spectra,
     template,
     unmark_chunks,
-    utc_now,
     verify_store,
     write_chunk,
 )

@@ -20,23 +20,20 @@ pupil of a store as the reproduction's study Dataset, so the paper's claims
 from __future__ import annotations
 
 import dataclasses
-import datetime
 import errno
 import hashlib
 import json
 import os
 import shutil
 import socket
-import subprocess
 import warnings
 from pathlib import Path
 
-import jax
 import numpy as np
 
 from lfjax.base.files import (owned_temp_dir, pid_alive, register_emergency_cleanup,
                               remove_orphans, unregister_emergency_cleanup)
-from lfjax._version import __version__
+from lfjax._version import __version__, stamp, utc_now
 from lfjax.vision.peaks import METRICS
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import make_spectrum
@@ -140,11 +137,12 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         sub_diam[t.key] = float(np.max(np.asarray(t.layout.diameters_mm)))
         samplings[f"{t.pupil_index},{t.layout_index}"] = dataclasses.asdict(t.sampling)
     record = _stored_record(config)
+    made = stamp()  # who made the store (provenance_json); the version also heads the attrs
     attrs = {
         "title": "lfjax population sweep: eyes viewing a light-field display",
         "format": STORE_FORMAT,
         "lfjax_version": record["lfjax_version"],
-        "jax_version": jax.__version__,
+        "jax_version": made["jax_version"],
         "config_json": json.dumps(record["config"], sort_keys=True),
         "config_toml": config_to_toml(config),
         "model_options_json": json.dumps(config.options.as_dict(), sort_keys=True),
@@ -181,7 +179,7 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         "n_chunks": int(config.n_chunks),
         "chunk_size": int(config.chunk_size),
         "checksum_scheme": CHECKSUM_SCHEME,
-        "provenance_json": json.dumps(provenance(), sort_keys=True),
+        "provenance_json": json.dumps(made, sort_keys=True),
     }
     metric_note = "metric axis: vsotf, strehl"
     ds = xr.Dataset(
@@ -258,39 +256,6 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         attrs=attrs,
     )
     return ds
-
-
-def utc_now() -> str:
-    """The time now, UTC, to the second (ISO 8601): when a store or a run was created or ended."""
-    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-
-
-def _git_commit() -> str | None:
-    """The commit of the lfjax source tree, when it is a git checkout (else None)."""
-    here = Path(__file__).resolve().parents[2]
-    if not (here / ".git").exists():
-        return None
-    try:
-        out = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=5)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return (out.stdout.strip() or None) if out.returncode == 0 else None
-
-
-def provenance() -> dict:
-    """Who made a store: lfjax version and git commit, JAX version and devices, host, time."""
-    devices = jax.devices()
-    return {
-        "lfjax_version": __version__,
-        "lfjax_git_commit": _git_commit(),
-        "jax_version": jax.__version__,
-        "jax_backend": jax.default_backend(),
-        "jax_devices": f"{len(devices)} x {devices[0].device_kind}",
-        "process_count": jax.process_count(),
-        "host": socket.gethostname(),
-        "created_utc": utc_now(),
-    }
 
 
 def record_run(path, started_utc: str, computed: list[int]) -> None:
@@ -959,7 +924,6 @@ __all__ = [
     "chunk_checksum",
     "clean_interrupted_creations",
     "is_disk_full",
-    "provenance",
     "record_run",
     "unmark_chunks",
     "verify_store",

@@ -33,6 +33,7 @@ from lfjax.sweep import (
     run_sweep,
     study_view,
 )
+from lfjax._version import STAMP_KEYS
 from lfjax.sweep.compute import build_tasks, population, sweep_spectrum
 from lfjax.sweep.store import (
     StoreLockedError,
@@ -478,6 +479,7 @@ def test_store_opens_consolidated_and_records_its_provenance(reference):
     assert made["lfjax_version"] == lfjax.__version__ and made["jax_version"] == jax.__version__
     assert made["host"] == socket.gethostname() and made["jax_devices"] == "1 x cpu"
     assert "lfjax_git_commit" in made and made["created_utc"].endswith("+00:00")
+    assert list(made) == sorted(STAMP_KEYS)  # the one stamp (lfjax._version.stamp), sorted
     first = json.loads(ds.attrs["runs_json"])[0]
     assert first["chunks_computed"] == 3 and first["host"] == socket.gethostname()
     assert made["created_utc"] <= first["ended_utc"] <= ds.attrs["completed_utc"]
