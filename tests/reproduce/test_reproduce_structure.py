@@ -1,5 +1,5 @@
 """`lfjax.reproduce` and `lfjax.sweep` import their parts in one direction:
-config ← study ← settling ← alternatives/report/figures ← entry, and config ← compute ← … ← report.
+config ← study ← settling ← alternatives/report/figures ← run ← face, and config ← compute ← … ← report.
 
 Parsed with ``ast`` (nothing is imported or run). The rules for the whole package (layers,
 no circle, no deferred imports) are in ``tests/test_import_layers.py``; these are the finer
@@ -20,7 +20,8 @@ LAYERS = {
     "alternatives": 3,
     "report": 3,
     "figures": 3,
-    "__init__": 4,
+    "run": 4,
+    "__init__": 5,
 }
 """Each part may import only parts of a strictly lower layer (lower: closer to the data)."""
 

@@ -267,11 +267,11 @@ def test_a_killed_reproduce_leaves_no_hidden_folder_after_the_next_run(tmp_path,
     import sys
 
     from lfjax import cli
-    from lfjax import reproduce as rep
+    from lfjax.reproduce import run as rep  # where reproduce looks its parts up
 
     gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True, check=True)
-    orphan = tmp_path / f".lfjax-reproduce-{socket.gethostname()}-{int(gone.stdout)}-x1y2"
+    orphan = tmp_path / f".lfjax-staging-res-{socket.gethostname()}-{int(gone.stdout)}-x1y2"
     orphan.mkdir()
     (orphan / "results.nc").write_text("half written")
 
@@ -283,7 +283,7 @@ def test_a_killed_reproduce_leaves_no_hidden_folder_after_the_next_run(tmp_path,
     monkeypatch.setattr(cli.common, "enable_compilation_cache", lambda folder=None: None)
     code = cli.main(["reproduce", "--quick", "--no-progress", "--out", str(tmp_path / "res")])
     assert code == 1
-    assert "removed 1 folder(s) left by an interrupted lfjax reproduce" in capsys.readouterr().err
+    assert "removed 1 folder(s) left by an interrupted run" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
 
 
