@@ -26,8 +26,9 @@ from lfjax.sweep import (
 )
 from lfjax.sweep.config import config_template
 from lfjax.sweep.run import check_store_target
-from lfjax.sweep.store import (StoreDamagedError, StoreLockedError, StoreRaceError,
-                               is_disk_full, verify_store)
+from lfjax.sweep.store import is_disk_full, StoreRaceError
+from lfjax.sweep.store_checks import StoreDamagedError, verify_store
+from lfjax.sweep.store_lock import StoreLockedError
 
 COMMAND = "sweep"
 

@@ -23,7 +23,8 @@ from lfjax.sweep.config import (
 from lfjax.sweep.guard import SweepEstimate, SweepTooLargeError, estimate
 from lfjax.sweep.report import sweep_report
 from lfjax.sweep.run import SweepRun, plan_sweep, run_sweep
-from lfjax.sweep.store import StoreMismatchError, completed_chunks, open_store, study_view
+from lfjax.sweep.store import open_store, study_view
+from lfjax.sweep.store_checks import completed_chunks, StoreMismatchError
 from lfjax.sweep.ten_eyes import ten_eye_claims, ten_eye_markdown
 
 __all__ = [

@@ -35,12 +35,9 @@ from lfjax.sweep import (
 )
 from lfjax._version import STAMP_KEYS
 from lfjax.sweep.compute import build_tasks, population, sweep_spectrum
-from lfjax.sweep.store import (
-    StoreLockedError,
-    clean_interrupted_creations,
-    lock_path,
-    verify_store,
-)
+from lfjax.sweep.store import clean_interrupted_creations
+from lfjax.sweep.store_checks import verify_store
+from lfjax.sweep.store_lock import lock_path, StoreLockedError
 
 TINY = {
     "population": {"n_eyes": 5, "seed": 3},
@@ -585,7 +582,7 @@ def test_damaged_bookkeeping_and_coefficients_are_named_and_recomputed_on_resume
 def test_the_configuration_and_coordinates_are_covered_by_a_checksum(reference, tmp_path,
                                                                       capsys):
     from lfjax.cli import main
-    from lfjax.sweep.store import StoreDamagedError
+    from lfjax.sweep.store_checks import StoreDamagedError
 
     config, ref_path, _ = reference
     assert verify_store(ref_path).problems == []
