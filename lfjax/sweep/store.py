@@ -99,20 +99,25 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
     creating a store takes memory of one chunk, not of the whole population."""
     import xarray as xr
 
-    n_eye = int(np.shape(zernike_um)[0])
+    spectra = spectral_record(config, tasks)
+    plan = _task_arrays(config, tasks, spectra)
+    data_vars = _result_variables(config, int(np.shape(zernike_um)[0]))
+    data_vars.update(_setup_variables(config, zernike_um, plan))
+    return xr.Dataset(data_vars=data_vars,
+                      coords=_coordinates(config, zernike_um, is_average, plan),
+                      attrs=_store_attrs(config, spectra, plan["samplings"]))
+
+
+def _task_arrays(config: SweepConfig, tasks: list[Task], spectra: dict) -> dict:
+    """Each (pupil, layout)'s plan as arrays (pupil, layout): ``steps`` (frequency step,
+    cpd), ``n_fft``, ``n_sub`` (subapertures), ``sub_diam`` (mm), ``n_wl`` (wavelengths),
+    and ``samplings`` ({"pupil_index,layout_index": Sampling as a dict})."""
     n_pupil, n_layout = len(config.pupil_diameters_mm), len(config.layouts)
-    depths = config.depths_D
-    acc = config.accommodation_D
-    base = (n_eye, n_pupil, n_layout, depths.size)
-    dims5 = ("eye", "pupil", "layout", "depth")
-    nan = lambda shape, dtype=np.float32: np.full(shape, np.nan, dtype)  # noqa: E731
-    per_metric = base + (len(METRICS),)
     steps = np.full((n_pupil, n_layout), np.nan)
     n_fft = np.zeros((n_pupil, n_layout), np.int32)
     n_sub = np.zeros((n_pupil, n_layout), np.int32)
     sub_diam = np.full((n_pupil, n_layout), np.nan)
     samplings = {}
-    spectra = spectral_record(config, tasks)
     n_wl = np.zeros((n_pupil, n_layout), np.int32)
     for t in tasks:
         n_wl[t.key] = spectra[f"{t.pupil_index},{t.layout_index}"]["n_wavelengths"]
@@ -121,9 +126,17 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         n_sub[t.key] = t.layout.n_subapertures
         sub_diam[t.key] = float(np.max(np.asarray(t.layout.diameters_mm)))
         samplings[f"{t.pupil_index},{t.layout_index}"] = dataclasses.asdict(t.sampling)
+    return dict(steps=steps, n_fft=n_fft, n_sub=n_sub, sub_diam=sub_diam, n_wl=n_wl,
+                samplings=samplings)
+
+
+def _store_attrs(config: SweepConfig, spectra: dict, samplings: dict) -> dict:
+    """The store's attributes: its format, the configuration it was made by (what a resume
+    is checked against), the units, the spectra and samplings planned, and its provenance
+    (:func:`lfjax._version.stamp`)."""
     record = stored_record(config)
     made = stamp()  # who made the store (provenance_json); the version also heads the attrs
-    attrs = {
+    return {
         "title": "lfjax population sweep: eyes viewing a light-field display",
         "format": STORE_FORMAT,
         "lfjax_version": record["lfjax_version"],
@@ -166,81 +179,101 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         "checksum_scheme": CHECKSUM_SCHEME,
         "provenance_json": json.dumps(made, sort_keys=True),
     }
+
+
+def _result_variables(config: SweepConfig, n_eye: int) -> dict:
+    """The eye variables (NaN until their chunk is written): {name: (dims, values, attrs)}."""
+    n_pupil, n_layout = len(config.pupil_diameters_mm), len(config.layouts)
+    acc = config.accommodation_D
+    base = (n_eye, n_pupil, n_layout, config.depths_D.size)
+    dims5 = ("eye", "pupil", "layout", "depth")
+    nan = lambda shape, dtype=np.float32: np.full(shape, np.nan, dtype)  # noqa: E731
+    per_metric = base + (len(METRICS),)
     metric_note = "metric axis: vsotf, strehl"
-    ds = xr.Dataset(
-        data_vars=dict(
-            vsotf=(dims5 + ("accommodation",), nan(base + (acc.size,)), {
-                "long_name": "visual Strehl ratio computed from the OTF (VSOTF); NaN outside "
-                             "each depth's window and, for natural view, off the CDP",
-                "units": "1"}),
-            strehl=(dims5 + ("accommodation",), nan(base + (acc.size,)), {
-                "long_name": "Strehl ratio (PSF peak / reference PSF peak)", "units": "1"}),
-            predicted_accommodation=(dims5 + ("metric",), nan(per_metric, np.float64), {
-                "long_name": f"accommodation state maximising the metric on the grid "
-                             f"({metric_note})", "units": "D"}),
-            accommodation_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
-                "long_name": "grid predicted accommodation minus rendered depth (negative: "
-                             "focused farther than the image)", "units": "D"}),
-            predicted_accommodation_continuous=(dims5 + ("metric",), nan(per_metric, np.float64), {
-                "long_name": f"continuous peak refined from the grid (lfjax.vision.peaks "
-                             f"{config.peak_method!r}); NaN for metrics not in "
-                             f"continuous_peaks", "units": "D"}),
-            continuous_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
-                "long_name": "continuous predicted accommodation minus rendered depth",
-                "units": "D"}),
-            continuous_peak_success=(dims5 + ("metric",), np.zeros(per_metric, bool), {
-                "long_name": "the continuous peak converged inside its bracket"}),
-            peak_value=(dims5 + ("metric",), nan(per_metric), {
-                "long_name": "metric value at its grid peak", "units": "1"}),
-            cutoff_frequency=(dims5 + ("metric",), nan(per_metric), {
-                "long_name": f"frequency where the radial MTF at the grid-predicted "
-                             f"accommodation falls to {config.cutoff_threshold:g}",
-                "units": "cpd"}),
-            mtf_at_peak=(dims5 + ("metric", "frequency"), nan(per_metric + (FREQUENCIES_CPD.size,)), {
-                "long_name": "radial (meridian-averaged) MTF at the grid-predicted "
-                             "accommodation", "units": "1"}),
-            zernike_um=(("eye", "zernike_j"), np.asarray(zernike_um, float), {
-                "long_name": "OSA/ANSI Zernike coefficients on the measured pupil "
-                             "(piston and tilt zeroed)", "units": "um"}),
-            freq_step_cpd=(("pupil", "layout"), steps, {
-                "long_name": "frequency step of the OTF grid (PSF field 60/df arcmin)",
-                "units": "cpd"}),
-            n_fft=(("pupil", "layout"), n_fft, {"long_name": "FFT size of the OTF grid"}),
-            n_wavelengths=(("pupil", "layout"), n_wl, {
-                "long_name": "wavelengths summed (the rule, its nodes and weights: attribute "
-                             "spectra_json)"}),
-            chunk_complete=(("chunk",), np.zeros(config.n_chunks, bool), {
-                "long_name": "the chunk's eyes are written (eyes chunk*chunk_size …)"}),
-            chunk_checksum=(("chunk",), np.zeros(config.n_chunks, np.uint64), {
-                "long_name": "BLAKE2b-64 of the chunk's eye variables and its eyes' "
-                             "zernike_um as written (lfjax.sweep.store_checks.chunk_checksum; 0: not "
-                             "written); the configuration and the other arrays: attribute "
-                             "metadata_checksum"}),
-        ),
-        coords=dict(
-            eye=("eye", np.arange(n_eye)),
-            is_average=("eye", np.asarray(is_average, bool),
-                        {"long_name": "the Thibos et al. (2002) average eye"}),
-            pupil=("pupil", np.asarray(config.pupil_diameters_mm, float),
-                   {"long_name": "calculation pupil diameter", "units": "mm"}),
-            layout=("layout", [layout_name(e) for e in config.layouts]),
-            layout_entry=("layout", list(config.layouts)),
-            n_subapertures=(("pupil", "layout"), n_sub),
-            subaperture_diameter_mm=(("pupil", "layout"), sub_diam, {"units": "mm"}),
-            depth=("depth", depths, {"long_name": "rendered depth (absolute)", "units": "D"}),
-            depth_rel_cdp=("depth", np.round(depths - config.cdp_D, 9), {
-                "long_name": "rendered depth relative to the CDP", "units": "D"}),
-            accommodation=("accommodation", acc, {
-                "long_name": "absolute accommodation state 1/z_acc", "units": "D"}),
-            metric=("metric", list(METRICS)),
-            frequency=("frequency", FREQUENCIES_CPD, {"long_name": "spatial frequency",
-                                                      "units": "cpd"}),
-            zernike_j=("zernike_j", np.arange(np.shape(zernike_um)[1])),
-            chunk=("chunk", np.arange(config.n_chunks)),
-        ),
-        attrs=attrs,
+    return dict(
+        vsotf=(dims5 + ("accommodation",), nan(base + (acc.size,)), {
+            "long_name": "visual Strehl ratio computed from the OTF (VSOTF); NaN outside "
+                         "each depth's window and, for natural view, off the CDP",
+            "units": "1"}),
+        strehl=(dims5 + ("accommodation",), nan(base + (acc.size,)), {
+            "long_name": "Strehl ratio (PSF peak / reference PSF peak)", "units": "1"}),
+        predicted_accommodation=(dims5 + ("metric",), nan(per_metric, np.float64), {
+            "long_name": f"accommodation state maximising the metric on the grid "
+                         f"({metric_note})", "units": "D"}),
+        accommodation_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
+            "long_name": "grid predicted accommodation minus rendered depth (negative: "
+                         "focused farther than the image)", "units": "D"}),
+        predicted_accommodation_continuous=(dims5 + ("metric",), nan(per_metric, np.float64), {
+            "long_name": f"continuous peak refined from the grid (lfjax.vision.peaks "
+                         f"{config.peak_method!r}); NaN for metrics not in "
+                         f"continuous_peaks", "units": "D"}),
+        continuous_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
+            "long_name": "continuous predicted accommodation minus rendered depth",
+            "units": "D"}),
+        continuous_peak_success=(dims5 + ("metric",), np.zeros(per_metric, bool), {
+            "long_name": "the continuous peak converged inside its bracket"}),
+        peak_value=(dims5 + ("metric",), nan(per_metric), {
+            "long_name": "metric value at its grid peak", "units": "1"}),
+        cutoff_frequency=(dims5 + ("metric",), nan(per_metric), {
+            "long_name": f"frequency where the radial MTF at the grid-predicted "
+                         f"accommodation falls to {config.cutoff_threshold:g}",
+            "units": "cpd"}),
+        mtf_at_peak=(dims5 + ("metric", "frequency"), nan(per_metric + (FREQUENCIES_CPD.size,)), {
+            "long_name": "radial (meridian-averaged) MTF at the grid-predicted "
+                         "accommodation", "units": "1"}),
     )
-    return ds
+
+
+def _setup_variables(config: SweepConfig, zernike_um, plan: dict) -> dict:
+    """The eyes' coefficients, each (pupil, layout)'s plan and the chunk bookkeeping:
+    {name: (dims, values, attrs)}."""
+    return dict(
+        zernike_um=(("eye", "zernike_j"), np.asarray(zernike_um, float), {
+            "long_name": "OSA/ANSI Zernike coefficients on the measured pupil "
+                         "(piston and tilt zeroed)", "units": "um"}),
+        freq_step_cpd=(("pupil", "layout"), plan["steps"], {
+            "long_name": "frequency step of the OTF grid (PSF field 60/df arcmin)",
+            "units": "cpd"}),
+        n_fft=(("pupil", "layout"), plan["n_fft"], {"long_name": "FFT size of the OTF grid"}),
+        n_wavelengths=(("pupil", "layout"), plan["n_wl"], {
+            "long_name": "wavelengths summed (the rule, its nodes and weights: attribute "
+                         "spectra_json)"}),
+        chunk_complete=(("chunk",), np.zeros(config.n_chunks, bool), {
+            "long_name": "the chunk's eyes are written (eyes chunk*chunk_size …)"}),
+        chunk_checksum=(("chunk",), np.zeros(config.n_chunks, np.uint64), {
+            "long_name": "BLAKE2b-64 of the chunk's eye variables and its eyes' "
+                         "zernike_um as written (lfjax.sweep.store_checks.chunk_checksum; 0: not "
+                         "written); the configuration and the other arrays: attribute "
+                         "metadata_checksum"}),
+    )
+
+
+def _coordinates(config: SweepConfig, zernike_um, is_average, plan: dict) -> dict:
+    """The store's coordinates: {name: (dims, values[, attrs])}."""
+    n_eye = int(np.shape(zernike_um)[0])
+    depths = config.depths_D
+    acc = config.accommodation_D
+    return dict(
+        eye=("eye", np.arange(n_eye)),
+        is_average=("eye", np.asarray(is_average, bool),
+                    {"long_name": "the Thibos et al. (2002) average eye"}),
+        pupil=("pupil", np.asarray(config.pupil_diameters_mm, float),
+               {"long_name": "calculation pupil diameter", "units": "mm"}),
+        layout=("layout", [layout_name(e) for e in config.layouts]),
+        layout_entry=("layout", list(config.layouts)),
+        n_subapertures=(("pupil", "layout"), plan["n_sub"]),
+        subaperture_diameter_mm=(("pupil", "layout"), plan["sub_diam"], {"units": "mm"}),
+        depth=("depth", depths, {"long_name": "rendered depth (absolute)", "units": "D"}),
+        depth_rel_cdp=("depth", np.round(depths - config.cdp_D, 9), {
+            "long_name": "rendered depth relative to the CDP", "units": "D"}),
+        accommodation=("accommodation", acc, {
+            "long_name": "absolute accommodation state 1/z_acc", "units": "D"}),
+        metric=("metric", list(METRICS)),
+        frequency=("frequency", FREQUENCIES_CPD, {"long_name": "spatial frequency",
+                                                  "units": "cpd"}),
+        zernike_j=("zernike_j", np.arange(np.shape(zernike_um)[1])),
+        chunk=("chunk", np.arange(config.n_chunks)),
+    )
 
 
 def record_run(path, started_utc: str, computed: list[int]) -> None:
