@@ -24,7 +24,7 @@ from lfjax.sweep import (
     plan_sweep,
     run_sweep,
 )
-from lfjax.sweep.config import config_template
+from lfjax.sweep.config_files import config_template
 from lfjax.sweep.run import check_store_target
 from lfjax.sweep.store import is_disk_full, StoreRaceError
 from lfjax.sweep.store_checks import StoreDamagedError, verify_store

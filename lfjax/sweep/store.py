@@ -42,7 +42,8 @@ from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import make_spectrum
 from lfjax.sweep.compute import (FREQUENCIES_CPD, Task, layout_name, spectral_plans,
                                  sweep_spectra)
-from lfjax.sweep.config import SweepConfig, config_to_toml
+from lfjax.sweep.config import SweepConfig
+from lfjax.sweep.config_files import config_to_toml
 from lfjax.sweep.store_checks import (
     BOOKKEEPING,
     CHECKSUM_SCHEME,

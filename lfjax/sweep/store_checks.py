@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from lfjax._version import __version__
-from lfjax.sweep.config import SweepConfig, config_differences, with_new_defaults
+from lfjax.sweep.config import SweepConfig
+from lfjax.sweep.config_files import config_differences, with_new_defaults
 
 STORE_FORMAT = "lfjax-sweep-store/1"
 

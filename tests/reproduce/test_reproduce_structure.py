@@ -115,10 +115,11 @@ def test_the_check_sees_a_cycle(tmp_path):
 
 
 SWEEP = LFJAX / "sweep"
-SWEEP_LAYERS = {"config": 0, "compute": 1, "store_checks": 1, "store_lock": 1, "guard": 2,
-                "store": 2, "run": 3, "ten_eyes": 3, "report": 4, "__init__": 5}
-"""lfjax.sweep: config ← compute / store_checks / store_lock ← guard / store ← run / ten_eyes
-← report ← entry."""
+SWEEP_LAYERS = {"config_keys": 0, "config": 1, "config_files": 2, "compute": 3,
+                "store_checks": 3, "store_lock": 3, "guard": 4, "store": 4, "run": 5,
+                "ten_eyes": 5, "report": 6, "__init__": 7}
+"""lfjax.sweep: config_keys ← config ← config_files ← compute / store_checks / store_lock ←
+guard / store ← run / ten_eyes ← report ← entry."""
 
 
 def test_sweep_parts_import_only_lower_layers():

@@ -215,7 +215,7 @@ def test_strip_and_leakage_keys_reach_each_layouts_display(tmp_path):
     record from before them resumes while they are at their defaults."""
     from lfjax.model.strips import neighbour_matrix
     from lfjax.sweep.compute import resolve_layout
-    from lfjax.sweep.config import config_differences, with_new_defaults
+    from lfjax.sweep.config_files import config_differences, with_new_defaults
 
     plain = tiny_config()
     for entry in plain.layouts:
@@ -775,7 +775,7 @@ def test_guide_config_lists_every_key_with_its_default():
     import re
 
     from lfjax.sweep import SweepConfig
-    from lfjax.sweep.config import _SCHEMA
+    from lfjax.sweep.config import SCHEMA
 
     guide = Path(__file__).resolve().parents[2] / "docs" / "guides" / "population-sweeps.md"
     guide = guide.read_text()
@@ -783,7 +783,7 @@ def test_guide_config_lists_every_key_with_its_default():
     data = tomllib.loads(block)
     assert config_from_dict(data).as_dict() == SweepConfig().as_dict()
     commented = set(re.findall(r"^# (\w+) =", block, re.M))
-    for section, keys in _SCHEMA.items():
+    for section, keys in SCHEMA.items():
         missing = [k for k in keys if k not in data.get(section, {}) and k not in commented]
         assert not missing, (section, missing)
 

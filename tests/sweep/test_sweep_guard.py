@@ -18,7 +18,7 @@ from lfjax.sweep import (
     load_config,
     run_sweep,
 )
-from lfjax.sweep.config import config_template
+from lfjax.sweep.config_files import config_template
 from lfjax.sweep.guard import check_fits
 
 ONE_EYE = {
@@ -38,12 +38,12 @@ def one_eye(**sections) -> dict:
 
 
 def toml_text(data: dict) -> str:
-    from lfjax.sweep.config import _toml_value
+    from lfjax.sweep.config_keys import toml_value
 
     lines = []
     for section, body in data.items():
         lines.append(f"[{section}]")
-        lines += [f"{k} = {_toml_value(v)}" for k, v in body.items()]
+        lines += [f"{k} = {toml_value(v)}" for k, v in body.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -69,7 +69,8 @@ def test_every_key_is_declared_once_and_its_declared_range_is_enforced():
     docstring."""
     import dataclasses
 
-    from lfjax.sweep.config import KEYS, OneOf, Range
+    from lfjax.sweep.config import KEYS
+    from lfjax.sweep.config_keys import OneOf, Range
 
     fields = [f.name for f in dataclasses.fields(SweepConfig)
               if f.name not in ("options", "base_dir")]
@@ -244,11 +245,11 @@ def test_lenslet_aberrations_with_strips_are_refused_by_the_config():
 
 def test_template_writes_every_key_with_its_default(tmp_path, capsys):
     from lfjax.cli import main
-    from lfjax.sweep.config import _SCHEMA
+    from lfjax.sweep.config import SCHEMA
 
     text = config_template()
     assert config_from_dict(tomllib.loads(text)).as_dict() == SweepConfig().as_dict()
-    for section, keys in _SCHEMA.items():
+    for section, keys in SCHEMA.items():
         for key in keys:
             assert f"\n{key} = " in text or f"\n# {key} = " in text, key
     target = tmp_path / "new.toml"

@@ -207,7 +207,7 @@ def test_stored_config_rebuilds_json_layouts(tmp_path):
     from lfjax.layout_opt import save_layout_json
     from lfjax.model.layouts import make_layout
     from lfjax.sweep.compute import resolve_layout
-    from lfjax.sweep.config import config_to_toml
+    from lfjax.sweep.config_files import config_to_toml
 
     layout = make_layout([[-0.6, 0.0], [0.6, 0.0]], [1.0, 1.2], 3.0, name="pair")
     save_layout_json(tmp_path / "pair.json", layout, 3.0)
