@@ -100,6 +100,7 @@ __all__ = [
     "settle",
     "study_eyes",
     "study_sampling",
+    "study_wavelength_rules",
     "summary_table",
     "write_display_outputs",
     "write_report",

@@ -238,8 +238,9 @@ class StageBar:
     def __init__(self, stages: list[str], progress: bool = True):
         from tqdm.auto import tqdm
 
-        self.bar = tqdm(total=len(stages), unit="stage", disable=not progress, dynamic_ncols=True,
-                        bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} stages [{elapsed}<{remaining}]")
+        self.bar = tqdm(total=len(stages), unit="stage", disable=not progress,
+                        dynamic_ncols=True, bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} "
+                        "stages [{elapsed}<{remaining}]")
         self.timings: dict[str, float] = {}
         self._name: str | None = None
         self._t = time.perf_counter()

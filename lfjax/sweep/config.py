@@ -3,21 +3,23 @@
 :class:`SweepConfig` names the population (eyes, seed, pupils), the display (layouts, CDP,
 rendered depths), the accommodation grid, the spectrum, the sampling, the metrics, the model
 options and the chunk size. :func:`config_from_dict` takes the TOML structure as a dict
-(:func:`lfjax.sweep.config_files.load_config` reads a TOML file). Every problem found (unknown keys, values of the wrong
-type or unit, impossible ranges) is collected and raised once as :class:`SweepConfigError`,
-one line per problem, so a user fixes the file in one pass.
+(:func:`lfjax.sweep.config_files.load_config` reads a TOML file). Every problem found
+(unknown keys, values of the wrong type or unit, impossible ranges) is collected and raised
+once as :class:`~lfjax.sweep.config_keys.SweepConfigError`, one line per problem, so a user
+fixes the file in one pass.
 
 Each key is declared once, on its :class:`SweepConfig` field: the field gives its name, type
-and default, and its metadata (a :class:`Key`) its section, unit, help line, allowed values
-and an example (the vocabulary: :mod:`lfjax.sweep.config_keys`). :data:`KEYS` collects
-them; the TOML schema, the type and range checks,
-:func:`~lfjax.sweep.config_files.config_template` and the key list in ``SweepConfig``'s docstring are derived from
-it. Checks that relate several keys (a pupil against the measured pupil, a depth against
-the CDP, …) are written once, below the keys.
+and default, and its metadata (a :class:`~lfjax.sweep.config_keys.Key`) its section, unit,
+help line, allowed values and an example (the vocabulary: :mod:`lfjax.sweep.config_keys`).
+:data:`KEYS` collects them; the TOML schema (:data:`SCHEMA`), the type and range checks,
+:func:`~lfjax.sweep.config_files.config_template` and the key list in ``SweepConfig``'s
+docstring are derived from it. Checks that relate several keys (a pupil against the measured
+pupil, a depth against the CDP, …) are written once, below the keys.
 
-Units are part of the key names (:data:`~lfjax.sweep.config_keys.UNIT_SUFFIXES`: ``_D`` dioptres, ``_mm``
-millimetres, ``_nm`` nanometres, ``_cpd`` cycles per degree, ``_arcmin`` arcminutes); a key
-with another unit suffix is reported as unknown with the key it probably meant.
+Units are part of the key names (:data:`~lfjax.sweep.config_keys.UNIT_SUFFIXES`: ``_D``
+dioptres, ``_mm`` millimetres, ``_nm`` nanometres, ``_cpd`` cycles per degree, ``_arcmin``
+arcminutes); a key with another unit suffix is reported as unknown with the key it probably
+meant.
 """
 
 from __future__ import annotations
@@ -396,11 +398,14 @@ def _key_list() -> str:
 
 
 def config_fields(config: SweepConfig) -> dict:
+    """{field: value} of ``config``, every field but ``base_dir``."""
     return {f.name: getattr(config, f.name) for f in dataclasses.fields(config)
             if f.name != "base_dir"}
 
 
 def config_sections(flat: dict) -> dict:
+    """{field: value} (:func:`config_fields`) as the TOML structure: {section: {key: value}}
+    and ``model`` (the options); None values left out."""
     out: dict = {}
     for key in KEYS:
         if key.field in flat and flat[key.field] is not None:

@@ -11,8 +11,10 @@ import tomllib
 from pathlib import Path
 
 from lfjax.model.options import ModelOptions
-from lfjax.sweep.config import KEYS, SCHEMA, SweepConfig, config_fields, config_from_dict, config_sections
-from lfjax.sweep.config_keys import CONFIG_FORMAT, UNIT_SUFFIXES, SweepConfigError, shown, toml_value
+from lfjax.sweep.config import (KEYS, SCHEMA, SweepConfig, config_fields, config_from_dict,
+                                config_sections)
+from lfjax.sweep.config_keys import (CONFIG_FORMAT, UNIT_SUFFIXES, SweepConfigError, shown,
+                                     toml_value)
 
 def load_config(path) -> SweepConfig:
     """Read and validate a sweep TOML file (relative layout paths are relative to it)."""
