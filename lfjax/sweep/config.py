@@ -80,10 +80,10 @@ class SweepConfig(DepthGrid):
     """Everything a sweep computes (defaults: the paper's scene on 1,000 eyes).
 
     Every field but ``options`` and ``base_dir`` is one key of the TOML file, declared once
-    on the field (:class:`Key`); the list of keys below, with their types, defaults, units
-    and allowed values, is derived from those declarations. ``options`` is the ``[model]``
-    table (any :class:`lfjax.ModelOptions` field); ``base_dir`` is the folder relative layout
-    paths start from (the config file's).
+    on the field (:class:`~lfjax.sweep.config_keys.Key`); the list of keys below, with their
+    types, defaults, units and allowed values, is derived from those declarations.
+    ``options`` is the ``[model]`` table (any :class:`lfjax.ModelOptions` field);
+    ``base_dir`` is the folder relative layout paths start from (the config file's).
 
     Eyes come from ``sample_eyes(seed, n_eyes)`` on the Thibos fit of ``fit_pupil_mm`` and are
     evaluated inside every pupil of ``pupil_diameters_mm``. Each depth ``cdp_D + offset`` is
@@ -346,7 +346,8 @@ class SweepConfig(DepthGrid):
 
 
 def _declared_keys() -> tuple[Key, ...]:
-    """Every field's :class:`Key`, completed from the field (name, type, default, unit)."""
+    """Every field's :class:`~lfjax.sweep.config_keys.Key`, completed from the field (name,
+    type, default, unit)."""
     hints = typing.get_type_hints(SweepConfig)
     keys = []
     for f in dataclasses.fields(SweepConfig):
@@ -474,7 +475,7 @@ def config_from_dict(data: dict, base_dir: str | Path = ".", source: str = "swee
                      ) -> SweepConfig:
     """A validated :class:`SweepConfig` from the TOML structure (sections of keys).
 
-    Raises :class:`SweepConfigError` listing every problem.
+    Raises :class:`~lfjax.sweep.config_keys.SweepConfigError` listing every problem.
     """
     problems: list[str] = []
     values: dict = {}

@@ -54,7 +54,7 @@ def config_template() -> str:
     """A commented TOML config with every key at its default (keys whose default is "not
     set" are commented out with an example value); :func:`load_config` reads it as
     ``SweepConfig()``. ``lfjax sweep --template CONFIG.toml`` writes it. Above each key: its
-    help and allowed values (:data:`KEYS`)."""
+    help and allowed values (:data:`~lfjax.sweep.config.KEYS`)."""
     units = ", ".join(f"{suffix} {name}" for suffix, name in UNIT_SUFFIXES.items())
     lines = [f"# lfjax sweep configuration ({CONFIG_FORMAT}): every key with its default.",
              *textwrap.wrap(f"Units are in the key names: {units}. Run: lfjax sweep "
@@ -84,7 +84,8 @@ def config_template() -> str:
 
 
 def with_new_defaults(stored: dict) -> dict:
-    """A stored :meth:`SweepConfig.as_dict` record with every key it lacks at its default.
+    """A stored :meth:`~lfjax.sweep.config.SweepConfig.as_dict` record with every key it
+    lacks at its default.
 
     A store written before a key existed was computed as that key's default computes (a new
     key's default changes nothing), so it resumes under a config leaving the key there; set
@@ -97,7 +98,8 @@ def with_new_defaults(stored: dict) -> dict:
 
 
 def config_differences(stored: dict, current: dict, prefix: str = "") -> list[str]:
-    """Human-readable differences between two :meth:`SweepConfig.as_dict` records."""
+    """Human-readable differences between two
+    :meth:`~lfjax.sweep.config.SweepConfig.as_dict` records."""
     out = []
     for key in sorted(set(stored) | set(current)):
         a, b = stored.get(key, "<absent>"), current.get(key, "<absent>")

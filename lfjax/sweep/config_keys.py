@@ -68,7 +68,8 @@ class SweepConfigError(ValueError):
 
 @dataclass(frozen=True)
 class Key:
-    """One key of the TOML file, declared on its :class:`SweepConfig` field.
+    """One key of the TOML file, declared on its
+    :class:`~lfjax.sweep.config.SweepConfig` field.
 
     Written in the field's metadata: ``section``, ``help``, ``checks``, and where needed
     ``name``, ``example`` and ``none_word``; taken from the field itself: ``field``,
@@ -85,7 +86,7 @@ class Key:
     example : a value the template shows, commented out, for a key not set by default
     none_word : the TOML word that means None where None means something
         (``freq_step_cpd = "planned"``); other optional keys are simply left out
-    field : the :class:`SweepConfig` field it sets
+    field : the :class:`~lfjax.sweep.config.SweepConfig` field it sets
     kind : its TOML type: ``int``, ``float``, ``bool``, ``string``, ``floats`` or ``strings``
     optional : None is a valid value (the annotation is ``X | None``)
     default : the field's default

@@ -489,8 +489,9 @@ def unmark_chunks(path, chunks) -> None:
 def open_store(path, complete_only: bool = False):
     """The sweep's Dataset (loaded into memory). ``complete_only``: keep only the eyes of
     completed chunks (a partial sweep read while it runs, or after an interruption). A
-    chunk whose marks are damaged (:func:`read_bookkeeping`) counts as not complete, with a
-    warning naming it; damaged consolidated metadata are read around, with a warning."""
+    chunk whose marks are damaged (:func:`~lfjax.sweep.store_checks.read_bookkeeping`)
+    counts as not complete, with a warning naming it; damaged consolidated metadata are
+    read around, with a warning."""
     import xarray as xr
 
     path = Path(path)
