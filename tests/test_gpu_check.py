@@ -28,7 +28,8 @@ import pytest
 
 from lfjax.cli import build_parser
 from lfjax.model.layouts import PAPER_LAYOUTS
-from lfjax.sweep.config import config_from_dict, load_config
+from lfjax.sweep.config import config_from_dict
+from lfjax.sweep.config_files import load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "benchmarks" / "speed" / "gpu_check.sh"

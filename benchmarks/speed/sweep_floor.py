@@ -79,7 +79,7 @@ def main() -> None:
 
     from lfjax.sweep import ChunkEvaluator, build_tasks, population
     from lfjax.sweep.compute import sweep_spectrum
-    from lfjax.sweep.config import config_template, load_config
+    from lfjax.sweep.config_files import config_template, load_config
     from lfjax.sweep.guard import refinement_states
 
     if args.config is None:

@@ -29,7 +29,7 @@ from _common import header  # noqa: E402
 from lfjax.studies import tradeoff as to
 from lfjax.cli import enable_compilation_cache  # noqa: E402
 from lfjax.display.panel import PRESETS  # noqa: E402
-from lfjax.sweep.store import completed_chunks, is_store  # noqa: E402
+from lfjax.sweep.store_checks import completed_chunks, is_store  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

@@ -212,37 +212,44 @@ def emergency_cleanup() -> None:
 
 
 @contextlib.contextmanager
-def staged_output(out_dir, force: bool = False):
+def staged_output(out_dir, force: bool = False, *, replace: bool = False):
     """Build a result folder whole or not at all.
 
     Yields an empty staging folder beside ``out_dir`` (``.lfjax-staging-NAME-HOST-PID-…``,
-    on the same file system); write every file there. When the block ends normally the
-    staging folder is renamed to ``out_dir`` (a new or empty ``out_dir``: one rename, so the
-    folder appears complete), or, when ``out_dir`` has files and ``force`` is set, each file
-    is renamed into it (each whole; files of the same names replaced). When the block raises
-    (an error, a full disk, Ctrl-C) the staging folder is removed and ``out_dir`` is as it
-    was. Staging folders of killed processes are removed on the next call
+    in its nearest existing ancestor, so on the same file system); write every file there.
+    When the block ends normally the staging folder is renamed to ``out_dir`` (a new or
+    empty ``out_dir``: one rename, so the folder appears complete; folders above it are
+    made only then). When ``out_dir`` has files and ``force`` is set, each file is renamed
+    into it (each whole; files of the same names replaced), or, with ``replace``, the whole
+    folder is swapped for the staged one (the old one renamed aside, then removed: no file
+    of an earlier result is left beside the new ones). When the block raises (an error, a
+    full disk, Ctrl-C) the staging folder is removed and ``out_dir`` and its parents are as
+    they were. Staging folders of killed processes are removed on the next call
     (:func:`remove_orphans`)."""
     out = Path(out_dir).absolute()
-    out.parent.mkdir(parents=True, exist_ok=True)
+    anchor = nearest_existing(out.parent)
     prefix = f"{STAGING_PREFIX}-{out.name}"
-    remove_orphans(out.parent, prefix, "an interrupted run")
-    tmp = owned_temp_dir(out.parent, prefix)
+    remove_orphans(anchor, prefix, "an interrupted run")
+    tmp = owned_temp_dir(anchor, prefix)
     os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes it private; the result is ordinary
     _LIVE_STAGING.add(tmp)
     try:
         yield tmp
-        _move_into_place(tmp, out, force)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        _move_into_place(tmp, out, force, replace)
     finally:
         _LIVE_STAGING.discard(tmp)
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _move_into_place(tmp: Path, out: Path, force: bool) -> None:
+def _move_into_place(tmp: Path, out: Path, force: bool, replace: bool) -> None:
     if out.is_dir() and any(out.iterdir()):
         if not force:
             raise FileExistsError(f"{out} is no longer empty: the result is not moved into it")
+        if replace:
+            _swap_folder(tmp, out)
+            return
         for item in sorted(tmp.iterdir()):
             target = out / item.name
             if target.is_dir() and not item.is_dir():
@@ -252,3 +259,17 @@ def _move_into_place(tmp: Path, out: Path, force: bool) -> None:
             os.replace(item, target)
         return
     os.replace(tmp, out)  # a new name, or over an empty folder: one rename
+
+
+def _swap_folder(tmp: Path, out: Path) -> None:
+    """``tmp`` renamed to ``out``, whose old folder is renamed aside first and removed after
+    (put back if the second rename fails, so ``out`` is never lost)."""
+    old = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}-old-{out.name}-", dir=out.parent))
+    old.rmdir()
+    out.rename(old)
+    try:
+        tmp.rename(out)
+    except OSError:
+        old.rename(out)
+        raise
+    shutil.rmtree(old, ignore_errors=True)

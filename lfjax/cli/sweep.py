@@ -18,10 +18,11 @@ from lfjax.sweep import (
     plan_sweep,
     run_sweep,
 )
-from lfjax.sweep.config import config_template
+from lfjax.sweep.config_files import config_template
 from lfjax.sweep.distributed import DISTRIBUTED_TIMEOUT_S, start_distributed
-from lfjax.sweep.store import (StoreDamagedError, StoreLockedError, StoreRaceError,
-                               is_disk_full, verify_store)
+from lfjax.sweep.store import StoreRaceError, is_disk_full
+from lfjax.sweep.store_checks import StoreDamagedError, verify_store
+from lfjax.sweep.store_lock import StoreLockedError
 from lfjax.sweep.target import check_store_target, check_store_writable
 
 COMMAND = "sweep"

@@ -6,7 +6,7 @@ its progress. The estimates follow the sweep's (:mod:`lfjax.sweep.guard`): a cos
 complex FFT point·log2 size or one rendered view-pixel, timed at
 :data:`lfjax.sweep.guard.SECONDS_PER_UNIT` on 2 CPU cores; memory is the largest arrays
 of one eye (the fit's gradient holds one chunk of eyes at a time,
-:func:`lfjax.design.fit.design_loss_chunked`) times a measured allowance. They are
+:func:`lfjax.design.box.design_loss_chunked`) times a measured allowance. They are
 estimates, calibrated on the measurements of benchmarks/RESULTS.md §21; the progress lines
 give the measured time as it goes.
 """
@@ -142,7 +142,7 @@ class DesignPlan:
     eye_chunk: int = 1
     steps: int = 0
     report_accuracy: str = ""
-    report_counts: str = "all"  # lfjax.design.fit.REPORT_COUNTS
+    report_counts: str = "all"  # lfjax.design.settings.REPORT_COUNTS
     available_bytes: float | None = None  # memory this process may use (None: MemAvailable)
 
     @property

@@ -202,7 +202,18 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
 
     ``population_markdown``: body of the section "What ten eyes cannot tell" (from a
     population sweep, :func:`lfjax.reproduce.population_section`); None leaves it out."""
-    lines = []
+    lines = (_study_section(ds, config) + _claims_section(claims, alternatives)
+             + _modelling_section(claims, alternatives, config)
+             + _added_sections(display_markdown, population_markdown)
+             + _method_notes(config) + _settings_section(ds, config, timings)
+             + _files_section(files))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _study_section(ds, config: StudyConfig) -> list[str]:
+    """The title and the study in one paragraph (eyes, pupil, CDP, layouts, depths, the
+    accommodation grid, the spectrum)."""
+    lines: list[str] = []
     add = lines.append
     add("# Reproduction of Miyanishi, Sahin & Gotchev with lfjax")
     add("")
@@ -227,6 +238,13 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
             "accommodation grid. Its numbers test the pipeline, not the paper; run "
             "`lfjax reproduce` without `--quick` for the reproduction.")
     add("")
+    return lines
+
+
+def _claims_section(claims, alternatives) -> list[str]:
+    """"Claims": each finding with its criterion, the number reproduced and the verdict."""
+    lines: list[str] = []
+    add = lines.append
     add("## Claims")
     add("")
     add("Each finding of the paper is restated as a claim with an explicit criterion, checked "
@@ -243,6 +261,14 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
     if any(c.unsettled or c.reference_layouts for c in everything):
         add(_settling_note(claims, alternatives))
         add("")
+    return lines
+
+
+def _modelling_section(claims, alternatives, config: StudyConfig) -> list[str]:
+    """"Modelling choices": the claims under each alternative, and the verdicts that flip
+    against the reduced baseline."""
+    lines: list[str] = []
+    add = lines.append
     add("## Modelling choices")
     add("")
     if alternatives:
@@ -291,6 +317,13 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
             "`wavelength_normalisation=\"unit_sum\"` (ISETBio's per-wavelength PSF "
             "normalisation).")
     add("")
+    return lines
+
+
+def _added_sections(display_markdown: str | None, population_markdown: str | None) -> list[str]:
+    """"Beyond the ideal display" and "What ten eyes cannot tell", when given."""
+    lines: list[str] = []
+    add = lines.append
     if display_markdown:
         add("## Beyond the ideal display")
         add("")
@@ -304,6 +337,13 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
         add("")
         add(population_markdown.rstrip())
         add("")
+    return lines
+
+
+def _method_notes(config: StudyConfig) -> list[str]:
+    """"Notes on the method": the window, the grid, the references and the cut-off."""
+    lines: list[str] = []
+    add = lines.append
     add("## Notes on the method")
     add("")
     add(f"- Accommodation window: the paper does not state its through-focus range. Here each "
@@ -321,6 +361,13 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
     add(f"- Cut-off frequency: first frequency where the radial MTF at the VSOTF-predicted "
         f"accommodation falls to {config.cutoff_threshold:g}, on each layout's own frequency grid.")
     add("")
+    return lines
+
+
+def _settings_section(ds, config: StudyConfig, timings: dict) -> list[str]:
+    """"Settings": each layout's sampling and spectrum, the model options and the timings."""
+    lines: list[str] = []
+    add = lines.append
     add("## Settings")
     add("")
     add("| layout | subapertures | frequency step (cpd) | PSF field (arcmin) | FFT size | "
@@ -348,11 +395,18 @@ def write_report(path: Path, ds, claims, alternatives, config: StudyConfig, timi
     add("Timings (s, wall clock, including compilation): "
         + ", ".join(f"{k} {v:.1f}" for k, v in timings.items()) + ".")
     add("")
+    return lines
+
+
+def _files_section(files: list[str]) -> list[str]:
+    """"Files": every file written."""
+    lines: list[str] = []
+    add = lines.append
     add("## Files")
     add("")
     for f in files:
         add(f"- `{f}`")
-    path.write_text("\n".join(lines) + "\n")
+    return lines
 
 
 

@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lfjax._version import __version__
+from lfjax._version import stamp
 from lfjax.base.errors import ParameterError
 from lfjax.base.parabola import parabola_vertex
 from lfjax.base.programs import in_callers_jax_context
@@ -295,15 +295,16 @@ def _run_studies(config: StudyConfig, variants: dict, stage, batched: bool,
             for variant, o in variants.items()}
 
 
-def _study_dataset(config: StudyConfig, options: ModelOptions, eyes: Eyes, labels, layouts,
-                   per_layout):
-    """The study's Dataset from each layout's (ThroughFocus, Sampling, seconds)."""
-    import xarray as xr
-
+def _layout_results(config: StudyConfig, names: list[str], n_eye: int, per_layout) -> dict:
+    """Each layout's through-focus results in the study's arrays (layout, eye, depth, …),
+    NaN where a layout is not evaluated (natural view: the CDP only): ``vs``, ``sr``
+    (layout, eye, depth, accommodation); ``pred`` (grid peak, D), ``pred_par`` (parabolic),
+    ``pred_cont`` (continuous, VSOTF only), ``cont_ok``, ``peak``, ``cutoff`` (cpd)
+    (layout, eye, depth, metric); ``native`` ({layout: (frequencies cpd, radial MTF,
+    depth slots)}); ``steps``, ``nffts``, ``times``, ``samplings``, ``spectra``, ``rules``."""
     depths = config.depths_D
     acc = config.accommodation_D
-    n_eye, n_depth, n_acc = len(labels), depths.size, acc.size
-    names = list(config.layouts)
+    n_depth, n_acc = depths.size, acc.size
     shape = (len(names), n_eye, n_depth, n_acc)
     vs = np.full(shape, np.nan)
     sr = np.full(shape, np.nan)
@@ -340,17 +341,51 @@ def _study_dataset(config: StudyConfig, options: ModelOptions, eyes: Eyes, label
         steps.append(sampling.freq_step_cpd)
         samplings[name] = dataclasses.asdict(sampling)
         nffts.append(2 * (int(tf.radial_mtf.shape[-1]) - 1))
+    return dict(vs=vs, sr=sr, pred=pred, pred_par=pred_par, pred_cont=pred_cont,
+                cont_ok=cont_ok, peak=peak, cutoff=cutoff, native=native, steps=steps,
+                nffts=nffts, times=times, samplings=samplings, spectra=spectra, rules=rules)
+
+
+def _on_common_frequencies(native: dict, names: list[str], shape: tuple):
+    """Every layout's radial MTF on one 1 cpd frequency axis from 0 to the highest any
+    layout reaches: (frequencies cpd, MTF (layout, eye, depth, accommodation, frequency)
+    float32, NaN where a layout is not evaluated)."""
     f_max = max(float(f[-1]) for f, _, _ in native.values())
     freq = np.arange(0.0, math.floor(f_max) + 1.0, 1.0)
     mtf = np.full(shape + (freq.size,), np.nan, np.float32)
     for li, name in enumerate(names):
         f, m, slots = native[name]
         mtf[li][:, slots] = _interp_last(freq, f, np.asarray(m, float)).astype(np.float32)
-    # MTF at each metric's predicted accommodation
+    return freq, mtf
+
+
+def _mtf_at_prediction(mtf, pred, step_D: float):
+    """The MTF at each metric's predicted accommodation (``pred`` (layout, eye, depth,
+    metric) D on the grid of step ``step_D``): (layout, eye, depth, metric, frequency), NaN
+    where no accommodation is predicted."""
+    n_acc = mtf.shape[3]
     safe = np.where(np.isfinite(pred), pred, 0.0)
-    acc_index = np.clip(np.rint(safe / config.accommodation_step_D).astype(int), 0, n_acc - 1)
+    acc_index = np.clip(np.rint(safe / step_D).astype(int), 0, n_acc - 1)
     mtf_peak = _mtf_at(mtf, acc_index)
-    mtf_peak = np.where(np.isfinite(pred)[..., None], mtf_peak, np.nan)
+    return np.where(np.isfinite(pred)[..., None], mtf_peak, np.nan)
+
+
+def _study_dataset(config: StudyConfig, options: ModelOptions, eyes: Eyes, labels, layouts,
+                   per_layout):
+    """The study's Dataset from each layout's (ThroughFocus, Sampling, (wavelengths, rule),
+    seconds)."""
+    import xarray as xr
+
+    depths = config.depths_D
+    acc = config.accommodation_D
+    names = list(config.layouts)
+    r = _layout_results(config, names, len(labels), per_layout)
+    vs, sr, pred, pred_par, pred_cont, cont_ok, peak, cutoff = (
+        r[k] for k in ("vs", "sr", "pred", "pred_par", "pred_cont", "cont_ok", "peak", "cutoff"))
+    steps, nffts, times, samplings, spectra, rules = (
+        r[k] for k in ("steps", "nffts", "times", "samplings", "spectra", "rules"))
+    freq, mtf = _on_common_frequencies(r["native"], names, vs.shape)
+    mtf_peak = _mtf_at_prediction(mtf, pred, config.accommodation_step_D)
 
     is_avg = np.array([label == "average" for label in labels])
     zern = np.asarray(eyes.zernike_um, float)
@@ -510,8 +545,6 @@ def _dataset_attrs(config: StudyConfig, options: ModelOptions, eyes: Eyes) -> di
     attrs = {
         "title": "lfjax reproduction of Miyanishi, Sahin & Gotchev: eyes viewing a "
                  "light-field display",
-        "lfjax_version": __version__,
-        "jax_version": jax.__version__,
         "units": "depths and accommodation in dioptres (D, absolute 1/m; 0 D = infinity); "
                  "frequency in cycles per degree (cpd); Zernike coefficients in um",
         "pupil_diameter_mm": float(config.pupil_diameter_mm),
@@ -524,8 +557,10 @@ def _dataset_attrs(config: StudyConfig, options: ModelOptions, eyes: Eyes) -> di
                            "planned per layout: wavelengths_json, spectral_rule, wavelength_step_nm"),
         "accuracy_plan": config.accuracy,
         "model_options_json": json.dumps(options.as_dict()),
-        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
+    # the one provenance stamp (lfjax._version.stamp); netCDF attributes cannot hold None,
+    # so a source tree that is no git checkout records its commit as ""
+    attrs.update({key: "" if value is None else value for key, value in stamp().items()})
     for key, value in options.as_dict().items():
         attrs[f"option_{key}"] = str(value) if isinstance(value, bool) else value
     attrs.update(config.as_attrs())

@@ -46,7 +46,7 @@ from lfjax.model.options import ModelOptions
 from lfjax.display.panel import Panel, sampling_limit_cpd
 from lfjax.sweep import SweepConfig, open_store, plan_sweep, run_sweep
 from lfjax.sweep.run import peak_rss_mb
-from lfjax.sweep.store import completed_chunks, is_store
+from lfjax.sweep.store_checks import completed_chunks, is_store
 
 TRADEOFF_FORMAT = "lfjax-tradeoff/1"
 

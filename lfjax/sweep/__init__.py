@@ -8,22 +8,19 @@ xarray Dataset (:mod:`lfjax.sweep.store`), a chunk of eyes per compiled call
 :func:`sweep_report` draws the distributions and writes percentiles and a summary;
 :func:`ten_eye_claims` asks how often ten random eyes reproduce each of the paper's claims.
 
-Layers (imports go one way): config → compute → guard, store → run → report (with
-ten_eyes).
+Layers (imports go one way): config_keys → config → config_files → compute, store_checks,
+store_lock → guard, store → run → report (with ten_eyes).
 """
 
 from lfjax.sweep.compute import ChunkEvaluator, Task, build_tasks, population
-from lfjax.sweep.config import (
-    SweepConfig,
-    SweepConfigError,
-    config_from_dict,
-    config_to_toml,
-    load_config,
-)
+from lfjax.sweep.config import config_from_dict, SweepConfig
+from lfjax.sweep.config_files import config_to_toml, load_config
+from lfjax.sweep.config_keys import SweepConfigError
 from lfjax.sweep.guard import SweepEstimate, SweepTooLargeError, estimate
 from lfjax.sweep.report import sweep_report
 from lfjax.sweep.run import SweepRun, plan_sweep, run_sweep
-from lfjax.sweep.store import StoreMismatchError, completed_chunks, open_store, study_view
+from lfjax.sweep.store import open_store, study_view
+from lfjax.sweep.store_checks import completed_chunks, StoreMismatchError
 from lfjax.sweep.ten_eyes import ten_eye_claims, ten_eye_markdown
 
 __all__ = [

@@ -42,7 +42,8 @@ from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import Spectrum, make_spectrum
 from lfjax.vision.prepare import States, prepare, with_aliasing_retry
 from lfjax.model.strips import strip_layout
-from lfjax.sweep.config import SweepConfig, strip_views
+from lfjax.sweep.config import SweepConfig
+from lfjax.sweep.config_keys import strip_views
 
 FREQUENCIES_CPD = np.arange(0.0, 61.0, 1.0)
 """Frequency axis (cpd) of the stored MTF at the predicted accommodation (claim 5 reads

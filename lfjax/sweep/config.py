@@ -2,21 +2,24 @@
 
 :class:`SweepConfig` names the population (eyes, seed, pupils), the display (layouts, CDP,
 rendered depths), the accommodation grid, the spectrum, the sampling, the metrics, the model
-options and the chunk size. :func:`load_config` reads a TOML file; :func:`config_from_dict`
-takes the same structure as a dict. Every problem found (unknown keys, values of the wrong
-type or unit, impossible ranges) is collected and raised once as :class:`SweepConfigError`,
-one line per problem, so a user fixes the file in one pass.
+options and the chunk size. :func:`config_from_dict` takes the TOML structure as a dict
+(:func:`lfjax.sweep.config_files.load_config` reads a TOML file). Every problem found
+(unknown keys, values of the wrong type or unit, impossible ranges) is collected and raised
+once as :class:`~lfjax.sweep.config_keys.SweepConfigError`, one line per problem, so a user
+fixes the file in one pass.
 
 Each key is declared once, on its :class:`SweepConfig` field: the field gives its name, type
-and default, and its metadata (a :class:`Key`) its section, unit, help line, allowed values
-and an example. :data:`KEYS` collects them; the TOML schema, the type and range checks,
-:func:`config_template` and the key list in ``SweepConfig``'s docstring are derived from
-it. Checks that relate several keys (a pupil against the measured pupil, a depth against
-the CDP, …) are written once, below the keys.
+and default, and its metadata (a :class:`~lfjax.sweep.config_keys.Key`) its section, unit,
+help line, allowed values and an example (the vocabulary: :mod:`lfjax.sweep.config_keys`).
+:data:`KEYS` collects them; the TOML schema (:data:`SCHEMA`), the type and range checks,
+:func:`~lfjax.sweep.config_files.config_template` and the key list in ``SweepConfig``'s
+docstring are derived from it. Checks that relate several keys (a pupil against the measured
+pupil, a depth against the CDP, …) are written once, below the keys.
 
-Units are part of the key names (:data:`UNIT_SUFFIXES`: ``_D`` dioptres, ``_mm``
-millimetres, ``_nm`` nanometres, ``_cpd`` cycles per degree, ``_arcmin`` arcminutes); a key
-with another unit suffix is reported as unknown with the key it probably meant.
+Units are part of the key names (:data:`~lfjax.sweep.config_keys.UNIT_SUFFIXES`: ``_D``
+dioptres, ``_mm`` millimetres, ``_nm`` nanometres, ``_cpd`` cycles per degree, ``_arcmin``
+arcminutes); a key with another unit suffix is reported as unknown with the key it probably
+meant.
 """
 
 from __future__ import annotations
@@ -26,7 +29,6 @@ import difflib
 import json
 import math
 import textwrap
-import tomllib
 import types
 import typing
 from collections.abc import Callable
@@ -49,242 +51,27 @@ from lfjax.model.layouts import Layout, PAPER_LAYOUTS, check_views_in_pupil
 from lfjax.model.strips import neighbour_matrix
 from lfjax.model.options import ModelOptions
 from lfjax.vision.peak_options import METRICS, PEAK_METHODS
+from lfjax.sweep.config_keys import (
+    check_layout_entries,
+    check_wavelength_grid,
+    CONFIG_FORMAT,
+    Distinct,
+    Key,
+    key_metadata,
+    MAX_ACCOMMODATION_STATES,
+    MAX_STRIP_VIEWS,
+    MAX_STRIP_WIDTH_RATIO,
+    MIN_PUPIL_MM,
+    MIN_WAVELENGTH_STEP_NM,
+    NonEmpty,
+    OneOf,
+    Range,
+    strip_views,
+    SweepConfigError,
+    toml_value,
+    UNIT_SUFFIXES,
+)
 
-CONFIG_FORMAT = "lfjax-sweep/1"
-
-MIN_PUPIL_MM = 2.0
-"""Smallest calculation pupil a sweep accepts, mm: the human pupil constricts to about 2 mm
-in bright light; below it every eye is nearly diffraction-limited and the through-focus
-curves lose the peak that predicts accommodation."""
-MIN_WAVELENGTH_STEP_NM = 1.0
-"""Finest wavelength step, nm: the CIE 2008 luminous-efficiency data are tabulated at 1 nm."""
-MAX_ACCOMMODATION_STATES = 10_000
-"""Most accommodation states on the grid (0.0005 D steps over 5 D); the store holds every
-state for every eye, and continuous peaks refine off the grid."""
-
-MAX_STRIP_VIEWS = 16
-"""Most strips of a ``1xN`` layout entry: 16 strips fill a 3 mm pupil every 0.19 mm, far
-below the paper's finest view pitch (0.75 mm); the frequency grid such narrow strips need
-grows with N."""
-MAX_STRIP_WIDTH_RATIO = 2.0
-"""Widest strip of a ``1xN`` layout, as a multiple of its pitch: at 2 a strip reaches its
-neighbours' centres (the overlap scans of :mod:`lfjax.studies.hpo` stop there too)."""
-
-
-def strip_views(entry: str) -> int | None:
-    """N of a ``1xN`` strip-layout entry of ``display.layouts`` (an HPO layout of N
-    vertical strips across each pupil), or None for any other entry."""
-    if not (isinstance(entry, str) and entry.startswith("1x") and entry[2:].isdigit()
-            and entry[2:] == str(int(entry[2:]))):
-        return None
-    return int(entry[2:])
-
-
-UNIT_SUFFIXES = {"_D": "dioptres", "_mm": "millimetres", "_nm": "nanometres",
-                 "_cpd": "cycles per degree", "_arcmin": "arcminutes", "_um": "micrometres"}
-"""A key's unit is the suffix of its name (``cdp_D`` is in D); a key without one has none."""
-
-
-class SweepConfigError(ValueError):
-    """A sweep configuration with one or more problems (``problems``: one string each)."""
-
-    def __init__(self, problems: list[str], source: str = "sweep config"):
-        self.problems = list(problems)
-        lines = "\n".join(f"  - {p}" for p in self.problems)
-        super().__init__(f"{source}: {len(self.problems)} problem(s):\n{lines}")
-
-
-# ------------------------------------------------------------------- how a key is declared
-
-@dataclass(frozen=True)
-class Key:
-    """One key of the TOML file, declared on its :class:`SweepConfig` field.
-
-    Written in the field's metadata: ``section``, ``help``, ``checks``, and where needed
-    ``name``, ``example`` and ``none_word``; taken from the field itself: ``field``,
-    ``kind`` and ``optional`` (its annotation), ``default``; from the name: ``unit``.
-
-    Attributes
-    ----------
-    section : the TOML table it stands in (``[population]``, …)
-    help : what it sets, one line (the template's comment, the docstring's key list)
-    checks : rules on the value alone, each a callable ``check(key, value, base_dir)``
-        returning the problems it finds (``Range``, ``OneOf``, ``NonEmpty``, ``Distinct``
-        or a function); a key's every check runs, so all its problems are listed at once
-    name : the key in its table (default: the field's name)
-    example : a value the template shows, commented out, for a key not set by default
-    none_word : the TOML word that means None where None means something
-        (``freq_step_cpd = "planned"``); other optional keys are simply left out
-    field : the :class:`SweepConfig` field it sets
-    kind : its TOML type: ``int``, ``float``, ``bool``, ``string``, ``floats`` or ``strings``
-    optional : None is a valid value (the annotation is ``X | None``)
-    default : the field's default
-    unit : from the name's suffix (:data:`UNIT_SUFFIXES`), "" if none
-    """
-
-    section: str
-    help: str
-    checks: tuple = ()
-    name: str = ""
-    example: object = None
-    none_word: str | None = None
-    field: str = ""
-    kind: str = ""
-    optional: bool = False
-    default: object = None
-    unit: str = ""
-
-    @property
-    def where(self) -> str:
-        """``section.name``, as problems name the key."""
-        return f"{self.section}.{self.name}"
-
-    def rules(self) -> str:
-        """The allowed values in words ("" when no check describes itself)."""
-        described = [c.rule(self.unit) for c in self.checks if hasattr(c, "rule")]
-        return "; ".join(r for r in described if r)
-
-
-def _key(section: str, help: str, *checks, name: str = "", example=None,
-         none_word: str | None = None) -> dict:
-    """Field metadata declaring a TOML key (the rest of :class:`Key` comes from the field)."""
-    return {"sweep_key": Key(section, help, tuple(checks), name, example, none_word)}
-
-
-def _shown(value):
-    return list(value) if isinstance(value, tuple) else value
-
-
-@dataclass(frozen=True)
-class Range:
-    """The interval a number (or every number of a list) must lie in.
-
-    ``text`` writes the interval where ``:g`` would not (``[0, 2**32)``); ``note`` says why,
-    in parentheses after it; ``tol`` lets values this close outside it pass (rounding)."""
-
-    lo: float | None = None
-    hi: float | None = None
-    lo_open: bool = False
-    hi_open: bool = False
-    text: str | None = None
-    note: str = ""
-    tol: float = 0.0
-
-    def rule(self, unit: str = "") -> str:
-        if self.text is not None:
-            body = f"in {self.text}"
-        elif self.lo is not None and self.hi is not None:
-            body = (f"in {'(' if self.lo_open else '['}{self.lo:g}, "
-                    f"{self.hi:g}{')' if self.hi_open else ']'}")
-        elif self.lo is not None:
-            body = f"{'>' if self.lo_open else '>='} {self.lo:g}"
-        else:
-            body = f"{'<' if self.hi_open else '<='} {self.hi:g}"
-        return f"{body} {unit}".rstrip()
-
-    def holds(self, x) -> bool:
-        if self.lo is not None and not (x > self.lo - self.tol if self.lo_open
-                                        else x >= self.lo - self.tol):
-            return False
-        return self.hi is None or (x < self.hi + self.tol if self.hi_open
-                                   else x <= self.hi + self.tol)
-
-    def __call__(self, key: Key, value, base_dir: Path) -> list[str]:
-        values = value if isinstance(value, tuple) else (value,)
-        if all(self.holds(x) for x in values):
-            return []
-        notes = [n for n in (self.note, key.none_word and f'or "{key.none_word}"') if n]
-        why = "".join(f" ({n})" for n in notes)
-        return [f"{key.where} must be {self.rule(key.unit)}{why}, got {_shown(value)}"]
-
-
-@dataclass(frozen=True)
-class OneOf:
-    """The values a key (or every entry of a list key) may take; ``note`` says why."""
-
-    choices: tuple
-    note: str = ""
-
-    def listed(self, unit: str = "") -> str:
-        if all(isinstance(c, str) for c in self.choices):
-            return ", ".join(self.choices)
-        return f"{list(self.choices)} {unit}".rstrip()
-
-    def rule(self, unit: str = "") -> str:
-        return f"one of {self.listed(unit)}"
-
-    def __call__(self, key: Key, value, base_dir: Path) -> list[str]:
-        why = f" ({self.note})" if self.note else ""
-        if isinstance(value, tuple):
-            bad = [x for x in value if x not in self.choices]
-            return [f"{key.where} must list only {self.listed(key.unit)}{why}, got {bad}"
-                    ] if bad else []
-        if value in self.choices:
-            return []
-        return [f"{key.where} must be {self.rule(key.unit)}{why}, got {value!r}"]
-
-
-@dataclass(frozen=True)
-class NonEmpty:
-    """A list key must hold at least one ``what``."""
-
-    what: str
-
-    def __call__(self, key: Key, value, base_dir: Path) -> list[str]:
-        return [] if value else [f"{key.where} must list at least one {self.what}"]
-
-
-@dataclass(frozen=True)
-class Distinct:
-    """A list key holds no value twice (numbers compared to 1e-9)."""
-
-    def __call__(self, key: Key, value, base_dir: Path) -> list[str]:
-        seen = [round(x, 9) if isinstance(x, float) else x for x in value]
-        return [] if len(set(seen)) == len(seen) else [
-            f"{key.where} has repeated values: {list(value)}"]
-
-
-def _layout_entries(key: Key, layouts, base_dir: Path) -> list[str]:
-    """Each entry is a paper layout or a readable layout JSON file."""
-    p = []
-    for entry in layouts:
-        if entry in PAPER_LAYOUTS:
-            continue
-        n = strip_views(entry)
-        if n is not None:
-            if not 1 <= n <= MAX_STRIP_VIEWS:
-                p.append(f"{key.where}: {entry!r} must have 1 to {MAX_STRIP_VIEWS} strips "
-                         f"(1x1 ... 1x{MAX_STRIP_VIEWS}), got {n}")
-            continue
-        if not entry.endswith(".json"):
-            p.append(f"{key.where}: {entry!r} is neither a paper layout "
-                     f"({', '.join(PAPER_LAYOUTS)}), a strip layout 1xN (N = 1 ... "
-                     f"{MAX_STRIP_VIEWS}) nor a .json layout file")
-            continue
-        path = Path(entry) if Path(entry).is_absolute() else base_dir / entry
-        if not path.is_file():
-            p.append(f"{key.where}: layout file {str(path)!r} does not exist")
-            continue
-        try:
-            load_layout_json(path)
-        except (ValueError, OSError, json.JSONDecodeError) as err:
-            p.append(f"{key.where}: {path}: {err}")
-    return p
-
-
-def _wavelength_grid(key: Key, wl, base_dir: Path) -> list[str]:
-    """[start, stop] or [start, stop, step], increasing, the step no finer than the data."""
-    if len(wl) not in (2, 3):
-        return [f"{key.where} must be [start, stop] (step planned) or [start, stop, step] in "
-                f"nm, got {list(wl)}"]
-    start, stop, step = wl if len(wl) == 3 else (*wl, 5.0)
-    if not (step > 0 and stop >= start):
-        return [f"{key.where}: need step > 0 and stop >= start, got {list(wl)}"]
-    if step < MIN_WAVELENGTH_STEP_NM - 1e-12:
-        return [f"{key.where} step must be >= {MIN_WAVELENGTH_STEP_NM:g} nm (the tabulation "
-                f"interval of the luminous-efficiency data; a finer step only interpolates), "
-                f"got {step:g} nm ({(stop - start) / step + 1:.3g} wavelengths)"]
-    return []
 
 
 # --------------------------------------------------------------------------- the keys
@@ -294,10 +81,10 @@ class SweepConfig(DepthGrid):
     """Everything a sweep computes (defaults: the paper's scene on 1,000 eyes).
 
     Every field but ``options`` and ``base_dir`` is one key of the TOML file, declared once
-    on the field (:class:`Key`); the list of keys below, with their types, defaults, units
-    and allowed values, is derived from those declarations. ``options`` is the ``[model]``
-    table (any :class:`lfjax.ModelOptions` field); ``base_dir`` is the folder relative layout
-    paths start from (the config file's).
+    on the field (:class:`~lfjax.sweep.config_keys.Key`); the list of keys below, with their
+    types, defaults, units and allowed values, is derived from those declarations.
+    ``options`` is the ``[model]`` table (any :class:`lfjax.ModelOptions` field);
+    ``base_dir`` is the folder relative layout paths start from (the config file's).
 
     Eyes come from ``sample_eyes(seed, n_eyes)`` on the Thibos fit of ``fit_pupil_mm`` and are
     evaluated inside every pupil of ``pupil_diameters_mm``. Each depth ``cdp_D + offset`` is
@@ -311,116 +98,116 @@ class SweepConfig(DepthGrid):
     :func:`lfjax.planner.plan.plan_sampling` on the whole population.
     """
 
-    n_eyes: int = field(default=1000, metadata=_key(
+    n_eyes: int = field(default=1000, metadata=key_metadata(
         "population", "virtual eyes drawn from Thibos et al. (2002), sample_eyes(seed, n_eyes)",
         Range(lo=1)))
-    seed: int = field(default=0, metadata=_key(
+    seed: int = field(default=0, metadata=key_metadata(
         "population", "seed of the draw", Range(0, 2**32, hi_open=True, text="[0, 2**32)")))
-    measured_pupil_mm: float | None = field(default=None, metadata=_key(
+    measured_pupil_mm: float | None = field(default=None, metadata=key_metadata(
         "population", "which Thibos fit to sample; the eyes are evaluated inside every pupil "
         "of pupil_diameters_mm (each <= it); not set: the smallest fit holding the largest pupil",
         OneOf(THIBOS_PUPILS_MM, note="the Thibos et al. 2002 fits"), example=6.0))
-    pupil_diameters_mm: tuple[float, ...] = field(default=(3.0,), metadata=_key(
+    pupil_diameters_mm: tuple[float, ...] = field(default=(3.0,), metadata=key_metadata(
         "population", "calculation pupils, up to the measured pupil",
         NonEmpty("pupil (mm)"),
         Range(lo=MIN_PUPIL_MM, tol=1e-9,
               note=f"the human pupil's range; the eye model and its Thibos statistics are for "
                    f"{MIN_PUPIL_MM:g}-{max(THIBOS_PUPILS_MM):g} mm"),
         Distinct()))
-    average_eye: bool = field(default=True, metadata=_key(
+    average_eye: bool = field(default=True, metadata=key_metadata(
         "population", "append the Thibos average eye (of the measured pupil), flagged "
         "is_average (claims 4 and 5 compare against it)"))
-    layouts: tuple[str, ...] = field(default=PAPER_LAYOUTS, metadata=_key(
+    layouts: tuple[str, ...] = field(default=PAPER_LAYOUTS, metadata=key_metadata(
         "display", f"paper layouts ({', '.join(PAPER_LAYOUTS)}, sized to each pupil), "
         f"horizontal-parallax-only strips 1xN (N = 1 ... {MAX_STRIP_VIEWS} vertical strips "
         f"across each pupil, pitch pupil/N: lfjax.model.strips.strip_layout) or layout JSON "
         f"files of lfjax optimise (fixed in mm; relative to the config file)",
         NonEmpty(f"layout ({', '.join(PAPER_LAYOUTS)} or a layout JSON file)"), Distinct(),
-        _layout_entries))
-    cdp_D: float = field(default=2.0, metadata=_key(
+        check_layout_entries))
+    cdp_D: float = field(default=2.0, metadata=key_metadata(
         "display", "central depth plane", Range(lo=0, note="0 D is optical infinity")))
     depth_offsets_D: tuple[float, ...] = field(
-        default=tuple(inclusive_grid(-2.0, 2.0, 0.5).tolist()), metadata=_key(
+        default=tuple(inclusive_grid(-2.0, 2.0, 0.5).tolist()), metadata=key_metadata(
             "display", "rendered depths relative to the CDP (the natural view: the CDP only)",
             NonEmpty("depth (D)"), Distinct()))
-    lenslet_distance_mm: float | None = field(default=None, metadata=_key(
+    lenslet_distance_mm: float | None = field(default=None, metadata=key_metadata(
         "display", "a lenslet-array display this far from the eye: each view is its "
         "lenslet's Fresnel pattern (lfjax.display.lenslets.display_optics_at); not set: the "
         "paper's ideal display", example=300.0))
-    pixel_width_arcmin: float = field(default=0.0, metadata=_key(
+    pixel_width_arcmin: float = field(default=0.0, metadata=key_metadata(
         "display", "angular width of the emitters (0: points)", Range(lo=0)))
-    lenslet_spherical_um: float = field(default=0.0, metadata=_key(
+    lenslet_spherical_um: float = field(default=0.0, metadata=key_metadata(
         "display", "lenslets' spherical aberration W040 at each view's rim "
         "(lfjax.display.aberrations; 0: aberration-free)", Range(lo=-100, hi=100)))
-    lenslet_coma_um: float = field(default=0.0, metadata=_key(
+    lenslet_coma_um: float = field(default=0.0, metadata=key_metadata(
         "display", "lenslets' coma W131 at each view's rim, tilt removed, field along x",
         Range(lo=-100, hi=100)))
-    lenslet_astigmatism_um: float = field(default=0.0, metadata=_key(
+    lenslet_astigmatism_um: float = field(default=0.0, metadata=key_metadata(
         "display", "lenslets' astigmatism W222 at each view's rim, field along x",
         Range(lo=-100, hi=100)))
-    lenslet_field_curvature_um: float = field(default=0.0, metadata=_key(
+    lenslet_field_curvature_um: float = field(default=0.0, metadata=key_metadata(
         "display", "lenslets' field curvature W220 at each view's rim", Range(lo=-100, hi=100)))
-    strip_width_ratio: float = field(default=1.0, metadata=_key(
+    strip_width_ratio: float = field(default=1.0, metadata=key_metadata(
         "display", "width / pitch of the 1xN layouts' strips, unitless (below 1 gaps "
         "between the strips, above 1 overlap; 1: tangent strips filling the pupil)",
         Range(0, MAX_STRIP_WIDTH_RATIO, lo_open=True,
               note="at 2 a strip reaches its neighbours' centres")))
-    strip_y_defocus_D: float = field(default=0.0, metadata=_key(
+    strip_y_defocus_D: float = field(default=0.0, metadata=key_metadata(
         "display", "the 1xN strips' extra defocus along y against x (an astigmatic "
         "lenticular beam: a panel's CDP minus the vergence of its pixel plane, "
         "lfjax.display.lenticular.LenticularPanel.y_defocus_D; about -0.83 D for "
         "lenticular_phone(), -28.5 D for lenticular_near_eye()); 0: the idealised 1-D light "
         "field", Range(-MAX_Y_DEFOCUS_D, MAX_Y_DEFOCUS_D)))
-    leakage_weight: float = field(default=0.0, metadata=_key(
+    leakage_weight: float = field(default=0.0, metadata=key_metadata(
         "display", "weight of each neighbouring view's content in a view, unitless "
         "(cross-talk, lfjax.display.lenticular.ViewOptics; the neighbours are the nearest "
         "views: adjacent strips, the edge neighbours of a grid); 0: none",
         Range(0, 1)))
-    accommodation_step_D: float = field(default=0.2, metadata=_key(
+    accommodation_step_D: float = field(default=0.2, metadata=key_metadata(
         "accommodation", "step of the absolute accommodation grid 0 ... max_D",
         Range(lo=0, lo_open=True), name="step_D"))
-    accommodation_max_D: float = field(default=5.0, metadata=_key(
+    accommodation_max_D: float = field(default=5.0, metadata=key_metadata(
         "accommodation", "last state of the grid", Range(lo=0, lo_open=True), name="max_D"))
-    window_D: float = field(default=2.0, metadata=_key(
+    window_D: float = field(default=2.0, metadata=key_metadata(
         "accommodation", "each depth is evaluated within +-window_D of it",
         Range(lo=0, lo_open=True)))
-    wavelengths_nm: tuple[float, ...] = field(default=(400.0, 700.0), metadata=_key(
+    wavelengths_nm: tuple[float, ...] = field(default=(400.0, 700.0), metadata=key_metadata(
         "spectrum", f"start, stop[, step] (step >= {MIN_WAVELENGTH_STEP_NM:g} nm; without it "
         f"the step is planned for peak_tolerance_D and cutoff_tolerance_cpd)",
-        _wavelength_grid))
-    display_spectrum: str | None = field(default=None, metadata=_key(
+        check_wavelength_grid))
+    display_spectrum: str | None = field(default=None, metadata=key_metadata(
         "spectrum", "a built-in display's white weighted by V(lambda), on the wavelengths "
         "that carry it, instead of V(lambda) white (needs a wavelength step: the cells' "
         "width); not set: V(lambda) white", OneOf(DISPLAY_NAMES), name="display",
         example="oled"))
-    freq_step_cpd: float | None = field(default=None, metadata=_key(
+    freq_step_cpd: float | None = field(default=None, metadata=key_metadata(
         "sampling", "frequency step of the OTF grid, or \"planned\": per (pupil, layout) by "
         "lfjax.planner.plan.plan_sampling, once, on the whole population",
         Range(lo=0, lo_open=True), none_word="planned"))
-    vsotf_tolerance: float | None = field(default=None, metadata=_key(
+    vsotf_tolerance: float | None = field(default=None, metadata=key_metadata(
         "sampling", "with a planned frequency step: the planner's VSOTF accuracy target (its "
         "proxy runs, seconds per layout); not set: its field guard alone (milliseconds)",
         Range(0, 0.1, lo_open=True, hi_open=True), example=1e-3))
-    peak_tolerance_D: float = field(default=0.01, metadata=_key(
+    peak_tolerance_D: float = field(default=0.01, metadata=key_metadata(
         "sampling", "a planned wavelength step moves no peak by more, and the adaptive peak "
         "method refines every peak whose grid estimate may be further off",
         Range(0, 0.5, lo_open=True)))
-    cutoff_tolerance_cpd: float = field(default=0.25, metadata=_key(
+    cutoff_tolerance_cpd: float = field(default=0.25, metadata=key_metadata(
         "sampling", "a planned wavelength step moves no cut-off by more",
         Range(0, 10, lo_open=True)))
-    continuous_peaks: tuple[str, ...] = field(default=("vsotf",), metadata=_key(
+    continuous_peaks: tuple[str, ...] = field(default=("vsotf",), metadata=key_metadata(
         "metrics", "metrics whose peak is refined off the grid (lfjax.vision.peaks)",
         OneOf(METRICS)))
-    peak_method: str = field(default="adaptive", metadata=_key(
+    peak_method: str = field(default="adaptive", metadata=key_metadata(
         "metrics", "how a peak is refined (lfjax.vision.peak_options.PEAK_METHODS)",
         OneOf(PEAK_METHODS)))
-    cutoff_threshold: float = field(default=0.05, metadata=_key(
+    cutoff_threshold: float = field(default=0.05, metadata=key_metadata(
         "metrics", "MTF value defining the cut-off frequency",
         Range(0, 1, lo_open=True, hi_open=True)))
-    dof_fraction: float = field(default=0.8, metadata=_key(
+    dof_fraction: float = field(default=0.8, metadata=key_metadata(
         "metrics", "depth of field fraction (claim 6; the report's population claims)",
         Range(0, 1, lo_open=True, hi_open=True)))
-    chunk_size: int = field(default=8, metadata=_key(
+    chunk_size: int = field(default=8, metadata=key_metadata(
         "run", "eyes per compiled call (memory grows linearly with it); a multiple of the "
         "number of local devices when sharded", Range(lo=1)))
     options: ModelOptions = field(default_factory=ModelOptions)
@@ -436,7 +223,7 @@ class SweepConfig(DepthGrid):
                 object.__setattr__(self, key.field, tuple(np.asarray(value).tolist()))
             elif isinstance(value, str):
                 object.__setattr__(self, key.field, (value,))
-        problems = _range_problems(_flat(self), Path(self.base_dir))
+        problems = _range_problems(config_fields(self), Path(self.base_dir))
         if problems:
             raise SweepConfigError(problems, "SweepConfig")
 
@@ -555,12 +342,13 @@ class SweepConfig(DepthGrid):
 
     def replace(self, **changes) -> SweepConfig:
         """A copy with some fields changed (validated again)."""
-        return config_from_dict(_flat_to_sections({**_flat(self), **changes}),
+        return config_from_dict(config_sections({**config_fields(self), **changes}),
                                 base_dir=self.base_dir)
 
 
 def _declared_keys() -> tuple[Key, ...]:
-    """Every field's :class:`Key`, completed from the field (name, type, default, unit)."""
+    """Every field's :class:`~lfjax.sweep.config_keys.Key`, completed from the field (name,
+    type, default, unit)."""
     hints = typing.get_type_hints(SweepConfig)
     keys = []
     for f in dataclasses.fields(SweepConfig):
@@ -586,9 +374,9 @@ def _declared_keys() -> tuple[Key, ...]:
 KEYS: tuple[Key, ...] = _declared_keys()
 """Every key of a sweep's TOML file, in the order of :class:`SweepConfig`'s fields."""
 
-_SCHEMA: dict[str, dict[str, Key]] = {}
+SCHEMA: dict[str, dict[str, Key]] = {}
 for _k in KEYS:
-    _SCHEMA.setdefault(_k.section, {})[_k.name] = _k
+    SCHEMA.setdefault(_k.section, {})[_k.name] = _k
 """section -> {key name: Key}: the TOML schema, derived from :data:`KEYS`."""
 del _k
 _MODEL_KEYS = {f.name for f in dataclasses.fields(ModelOptions)}
@@ -600,9 +388,9 @@ def _key_list() -> str:
              "    " + "-" * 62]
     for key in KEYS:
         if key.default is not None:
-            default = _toml_value(key.default)
+            default = toml_value(key.default)
         else:
-            default = _toml_value(key.none_word) if key.none_word else "not set"
+            default = toml_value(key.none_word) if key.none_word else "not set"
         kind = key.kind + (", or not set" if key.optional and not key.none_word else "")
         unit = f" ({key.unit})" if key.unit else ""
         rules = f"; {key.rules()}" if key.rules() else ""
@@ -611,12 +399,15 @@ def _key_list() -> str:
     return "\n".join(lines) + "\n"
 
 
-def _flat(config: SweepConfig) -> dict:
+def config_fields(config: SweepConfig) -> dict:
+    """{field: value} of ``config``, every field but ``base_dir``."""
     return {f.name: getattr(config, f.name) for f in dataclasses.fields(config)
             if f.name != "base_dir"}
 
 
-def _flat_to_sections(flat: dict) -> dict:
+def config_sections(flat: dict) -> dict:
+    """{field: value} (:func:`config_fields`) as the TOML structure: {section: {key: value}}
+    and ``model`` (the options); None values left out."""
     out: dict = {}
     for key in KEYS:
         if key.field in flat and flat[key.field] is not None:
@@ -685,13 +476,13 @@ def config_from_dict(data: dict, base_dir: str | Path = ".", source: str = "swee
                      ) -> SweepConfig:
     """A validated :class:`SweepConfig` from the TOML structure (sections of keys).
 
-    Raises :class:`SweepConfigError` listing every problem.
+    Raises :class:`~lfjax.sweep.config_keys.SweepConfigError` listing every problem.
     """
     problems: list[str] = []
     values: dict = {}
     if not isinstance(data, dict):
         raise SweepConfigError([f"expected a table of sections, got {type(data).__name__}"], source)
-    known_sections = list(_SCHEMA) + ["model"]
+    known_sections = list(SCHEMA) + ["model"]
     for section, body in data.items():
         if section not in known_sections:
             problems.append(f"unknown section [{section}]{_suggest(section, known_sections)}; "
@@ -706,7 +497,7 @@ def config_from_dict(data: dict, base_dir: str | Path = ".", source: str = "swee
                     problems.append(f"model.{key}: unknown model option{_suggest(key, _MODEL_KEYS)}"
                                     f"; known: {', '.join(sorted(_MODEL_KEYS))}")
             continue
-        keys = _SCHEMA[section]
+        keys = SCHEMA[section]
         for name, value in body.items():
             if name not in keys:
                 all_keys = {k.name for k in KEYS}
@@ -857,125 +648,14 @@ def _combination_problems(v: dict, failed: set[str], base_dir: Path = Path("."))
     return p
 
 
-def load_config(path) -> SweepConfig:
-    """Read and validate a sweep TOML file (relative layout paths are relative to it)."""
-    path = Path(path)
-    if path.is_dir():
-        raise SweepConfigError([f"{str(path)!r} is a folder, not a TOML config file (lfjax "
-                                f"sweep --template CONFIG.toml writes one)"], str(path))
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise SweepConfigError([f"config file {str(path)!r} does not exist"], str(path)) from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise SweepConfigError([f"cannot read the config file: {err}"], str(path)) from None
-    except tomllib.TOMLDecodeError as err:
-        raise SweepConfigError([f"not valid TOML: {err}"], str(path)) from None
-    if not data:
-        # an empty file would otherwise start the default sweep (1,000 eyes, hours)
-        raise SweepConfigError(["the config file sets nothing: write at least one section "
-                                "(lfjax sweep --template CONFIG.toml writes every key with "
-                                "its default)"], str(path))
-    return config_from_dict(data, base_dir=path.parent, source=str(path))
-
-
-def config_to_toml(config: SweepConfig) -> str:
-    """TOML text that :func:`load_config` reads back into ``config``."""
-    sections = _flat_to_sections(_flat(config))
-    lines = []
-    for section, body in sections.items():
-        lines.append(f"[{section}]")
-        for key, value in body.items():
-            lines.append(f"{key} = {_toml_value(value)}")
-        lines.append("")
-    return "\n".join(lines)
-
-
-def config_template() -> str:
-    """A commented TOML config with every key at its default (keys whose default is "not
-    set" are commented out with an example value); :func:`load_config` reads it as
-    ``SweepConfig()``. ``lfjax sweep --template CONFIG.toml`` writes it. Above each key: its
-    help and allowed values (:data:`KEYS`)."""
-    units = ", ".join(f"{suffix} {name}" for suffix, name in UNIT_SUFFIXES.items())
-    lines = [f"# lfjax sweep configuration ({CONFIG_FORMAT}): every key with its default.",
-             *textwrap.wrap(f"Units are in the key names: {units}. Run: lfjax sweep "
-                            f"THIS.toml --dry-run", 88, initial_indent="# ",
-                            subsequent_indent="# "), ""]
-    for section, keys in _SCHEMA.items():
-        lines.append(f"[{section}]")
-        for key in keys.values():
-            if key.default is not None:
-                text, prefix = _toml_value(key.default), ""
-            elif key.none_word is not None:
-                text, prefix = _toml_value(key.none_word), ""
-            else:
-                text, prefix = _toml_value(key.example), "# "
-            about = key.help + (f"; {key.rules()}" if key.rules() else "")
-            lines += textwrap.wrap(about, 88, initial_indent="# ", subsequent_indent="#   ",
-                                   break_on_hyphens=False)
-            lines.append(f"{prefix}{key.name} = {text}")
-        lines.append("")
-    lines.append("[model]  # lfjax.ModelOptions fields")
-    for key, value in ModelOptions().as_dict().items():
-        if value is not None:
-            lines.append(f"{key} = {_toml_value(value)}")
-        else:
-            lines.append(f"# {key} = (not set)")
-    return "\n".join(lines) + "\n"
-
-
-def _toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in value) + "]"
-    return repr(value)
-
-
 SweepConfig.__doc__ += _key_list()
 
 
-def with_new_defaults(stored: dict) -> dict:
-    """A stored :meth:`SweepConfig.as_dict` record with every key it lacks at its default.
-
-    A store written before a key existed was computed as that key's default computes (a new
-    key's default changes nothing), so it resumes under a config leaving the key there; set
-    to anything else, the key then differs from the record."""
-    out = dict(stored)
-    for key in KEYS:
-        if key.field not in out:
-            out[key.field] = _shown(key.default)
-    return out
-
-
-def config_differences(stored: dict, current: dict, prefix: str = "") -> list[str]:
-    """Human-readable differences between two :meth:`SweepConfig.as_dict` records."""
-    out = []
-    for key in sorted(set(stored) | set(current)):
-        a, b = stored.get(key, "<absent>"), current.get(key, "<absent>")
-        if isinstance(a, dict) and isinstance(b, dict):
-            out += config_differences(a, b, f"{prefix}{key}.")
-        elif a != b:
-            out.append(f"{prefix}{key}: store has {a!r}, config has {b!r}")
-    return out
-
-
 __all__ = [
-    "CONFIG_FORMAT",
-    "KEYS",
-    "Key",
-    "MAX_STRIP_VIEWS",
-    "MAX_STRIP_WIDTH_RATIO",
-    "SweepConfig",
-    "SweepConfigError",
-    "UNIT_SUFFIXES",
+    "config_fields",
     "config_from_dict",
-    "config_differences",
-    "config_template",
-    "config_to_toml",
-    "load_config",
-    "strip_views",
-    "with_new_defaults",
+    "config_sections",
+    "KEYS",
+    "SCHEMA",
+    "SweepConfig",
 ]

@@ -37,10 +37,12 @@ from lfjax.base.tables import printable
 from lfjax.model.layout_plots import draw_layout
 from lfjax.model.layouts import LF_LAYOUTS
 from lfjax.sweep.compute import resolve_layout
-from lfjax.sweep.config import config_from_dict, strip_views
+from lfjax.sweep.config import config_from_dict
+from lfjax.sweep.config_keys import strip_views
 from lfjax.sweep.guard import display_effects
 from lfjax.base.files import check_writable, staged_output
-from lfjax.sweep.store import is_store, open_store, store_damage
+from lfjax.sweep.store import open_store
+from lfjax.sweep.store_checks import is_store, store_damage
 from lfjax.sweep.ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
 
 PERCENTILES = (5, 25, 50, 75, 95)

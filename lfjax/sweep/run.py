@@ -22,27 +22,29 @@ import jax
 import numpy as np
 from jax.experimental import multihost_utils
 
+from lfjax._version import utc_now
 from lfjax.sweep.compute import ChunkEvaluator, build_tasks, population
 from lfjax.sweep.config import SweepConfig
 from lfjax.sweep.guard import check_fits, estimate
 from lfjax.sweep.store import (
-    StoreLock,
-    check_store_matches,
     chunk_dataset,
-    completed_chunks,
     create_store,
-    read_bookkeeping,
     record_run,
     stored_attribute,
     stored_samplings,
     stored_spectra,
     template,
     unmark_chunks,
-    utc_now,
-    verify_store,
     write_chunk,
 )
 from lfjax.sweep.target import check_store_target
+from lfjax.sweep.store_checks import (
+    check_store_matches,
+    completed_chunks,
+    read_bookkeeping,
+    verify_store,
+)
+from lfjax.sweep.store_lock import StoreLock
 
 
 @dataclass

@@ -8,8 +8,13 @@ so no two writers (processes) ever touch the same file — and only after its da
 is the chunk marked in ``chunk_complete``, with the checksum of what was written in
 ``chunk_checksum``. A chunk interrupted half-way is therefore unmarked and recomputed on
 resume; a finished one is recomputed only when its data no longer match its checksum
-(:func:`verify_store`). One writer at a time holds :class:`StoreLock` (``STORE.lock``).
-The metadata are consolidated, and the attributes record the provenance.
+(:func:`~lfjax.sweep.store_checks.verify_store`). One writer at a time holds
+:class:`~lfjax.sweep.store_lock.StoreLock` (``STORE.lock``). The metadata are consolidated,
+and the attributes record the provenance (:func:`lfjax._version.stamp`).
+
+This module writes and reads the store (its layout, :func:`template`, the chunks);
+:mod:`lfjax.sweep.store_checks` recognises a store and checks its integrity and its
+configuration; :mod:`lfjax.sweep.store_lock` is the one writer's lock.
 
 Dataset (dims ``eye, pupil, layout, depth, accommodation, metric, frequency, zernike_j,
 chunk``), see :func:`template` for every variable's units. :func:`study_view` presents one
@@ -20,61 +25,39 @@ pupil of a store as the reproduction's study Dataset, so the paper's claims
 from __future__ import annotations
 
 import dataclasses
-import datetime
 import errno
-import hashlib
 import json
 import os
 import shutil
 import socket
-import subprocess
 import warnings
 from pathlib import Path
 
-import jax
 import numpy as np
 
-from lfjax.base.files import (owned_temp_dir, pid_alive, register_emergency_cleanup,
-                              remove_orphans, unregister_emergency_cleanup)
-from lfjax._version import __version__
+from lfjax.base.files import owned_temp_dir, remove_orphans
+from lfjax._version import stamp, utc_now
 from lfjax.vision.peak_options import METRICS
 from lfjax.base.sampling import Sampling
 from lfjax.model.spectral import make_spectrum
 from lfjax.sweep.compute import (FREQUENCIES_CPD, Task, layout_name, spectral_plans,
                                  sweep_spectra)
-from lfjax.sweep.config import SweepConfig, config_differences, config_to_toml, with_new_defaults
-
-STORE_FORMAT = "lfjax-sweep-store/1"
-CHECKSUM_SCHEME = 2
-"""What the checksums of a store cover (its attribute ``checksum_scheme``): 2 — each chunk's
-eye variables and its eyes' ``zernike_um``, and (attribute ``metadata_checksum``) the
-configuration attributes and every array without an ``eye`` axis, with the ``eye`` and
-``is_average`` coordinates; a store without the attribute (1) — the eye variables only."""
-BOOKKEEPING = ("chunk_complete", "chunk_checksum")
-_UNCHECKED_ATTRS = ("runs_json", "completed_utc", "metadata_checksum")  # change as runs end
-ZARR_FORMAT = 2  # strings (layout names) have no stable Zarr v3 encoding yet (zarr 3.1 warns)
-
-_EYE_VARIABLES = (
-    "vsotf", "strehl", "predicted_accommodation", "accommodation_error",
-    "predicted_accommodation_continuous", "continuous_error", "continuous_peak_success",
-    "peak_value", "cutoff_frequency", "mtf_at_peak",
+from lfjax.sweep.config import SweepConfig
+from lfjax.sweep.config_files import config_to_toml
+from lfjax.sweep.store_checks import (
+    BOOKKEEPING,
+    CHECKSUM_SCHEME,
+    STORE_FORMAT,
+    ZARR_FORMAT,
+    chunk_checksum,
+    consolidated_damage,
+    is_store,
+    metadata_checksum,
+    not_a_store,
+    open_group,
+    read_bookkeeping,
+    stored_record,
 )
-
-
-class StoreMismatchError(ValueError):
-    """A store made by another configuration (``differences``: one line each)."""
-
-    def __init__(self, path, differences: list[str]):
-        self.differences = differences
-        lines = "\n".join(f"  - {d}" for d in differences)
-        super().__init__(
-            f"{path} was made by another sweep configuration; refusing to resume it. "
-            f"Differences:\n{lines}\nRun with the store's own config (its attribute "
-            f"'config_toml'), or write to another --out.")
-
-
-def _stored_record(config: SweepConfig) -> dict:
-    return {"config": config.as_dict(), "lfjax_version": __version__}
 
 
 def spectral_record(config: SweepConfig, tasks: list[Task]) -> dict[str, dict]:
@@ -117,20 +100,25 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
     creating a store takes memory of one chunk, not of the whole population."""
     import xarray as xr
 
-    n_eye = int(np.shape(zernike_um)[0])
+    spectra = spectral_record(config, tasks)
+    plan = _task_arrays(config, tasks, spectra)
+    data_vars = _result_variables(config, int(np.shape(zernike_um)[0]))
+    data_vars.update(_setup_variables(config, zernike_um, plan))
+    return xr.Dataset(data_vars=data_vars,
+                      coords=_coordinates(config, zernike_um, is_average, plan),
+                      attrs=_store_attrs(config, spectra, plan["samplings"]))
+
+
+def _task_arrays(config: SweepConfig, tasks: list[Task], spectra: dict) -> dict:
+    """Each (pupil, layout)'s plan as arrays (pupil, layout): ``steps`` (frequency step,
+    cpd), ``n_fft``, ``n_sub`` (subapertures), ``sub_diam`` (mm), ``n_wl`` (wavelengths),
+    and ``samplings`` ({"pupil_index,layout_index": Sampling as a dict})."""
     n_pupil, n_layout = len(config.pupil_diameters_mm), len(config.layouts)
-    depths = config.depths_D
-    acc = config.accommodation_D
-    base = (n_eye, n_pupil, n_layout, depths.size)
-    dims5 = ("eye", "pupil", "layout", "depth")
-    nan = lambda shape, dtype=np.float32: np.full(shape, np.nan, dtype)  # noqa: E731
-    per_metric = base + (len(METRICS),)
     steps = np.full((n_pupil, n_layout), np.nan)
     n_fft = np.zeros((n_pupil, n_layout), np.int32)
     n_sub = np.zeros((n_pupil, n_layout), np.int32)
     sub_diam = np.full((n_pupil, n_layout), np.nan)
     samplings = {}
-    spectra = spectral_record(config, tasks)
     n_wl = np.zeros((n_pupil, n_layout), np.int32)
     for t in tasks:
         n_wl[t.key] = spectra[f"{t.pupil_index},{t.layout_index}"]["n_wavelengths"]
@@ -139,12 +127,21 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         n_sub[t.key] = t.layout.n_subapertures
         sub_diam[t.key] = float(np.max(np.asarray(t.layout.diameters_mm)))
         samplings[f"{t.pupil_index},{t.layout_index}"] = dataclasses.asdict(t.sampling)
-    record = _stored_record(config)
-    attrs = {
+    return dict(steps=steps, n_fft=n_fft, n_sub=n_sub, sub_diam=sub_diam, n_wl=n_wl,
+                samplings=samplings)
+
+
+def _store_attrs(config: SweepConfig, spectra: dict, samplings: dict) -> dict:
+    """The store's attributes: its format, the configuration it was made by (what a resume
+    is checked against), the units, the spectra and samplings planned, and its provenance
+    (:func:`lfjax._version.stamp`)."""
+    record = stored_record(config)
+    made = stamp()  # who made the store (provenance_json); the version also heads the attrs
+    return {
         "title": "lfjax population sweep: eyes viewing a light-field display",
         "format": STORE_FORMAT,
         "lfjax_version": record["lfjax_version"],
-        "jax_version": jax.__version__,
+        "jax_version": made["jax_version"],
         "config_json": json.dumps(record["config"], sort_keys=True),
         "config_toml": config_to_toml(config),
         "model_options_json": json.dumps(config.options.as_dict(), sort_keys=True),
@@ -181,116 +178,103 @@ def template(config: SweepConfig, tasks: list[Task], zernike_um, is_average) -> 
         "n_chunks": int(config.n_chunks),
         "chunk_size": int(config.chunk_size),
         "checksum_scheme": CHECKSUM_SCHEME,
-        "provenance_json": json.dumps(provenance(), sort_keys=True),
+        "provenance_json": json.dumps(made, sort_keys=True),
     }
+
+
+def _result_variables(config: SweepConfig, n_eye: int) -> dict:
+    """The eye variables (NaN until their chunk is written): {name: (dims, values, attrs)}."""
+    n_pupil, n_layout = len(config.pupil_diameters_mm), len(config.layouts)
+    acc = config.accommodation_D
+    base = (n_eye, n_pupil, n_layout, config.depths_D.size)
+    dims5 = ("eye", "pupil", "layout", "depth")
+    nan = lambda shape, dtype=np.float32: np.full(shape, np.nan, dtype)  # noqa: E731
+    per_metric = base + (len(METRICS),)
     metric_note = "metric axis: vsotf, strehl"
-    ds = xr.Dataset(
-        data_vars=dict(
-            vsotf=(dims5 + ("accommodation",), nan(base + (acc.size,)), {
-                "long_name": "visual Strehl ratio computed from the OTF (VSOTF); NaN outside "
-                             "each depth's window and, for natural view, off the CDP",
-                "units": "1"}),
-            strehl=(dims5 + ("accommodation",), nan(base + (acc.size,)), {
-                "long_name": "Strehl ratio (PSF peak / reference PSF peak)", "units": "1"}),
-            predicted_accommodation=(dims5 + ("metric",), nan(per_metric, np.float64), {
-                "long_name": f"accommodation state maximising the metric on the grid "
-                             f"({metric_note})", "units": "D"}),
-            accommodation_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
-                "long_name": "grid predicted accommodation minus rendered depth (negative: "
-                             "focused farther than the image)", "units": "D"}),
-            predicted_accommodation_continuous=(dims5 + ("metric",), nan(per_metric, np.float64), {
-                "long_name": f"continuous peak refined from the grid (lfjax.vision.peaks "
-                             f"{config.peak_method!r}); NaN for metrics not in "
-                             f"continuous_peaks", "units": "D"}),
-            continuous_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
-                "long_name": "continuous predicted accommodation minus rendered depth",
-                "units": "D"}),
-            continuous_peak_success=(dims5 + ("metric",), np.zeros(per_metric, bool), {
-                "long_name": "the continuous peak converged inside its bracket"}),
-            peak_value=(dims5 + ("metric",), nan(per_metric), {
-                "long_name": "metric value at its grid peak", "units": "1"}),
-            cutoff_frequency=(dims5 + ("metric",), nan(per_metric), {
-                "long_name": f"frequency where the radial MTF at the grid-predicted "
-                             f"accommodation falls to {config.cutoff_threshold:g}",
-                "units": "cpd"}),
-            mtf_at_peak=(dims5 + ("metric", "frequency"), nan(per_metric + (FREQUENCIES_CPD.size,)), {
-                "long_name": "radial (meridian-averaged) MTF at the grid-predicted "
-                             "accommodation", "units": "1"}),
-            zernike_um=(("eye", "zernike_j"), np.asarray(zernike_um, float), {
-                "long_name": "OSA/ANSI Zernike coefficients on the measured pupil "
-                             "(piston and tilt zeroed)", "units": "um"}),
-            freq_step_cpd=(("pupil", "layout"), steps, {
-                "long_name": "frequency step of the OTF grid (PSF field 60/df arcmin)",
-                "units": "cpd"}),
-            n_fft=(("pupil", "layout"), n_fft, {"long_name": "FFT size of the OTF grid"}),
-            n_wavelengths=(("pupil", "layout"), n_wl, {
-                "long_name": "wavelengths summed (the rule, its nodes and weights: attribute "
-                             "spectra_json)"}),
-            chunk_complete=(("chunk",), np.zeros(config.n_chunks, bool), {
-                "long_name": "the chunk's eyes are written (eyes chunk*chunk_size …)"}),
-            chunk_checksum=(("chunk",), np.zeros(config.n_chunks, np.uint64), {
-                "long_name": "BLAKE2b-64 of the chunk's eye variables and its eyes' "
-                             "zernike_um as written (lfjax.sweep.store.chunk_checksum; 0: not "
-                             "written); the configuration and the other arrays: attribute "
-                             "metadata_checksum"}),
-        ),
-        coords=dict(
-            eye=("eye", np.arange(n_eye)),
-            is_average=("eye", np.asarray(is_average, bool),
-                        {"long_name": "the Thibos et al. (2002) average eye"}),
-            pupil=("pupil", np.asarray(config.pupil_diameters_mm, float),
-                   {"long_name": "calculation pupil diameter", "units": "mm"}),
-            layout=("layout", [layout_name(e) for e in config.layouts]),
-            layout_entry=("layout", list(config.layouts)),
-            n_subapertures=(("pupil", "layout"), n_sub),
-            subaperture_diameter_mm=(("pupil", "layout"), sub_diam, {"units": "mm"}),
-            depth=("depth", depths, {"long_name": "rendered depth (absolute)", "units": "D"}),
-            depth_rel_cdp=("depth", np.round(depths - config.cdp_D, 9), {
-                "long_name": "rendered depth relative to the CDP", "units": "D"}),
-            accommodation=("accommodation", acc, {
-                "long_name": "absolute accommodation state 1/z_acc", "units": "D"}),
-            metric=("metric", list(METRICS)),
-            frequency=("frequency", FREQUENCIES_CPD, {"long_name": "spatial frequency",
-                                                      "units": "cpd"}),
-            zernike_j=("zernike_j", np.arange(np.shape(zernike_um)[1])),
-            chunk=("chunk", np.arange(config.n_chunks)),
-        ),
-        attrs=attrs,
+    return dict(
+        vsotf=(dims5 + ("accommodation",), nan(base + (acc.size,)), {
+            "long_name": "visual Strehl ratio computed from the OTF (VSOTF); NaN outside "
+                         "each depth's window and, for natural view, off the CDP",
+            "units": "1"}),
+        strehl=(dims5 + ("accommodation",), nan(base + (acc.size,)), {
+            "long_name": "Strehl ratio (PSF peak / reference PSF peak)", "units": "1"}),
+        predicted_accommodation=(dims5 + ("metric",), nan(per_metric, np.float64), {
+            "long_name": f"accommodation state maximising the metric on the grid "
+                         f"({metric_note})", "units": "D"}),
+        accommodation_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
+            "long_name": "grid predicted accommodation minus rendered depth (negative: "
+                         "focused farther than the image)", "units": "D"}),
+        predicted_accommodation_continuous=(dims5 + ("metric",), nan(per_metric, np.float64), {
+            "long_name": f"continuous peak refined from the grid (lfjax.vision.peaks "
+                         f"{config.peak_method!r}); NaN for metrics not in "
+                         f"continuous_peaks", "units": "D"}),
+        continuous_error=(dims5 + ("metric",), nan(per_metric, np.float64), {
+            "long_name": "continuous predicted accommodation minus rendered depth",
+            "units": "D"}),
+        continuous_peak_success=(dims5 + ("metric",), np.zeros(per_metric, bool), {
+            "long_name": "the continuous peak converged inside its bracket"}),
+        peak_value=(dims5 + ("metric",), nan(per_metric), {
+            "long_name": "metric value at its grid peak", "units": "1"}),
+        cutoff_frequency=(dims5 + ("metric",), nan(per_metric), {
+            "long_name": f"frequency where the radial MTF at the grid-predicted "
+                         f"accommodation falls to {config.cutoff_threshold:g}",
+            "units": "cpd"}),
+        mtf_at_peak=(dims5 + ("metric", "frequency"), nan(per_metric + (FREQUENCIES_CPD.size,)), {
+            "long_name": "radial (meridian-averaged) MTF at the grid-predicted "
+                         "accommodation", "units": "1"}),
     )
-    return ds
 
 
-def utc_now() -> str:
-    """The time now, UTC, to the second (ISO 8601): when a store or a run was created or ended."""
-    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+def _setup_variables(config: SweepConfig, zernike_um, plan: dict) -> dict:
+    """The eyes' coefficients, each (pupil, layout)'s plan and the chunk bookkeeping:
+    {name: (dims, values, attrs)}."""
+    return dict(
+        zernike_um=(("eye", "zernike_j"), np.asarray(zernike_um, float), {
+            "long_name": "OSA/ANSI Zernike coefficients on the measured pupil "
+                         "(piston and tilt zeroed)", "units": "um"}),
+        freq_step_cpd=(("pupil", "layout"), plan["steps"], {
+            "long_name": "frequency step of the OTF grid (PSF field 60/df arcmin)",
+            "units": "cpd"}),
+        n_fft=(("pupil", "layout"), plan["n_fft"], {"long_name": "FFT size of the OTF grid"}),
+        n_wavelengths=(("pupil", "layout"), plan["n_wl"], {
+            "long_name": "wavelengths summed (the rule, its nodes and weights: attribute "
+                         "spectra_json)"}),
+        chunk_complete=(("chunk",), np.zeros(config.n_chunks, bool), {
+            "long_name": "the chunk's eyes are written (eyes chunk*chunk_size …)"}),
+        chunk_checksum=(("chunk",), np.zeros(config.n_chunks, np.uint64), {
+            "long_name": "BLAKE2b-64 of the chunk's eye variables and its eyes' "
+                         "zernike_um as written (lfjax.sweep.store_checks.chunk_checksum; 0: not "
+                         "written); the configuration and the other arrays: attribute "
+                         "metadata_checksum"}),
+    )
 
 
-def _git_commit() -> str | None:
-    """The commit of the lfjax source tree, when it is a git checkout (else None)."""
-    here = Path(__file__).resolve().parents[2]
-    if not (here / ".git").exists():
-        return None
-    try:
-        out = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=5)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return (out.stdout.strip() or None) if out.returncode == 0 else None
-
-
-def provenance() -> dict:
-    """Who made a store: lfjax version and git commit, JAX version and devices, host, time."""
-    devices = jax.devices()
-    return {
-        "lfjax_version": __version__,
-        "lfjax_git_commit": _git_commit(),
-        "jax_version": jax.__version__,
-        "jax_backend": jax.default_backend(),
-        "jax_devices": f"{len(devices)} x {devices[0].device_kind}",
-        "process_count": jax.process_count(),
-        "host": socket.gethostname(),
-        "created_utc": utc_now(),
-    }
+def _coordinates(config: SweepConfig, zernike_um, is_average, plan: dict) -> dict:
+    """The store's coordinates: {name: (dims, values[, attrs])}."""
+    n_eye = int(np.shape(zernike_um)[0])
+    depths = config.depths_D
+    acc = config.accommodation_D
+    return dict(
+        eye=("eye", np.arange(n_eye)),
+        is_average=("eye", np.asarray(is_average, bool),
+                    {"long_name": "the Thibos et al. (2002) average eye"}),
+        pupil=("pupil", np.asarray(config.pupil_diameters_mm, float),
+               {"long_name": "calculation pupil diameter", "units": "mm"}),
+        layout=("layout", [layout_name(e) for e in config.layouts]),
+        layout_entry=("layout", list(config.layouts)),
+        n_subapertures=(("pupil", "layout"), plan["n_sub"]),
+        subaperture_diameter_mm=(("pupil", "layout"), plan["sub_diam"], {"units": "mm"}),
+        depth=("depth", depths, {"long_name": "rendered depth (absolute)", "units": "D"}),
+        depth_rel_cdp=("depth", np.round(depths - config.cdp_D, 9), {
+            "long_name": "rendered depth relative to the CDP", "units": "D"}),
+        accommodation=("accommodation", acc, {
+            "long_name": "absolute accommodation state 1/z_acc", "units": "D"}),
+        metric=("metric", list(METRICS)),
+        frequency=("frequency", FREQUENCIES_CPD, {"long_name": "spatial frequency",
+                                                  "units": "cpd"}),
+        zernike_j=("zernike_j", np.arange(np.shape(zernike_um)[1])),
+        chunk=("chunk", np.arange(config.n_chunks)),
+    )
 
 
 def record_run(path, started_utc: str, computed: list[int]) -> None:
@@ -299,7 +283,7 @@ def record_run(path, started_utc: str, computed: list[int]) -> None:
     re-consolidate the metadata. Process 0 only (attributes are one file)."""
     import zarr
 
-    group = _open_group(path, "r+")
+    group = open_group(path, "r+")
     runs = json.loads(group.attrs.get("runs_json", "[]"))
     runs.append({"host": socket.gethostname(), "pid": os.getpid(), "started_utc": started_utc,
                  "ended_utc": utc_now(), "chunks_computed": len(computed)})
@@ -312,12 +296,12 @@ def record_run(path, started_utc: str, computed: list[int]) -> None:
 
 def stored_attribute(path, name: str, default=None):
     """The store's attribute ``name`` (``default`` when it has none)."""
-    return _open_group(path).attrs.get(name, default)
+    return open_group(path).attrs.get(name, default)
 
 
 def stored_samplings(path) -> dict:
     """{(pupil_index, layout_index): Sampling} recorded in a store."""
-    attrs = _open_group(path).attrs
+    attrs = open_group(path).attrs
     out = {}
     for key, value in json.loads(attrs["sampling_json"]).items():
         pi, li = (int(x) for x in key.split(","))
@@ -331,7 +315,7 @@ def stored_spectra(path, config: SweepConfig) -> dict | None:
     ``spectra_json``, or, for a store made before rules were planned per layout, its one
     ``wavelengths_nm`` grid with V(λ) weights. None for a display's spectrum without
     ``spectra_json`` (the config derives it as it did)."""
-    attrs = _open_group(path).attrs
+    attrs = open_group(path).attrs
     if "spectra_json" in attrs:
         return {tuple(int(x) for x in key.split(",")): make_spectrum(
                     np.asarray(r["wavelengths_nm"]), config.options, weights=np.asarray(r["weights"]))
@@ -427,269 +411,6 @@ def clean_interrupted_creations(path) -> list[Path]:
                           "an interrupted store creation")
 
 
-# --------------------------------------------------------------------------- lock
-
-LOCK_SUFFIX = ".lock"
-
-
-def lock_path(path) -> Path:
-    """The lock file of the store at ``path``: ``STORE.lock`` beside it."""
-    path = Path(path)
-    return path.with_name(path.name + LOCK_SUFFIX)
-
-
-class StoreLockedError(RuntimeError):
-    """Another live process is writing the store (``holder``: its host, PID, start)."""
-
-    def __init__(self, path, holder: dict):
-        self.holder = holder
-        super().__init__(
-            f"{path} is being written by another process: host {holder.get('host')}, PID "
-            f"{holder.get('pid')}, since {holder.get('started_utc')}. Wait for it to finish; if "
-            f"that process is gone (another host cannot be checked from here), delete "
-            f"{lock_path(path)} and resume.")
-
-
-class StoreLock:
-    """An exclusive writer's lock on a store: the file ``STORE.lock`` beside it (inside, Zarr
-    would list it as a stray node) holding the host, PID and start time of its holder,
-    created atomically (O_EXCL). A lock whose holder ran on this host and is no longer alive
-    is stale: it is taken over (``recovered`` names it). Use as a context manager."""
-
-    def __init__(self, path):
-        self.file = lock_path(path)
-        self.path = Path(path)
-        self.recovered: dict | None = None
-        self.record = {"host": socket.gethostname(), "pid": os.getpid(), "started_utc": utc_now()}
-
-    def acquire(self) -> StoreLock:
-        for _ in range(2):
-            try:
-                fd = os.open(self.file, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-            except FileExistsError:
-                holder = self._holder()
-                if (holder.get("host") == self.record["host"]
-                        and isinstance(holder.get("pid"), int)
-                        and not pid_alive(holder["pid"])):
-                    self.recovered = holder  # stale: its process died (SIGKILL, power)
-                    self.file.unlink(missing_ok=True)
-                    continue
-                raise StoreLockedError(self.path, holder) from None
-            with os.fdopen(fd, "w") as f:
-                json.dump(self.record, f)
-            register_emergency_cleanup(id(self), self.release)  # also on an immediate exit
-            return self
-        raise StoreLockedError(self.path, self._holder())
-
-    def _holder(self) -> dict:
-        try:
-            return json.loads(self.file.read_text())
-        except (OSError, ValueError):
-            return {"host": "?", "pid": "?", "started_utc": "? (unreadable lock file)"}
-
-    def release(self) -> None:
-        unregister_emergency_cleanup(id(self))
-        if self._holder().get("pid") == self.record["pid"]:
-            self.file.unlink(missing_ok=True)
-
-    def __enter__(self) -> StoreLock:
-        return self.acquire()
-
-    def __exit__(self, *exc) -> None:
-        self.release()
-
-
-def _open_group(path, mode: str = "r"):
-    import zarr
-
-    # the arrays' own metadata, not .zmetadata: a damaged consolidated copy must not hide
-    # an intact store (it is rewritten when a run ends, record_run)
-    return zarr.open_group(str(path), mode=mode, zarr_format=ZARR_FORMAT, use_consolidated=False)
-
-
-def _one_line(err: BaseException, limit: int = 120) -> str:
-    return f"{type(err).__name__}: {' '.join(str(err).split())[:limit]}"
-
-
-def is_store(path) -> bool:
-    """Whether ``path`` is a folder whose attributes say it is an lfjax sweep store."""
-    path = Path(path)
-    if not path.is_dir():
-        return False
-    try:
-        return _open_group(path).attrs.get("format") == STORE_FORMAT
-    except Exception:  # noqa: BLE001 - any unreadable folder is "not a sweep store"
-        return False
-
-
-def store_damage(path) -> str | None:
-    """Why ``path``, a folder with Zarr metadata files, cannot be read as a sweep store
-    (a damaged ``.zattrs``/``.zgroup``), or None (a store, or no Zarr folder at all)."""
-    path = Path(path)
-    if not path.is_dir() or is_store(path):
-        return None
-    for name in (".zattrs", ".zgroup", ".zmetadata"):
-        file = path / name
-        if file.is_file():
-            try:
-                json.loads(file.read_text())
-            except (OSError, ValueError) as err:
-                return f"its metadata file {name} is damaged ({_one_line(err)})"
-    return None
-
-
-def not_a_store(path) -> str:
-    """The sentence refusing ``path`` as a sweep store: damaged, or not one at all."""
-    damage = store_damage(path)
-    if damage is not None:
-        return f"{path} looks like an lfjax sweep store but {damage}; it cannot be read"
-    return f"{path} is not an lfjax sweep store (format {STORE_FORMAT!r})"
-
-
-def consolidated_damage(path) -> str | None:
-    """Why the store's consolidated metadata (``.zmetadata``) cannot be read, or None."""
-    file = Path(path) / ".zmetadata"
-    if not file.is_file():
-        return None
-    try:
-        json.loads(file.read_text())
-    except (OSError, ValueError) as err:
-        return f".zmetadata (the consolidated metadata) is damaged ({_one_line(err)})"
-    return None
-
-
-class StoreDamagedError(ValueError):
-    """A store's configuration or coordinates no longer match the checksum written with
-    them (``metadata_checksum``): no chunk can be trusted to be computed as recorded."""
-
-
-def metadata_checksum(group) -> int:
-    """BLAKE2b-64 of a store's configuration attributes (all but ``runs_json``,
-    ``completed_utc`` and itself, which change as runs end) and of every array without an
-    ``eye`` axis, with the ``eye`` and ``is_average`` coordinates (names, dtypes, shapes and
-    values); never 0. ``group``: the store's open Zarr group."""
-    h = hashlib.blake2b(digest_size=8)
-    attrs = {k: v for k, v in dict(group.attrs).items() if k not in _UNCHECKED_ATTRS}
-    h.update(json.dumps(attrs, sort_keys=True).encode())
-    for name in sorted(group.array_keys()):
-        array = group[name]
-        dims = array.attrs.get("_ARRAY_DIMENSIONS", [])
-        if name in BOOKKEEPING or ("eye" in dims and name not in ("eye", "is_average")):
-            continue
-        a = np.asarray(array[...])
-        if a.dtype.kind == "f":
-            a = np.where(np.isnan(a), np.nan, a).astype(a.dtype)
-        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
-        h.update(a.tobytes() if a.dtype.kind not in "OUS" else json.dumps(a.tolist()).encode())
-    return int.from_bytes(h.digest(), "little") or 1
-
-
-def metadata_problem(path) -> str | None:
-    """Why the store's configuration and coordinates cannot be trusted (they do not match
-    ``metadata_checksum``, or cannot be read), or None (they match, or the store predates
-    the checksum)."""
-    try:
-        group = _open_group(path)
-        stored = group.attrs.get("metadata_checksum")
-        if stored is None:
-            return None
-        if metadata_checksum(group) != int(stored):
-            return ("its configuration or coordinates do not match the checksum written with "
-                    "them (attribute metadata_checksum): an attribute or a coordinate file was "
-                    "altered")
-    except Exception as err:  # noqa: BLE001 - any failure to read them is damage
-        return f"its configuration or coordinates cannot be read ({_one_line(err)})"
-    return None
-
-
-def check_store_matches(path, config: SweepConfig) -> None:
-    """Raise :class:`StoreMismatchError` unless ``path`` was made by ``config`` and this
-    lfjax version (a :class:`StoreDamagedError` when its recorded configuration fails its
-    checksum)."""
-    if not is_store(path):
-        raise ValueError(f"{not_a_store(path)}; choose another --out")
-    problem = metadata_problem(path)
-    if problem is not None:
-        raise StoreDamagedError(f"{path}: {problem}; it cannot be resumed safely (verify it "
-                                f"with lfjax sweep {path} --verify; write a new store to "
-                                f"another --out)")
-    attrs = _open_group(path).attrs
-    # keys added since the store was written are at their defaults there (with_new_defaults)
-    stored = {"config": with_new_defaults(json.loads(attrs["config_json"])),
-              "lfjax_version": attrs["lfjax_version"]}
-    current = json.loads(json.dumps(_stored_record(config), sort_keys=True))
-    differences = config_differences(stored, current)
-    if differences:
-        raise StoreMismatchError(path, differences)
-
-
-@dataclasses.dataclass
-class Bookkeeping:
-    """A store's chunk marks as read back, each chunk's file alone when the whole array
-    cannot be read.
-
-    done : (n_chunks,) bool, marked complete (False where the mark cannot be trusted)
-    sums : (n_chunks,) uint64, checksums written with them (0: none)
-    damaged : {chunk: why} chunks whose marks are unreadable, missing or contradict each
-        other (the bookkeeping file is named); they are recomputed on resume
-    has_checksums : the store records checksums (a store from before them does not)
-    """
-
-    done: np.ndarray
-    sums: np.ndarray
-    damaged: dict
-    has_checksums: bool
-
-
-def _read_marks(group, name: str, n: int, dtype) -> tuple[np.ndarray, dict]:
-    values = np.zeros(n, dtype)
-    try:
-        values[:] = np.asarray(group[name][:], dtype)
-        return values, {}
-    except Exception:  # noqa: BLE001 - read each chunk's file alone to name the damaged one
-        pass
-    broken = {}
-    for i in range(n):
-        try:
-            values[i] = np.asarray(group[name][i], dtype)
-        except Exception as err:  # noqa: BLE001 - a damaged file, whatever the decoder says
-            broken[i] = f"bookkeeping file {name}/{i} is unreadable ({_one_line(err, 80)})"
-    return values, broken
-
-
-def read_bookkeeping(path) -> Bookkeeping:
-    """The store's :class:`Bookkeeping` (``chunk_complete`` and ``chunk_checksum``): a
-    damaged or missing mark file is named, not raised. Marks are written complete first,
-    checksum second, and unmarked in the same order: a chunk marked complete without a
-    checksum, or with a checksum but not complete, has lost a bookkeeping file."""
-    group = _open_group(path)
-    n = int(group["chunk_complete"].shape[0])
-    done, damaged = _read_marks(group, "chunk_complete", n, bool)
-    has_checksums = "chunk_checksum" in group
-    sums = np.zeros(n, np.uint64)
-    if has_checksums:
-        sums, broken = _read_marks(group, "chunk_checksum", n, np.uint64)
-        for i, why in broken.items():
-            damaged[i] = f"{damaged[i]}; {why}" if i in damaged else why
-        for i in range(n):
-            if i in damaged:
-                continue
-            if done[i] and not sums[i]:
-                damaged[i] = (f"bookkeeping file chunk_checksum/{i} is missing or altered (the "
-                              f"chunk is marked complete without its checksum)")
-            elif not done[i] and sums[i]:
-                damaged[i] = (f"bookkeeping file chunk_complete/{i} is missing or altered (not "
-                              f"marked complete, yet its checksum was written)")
-    done = done & ~np.isin(np.arange(n), list(damaged))
-    return Bookkeeping(done, sums, damaged, has_checksums)
-
-
-def completed_chunks(path) -> np.ndarray:
-    """(n_chunks,) bool: which chunks are written (a chunk whose marks are damaged is not:
-    :func:`read_bookkeeping`)."""
-    return read_bookkeeping(path).done
-
-
 def chunk_dataset(config: SweepConfig, tasks: list[Task], results: dict, start: int, stop: int):
     """The store's eye-dimensioned variables for eyes ``start:stop`` from each task's
     chunk results (``results[task.key]``: :meth:`ChunkEvaluator.evaluate`)."""
@@ -735,22 +456,6 @@ def chunk_dataset(config: SweepConfig, tasks: list[Task], results: dict, start: 
                        for name, a in arrays.items()})
 
 
-def chunk_checksum(part, zernike_um=None) -> int:
-    """BLAKE2b-64 of a chunk's eye variables (name, dtype, shape and values; every NaN
-    counted alike) and, when given (checksum scheme 2, :data:`CHECKSUM_SCHEME`), its eyes'
-    ``zernike_um`` (n, n_modes) µm, as an unsigned 64-bit integer; never 0."""
-    h = hashlib.blake2b(digest_size=8)
-    arrays = [(name, np.asarray(part[name].values)) for name in sorted(_EYE_VARIABLES)]
-    if zernike_um is not None:
-        arrays.append(("zernike_um", np.asarray(zernike_um, np.float64)))
-    for name, a in arrays:
-        if a.dtype.kind == "f":
-            a = np.where(np.isnan(a), np.nan, a).astype(a.dtype)
-        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
-        h.update(np.ascontiguousarray(a).tobytes())
-    return int.from_bytes(h.digest(), "little") or 1
-
-
 def write_chunk(path, chunk_index: int, part, start: int, stop: int, zernike_um=None) -> None:
     """Write one chunk's variables into its region (and, given, its eyes' ``zernike_um``:
     rewritten, so a recomputed chunk repairs them too), then mark the chunk complete with
@@ -760,7 +465,7 @@ def write_chunk(path, chunk_index: int, part, start: int, stop: int, zernike_um=
     part.to_zarr(str(path), region={"eye": slice(start, stop)}, mode="r+", consolidated=False,
                  zarr_format=ZARR_FORMAT)
     if zernike_um is not None:
-        _open_group(path, "r+")["zernike_um"][start:stop] = np.asarray(zernike_um, float)
+        open_group(path, "r+")["zernike_um"][start:stop] = np.asarray(zernike_um, float)
         # the checksum of the coefficients as stored (float64 both ways: the same bits)
     xr.Dataset({"chunk_complete": (("chunk",), np.ones(1, bool)),
                 "chunk_checksum": (("chunk",), np.array([chunk_checksum(part, zernike_um)],
@@ -781,99 +486,12 @@ def unmark_chunks(path, chunks) -> None:
             group["chunk_checksum"][int(i)] = 0
 
 
-@dataclasses.dataclass
-class Verification:
-    """What :func:`verify_store` found, chunk indices in each list.
-
-    ok : complete and their data match the checksum
-    corrupt : complete but their data are missing, unreadable or do not match, or their
-        bookkeeping (``chunk_complete/<i>``, ``chunk_checksum/<i>``) is damaged ({i: why})
-    unchecked : complete, written without a checksum (a store from before checksums)
-    incomplete : not yet computed
-    problems : damage to the store as a whole (its configuration or coordinates against
-        their checksum, its consolidated metadata), one sentence each
-    """
-
-    ok: list[int]
-    corrupt: dict[int, str]
-    unchecked: list[int]
-    incomplete: list[int]
-    problems: list[str] = dataclasses.field(default_factory=list)
-
-    @property
-    def healthy(self) -> bool:
-        return not self.corrupt and not self.problems
-
-    def summary(self) -> str:
-        n = len(self.ok) + len(self.corrupt) + len(self.unchecked) + len(self.incomplete)
-        lines = [f"{len(self.ok)} of {n} chunks verified, {len(self.corrupt)} corrupt, "
-                 f"{len(self.incomplete)} not computed"
-                 + (f", {len(self.unchecked)} without checksum" if self.unchecked else "")]
-        lines += [f"  store: {why}" for why in self.problems]
-        lines += [f"  chunk {i}: {why}" for i, why in sorted(self.corrupt.items())]
-        if self.corrupt:
-            lines.append("  (lfjax sweep CONFIG --out STORE --resume recomputes them)")
-        return "\n".join(lines)
-
-
-def verify_store(path, chunks=None) -> Verification:
-    """Read every complete chunk (or those in ``chunks``) back from the store and compare it
-    with the checksum written with it; check the chunk marks themselves
-    (:func:`read_bookkeeping`), the configuration and coordinates against
-    ``metadata_checksum`` and the consolidated metadata. A deleted chunk file reads as fill
-    values (NaN) and a truncated one fails to decode: both are reported corrupt, naming the
-    reason. Reports every damage it finds and raises only for a path that is no sweep store
-    (ValueError, :func:`not_a_store`)."""
-    import xarray as xr
-
-    path = Path(path)
-    if not is_store(path):
-        raise ValueError(not_a_store(path))
-    result = Verification([], {}, [], [])
-    for problem in (consolidated_damage(path), metadata_problem(path)):
-        if problem is not None:
-            result.problems.append(problem)
-    try:
-        marks = read_bookkeeping(path)
-        attrs = _open_group(path).attrs
-        size = int(attrs["chunk_size"])
-        with_zernike = int(attrs.get("checksum_scheme", 1)) >= 2
-        ds = xr.open_zarr(str(path), consolidated=False, zarr_format=ZARR_FORMAT)
-        n_eye = ds.sizes["eye"]
-    except Exception as err:  # noqa: BLE001 - report, never raise
-        result.problems.append(f"its chunk bookkeeping cannot be read ({_one_line(err)})")
-        return result
-    names = list(_EYE_VARIABLES) + (["zernike_um"] if with_zernike else [])
-    for i in range(marks.done.size) if chunks is None else chunks:
-        if i in marks.damaged:
-            result.corrupt[i] = marks.damaged[i]
-            continue
-        if not marks.done[i]:
-            result.incomplete.append(i)
-            continue
-        if not marks.sums[i]:
-            result.unchecked.append(i)
-            continue
-        start, stop = i * size, min((i + 1) * size, n_eye)
-        try:
-            part = ds[names].isel(eye=slice(start, stop)).load()
-        except Exception as err:  # noqa: BLE001 - any decode failure means corrupt data
-            result.corrupt[i] = f"unreadable ({_one_line(err)})"
-            continue
-        zernike = part["zernike_um"].values if with_zernike else None
-        if chunk_checksum(part, zernike) != int(marks.sums[i]):
-            result.corrupt[i] = ("data do not match the checksum written with them (a chunk "
-                                 "file missing or altered, its eyes' zernike_um among them)")
-            continue
-        result.ok.append(i)
-    return result
-
-
 def open_store(path, complete_only: bool = False):
     """The sweep's Dataset (loaded into memory). ``complete_only``: keep only the eyes of
     completed chunks (a partial sweep read while it runs, or after an interruption). A
-    chunk whose marks are damaged (:func:`read_bookkeeping`) counts as not complete, with a
-    warning naming it; damaged consolidated metadata are read around, with a warning."""
+    chunk whose marks are damaged (:func:`~lfjax.sweep.store_checks.read_bookkeeping`)
+    counts as not complete, with a warning naming it; damaged consolidated metadata are
+    read around, with a warning."""
     import xarray as xr
 
     path = Path(path)
@@ -941,40 +559,19 @@ def study_view(ds, pupil_mm: float | None = None):
 
 
 __all__ = [
-    "LOCK_SUFFIX",
-    "lock_path",
-    "STORE_FORMAT",
-    "StoreLock",
-    "StoreLockedError",
-    "StoreDamagedError",
-    "StoreRaceError",
-    "Bookkeeping",
-    "CHECKSUM_SCHEME",
-    "Verification",
-    "metadata_checksum",
-    "metadata_problem",
-    "not_a_store",
-    "read_bookkeeping",
-    "store_damage",
-    "chunk_checksum",
-    "clean_interrupted_creations",
-    "is_disk_full",
-    "provenance",
-    "record_run",
-    "unmark_chunks",
-    "verify_store",
-    "StoreMismatchError",
-    "check_store_matches",
     "chunk_dataset",
-    "completed_chunks",
+    "clean_interrupted_creations",
     "create_store",
-    "is_store",
+    "is_disk_full",
     "open_store",
+    "record_run",
+    "spectral_record",
     "stored_attribute",
     "stored_samplings",
-    "spectral_record",
     "stored_spectra",
+    "StoreRaceError",
     "study_view",
     "template",
+    "unmark_chunks",
     "write_chunk",
 ]

@@ -34,7 +34,8 @@ import numpy as np
 
 from lfjax.vision.claim_core import StudyNumbers
 from lfjax.vision.claims import evaluate_claims
-from lfjax.sweep.store import ZARR_FORMAT, is_store, open_store, study_view
+from lfjax.sweep.store import open_store, study_view
+from lfjax.sweep.store_checks import is_store, ZARR_FORMAT
 
 Z_95 = 1.959963984540054
 """Standard normal quantile of 0.975 (two-sided 95 % interval)."""

@@ -157,6 +157,32 @@ def test_a_staged_folder_replaces_an_empty_one_and_merges_with_force(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 
+def test_a_staged_folder_with_replace_swaps_the_whole_folder(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "old.txt").write_text("an earlier result")
+    with files.staged_output(out, force=True, replace=True) as stage:
+        (stage / "new.txt").write_text("new")
+    assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # the old one is gone
+    with pytest.raises(FileExistsError, match="no longer empty"):  # replace needs force
+        with files.staged_output(out, replace=True) as stage:
+            (stage / "x").write_text("")
+    assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+
+
+def test_a_failed_staged_folder_leaves_no_parent_folders(tmp_path):
+    out = tmp_path / "new" / "deeper"
+    with pytest.raises(RuntimeError):
+        with files.staged_output(out) as stage:
+            assert stage.parent == tmp_path  # staged in the nearest existing folder
+            raise RuntimeError("failed")
+    assert list(tmp_path.iterdir()) == []
+    with files.staged_output(out) as stage:
+        (stage / "a").write_text("")
+    assert (out / "a").exists()
+
+
 def test_a_killed_runs_staging_folder_is_removed_by_the_next(tmp_path, capsys):
     import socket
     import subprocess

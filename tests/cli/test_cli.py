@@ -23,7 +23,9 @@ import pytest
 from helpers import execute_notebook_tiny, percent_cells
 from lfjax import cli
 from lfjax import reproduce as rep
+from lfjax.reproduce import run as reproduce_run
 from lfjax.base.errors import ParameterError
+from lfjax.base.files import staged_output
 from lfjax.cli import flags
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -266,8 +268,8 @@ def test_failure_mid_run_leaves_nothing(capsys, tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise RuntimeError("simulated failure\nover two lines")
 
-    monkeypatch.setattr(rep, "compute_examples", boom)
-    monkeypatch.setattr(rep, "run_study", lambda config, options=None, stage=None: None)
+    monkeypatch.setattr(reproduce_run, "compute_examples", boom)
+    monkeypatch.setattr(reproduce_run, "run_study", lambda config, options=None, stage=None: None)
     monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     out = tmp_path / "new" / "deeper"
     code, _, stderr = run_main(capsys, "reproduce", "--quick", "--no-progress", "--out", str(out))
@@ -282,10 +284,8 @@ def test_force_replaces_an_earlier_output(tmp_path):
     (out / rep.MARKER_FILE).write_text("")
     (out / "old.txt").write_text("old")
     assert rep.check_output_dir(out, force=True) == out
-    new = tmp_path / ".lfjax-reproduce-x"
-    new.mkdir()
-    (new / "new.txt").write_text("new")
-    rep._move_into_place(new, out)
+    with staged_output(out, force=True, replace=True) as new:  # as reproduce writes
+        (new / "new.txt").write_text("new")
     assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res"]
 

@@ -422,8 +422,9 @@ def test_reproduce_display_section_studies_the_average_eye_and_the_first_eyes(mo
     """lfjax reproduce --display-effects --display-eyes 1: the study gets the first virtual
     eye and the average eye of the reproduction, its layouts, depths (whole dioptres) and
     options (the computation itself is the notebook test's)."""
-    import lfjax.reproduce as rp
-    from lfjax.reproduce import StudyConfig, _display_effects, study_eyes
+    import lfjax.reproduce.run as rp
+    from lfjax.reproduce import StudyConfig, study_eyes
+    from lfjax.reproduce.run import _display_effects
 
     seen = {}
 
@@ -505,7 +506,7 @@ def test_reproduce_writes_the_display_tables_figures_and_report_section(tmp_path
     import pandas as pd
 
     from lfjax.studies.display_effects import display_effects_markdown
-    from lfjax.reproduce import DISPLAY_SWEEP_TABLE, DISPLAY_TABLE, write_display_outputs
+    from lfjax.reproduce.run import DISPLAY_SWEEP_TABLE, DISPLAY_TABLE, write_display_outputs
 
     study, sweep = _synthetic_display_results()
     files = write_display_outputs(study, sweep, tmp_path)

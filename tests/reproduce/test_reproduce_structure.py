@@ -1,5 +1,5 @@
 """`lfjax.reproduce` and `lfjax.sweep` import their parts in one direction:
-config ← study ← settling ← alternatives/report/figures ← entry, and config ← compute ← … ← report.
+config ← study ← settling ← alternatives/report/figures ← run ← face, and config ← compute ← … ← report.
 
 Parsed with ``ast`` (nothing is imported or run). The rules for the whole package (layers,
 no circle, no deferred imports) are in ``tests/test_import_layers.py``; these are the finer
@@ -20,7 +20,8 @@ LAYERS = {
     "alternatives": 3,
     "report": 3,
     "figures": 3,
-    "__init__": 4,
+    "run": 4,
+    "__init__": 5,
 }
 """Each part may import only parts of a strictly lower layer (lower: closer to the data)."""
 
@@ -114,9 +115,11 @@ def test_the_check_sees_a_cycle(tmp_path):
 
 
 SWEEP = LFJAX / "sweep"
-SWEEP_LAYERS = {"config": 0, "compute": 1, "guard": 2, "store": 2, "run": 3, "ten_eyes": 3,
-                "report": 4, "__init__": 5}
-"""lfjax.sweep: config ← compute ← guard / store ← run / ten_eyes ← report ← entry."""
+SWEEP_LAYERS = {"config_keys": 0, "config": 1, "config_files": 2, "compute": 3,
+                "store_checks": 3, "store_lock": 3, "guard": 4, "store": 4, "run": 5,
+                "ten_eyes": 5, "report": 6, "__init__": 7}
+"""lfjax.sweep: config_keys ← config ← config_files ← compute / store_checks / store_lock ←
+guard / store ← run / ten_eyes ← report ← entry."""
 
 
 def test_sweep_parts_import_only_lower_layers():

@@ -36,13 +36,11 @@ from lfjax.sweep import (
     run_sweep,
     study_view,
 )
+from lfjax._version import STAMP_KEYS
 from lfjax.sweep.compute import build_tasks, population, sweep_spectrum
-from lfjax.sweep.store import (
-    StoreLockedError,
-    clean_interrupted_creations,
-    lock_path,
-    verify_store,
-)
+from lfjax.sweep.store import clean_interrupted_creations
+from lfjax.sweep.store_checks import verify_store
+from lfjax.sweep.store_lock import lock_path, StoreLockedError
 from lfjax.vision.peak_options import PeakOptions
 from lfjax.vision.prepare import States
 from lfjax.vision.viewing import Viewing
@@ -223,7 +221,7 @@ def test_strip_and_leakage_keys_reach_each_layouts_display(tmp_path):
     record from before them resumes while they are at their defaults."""
     from lfjax.model.strips import neighbour_matrix
     from lfjax.sweep.compute import resolve_layout
-    from lfjax.sweep.config import config_differences, with_new_defaults
+    from lfjax.sweep.config_files import config_differences, with_new_defaults
 
     plain = tiny_config()
     for entry in plain.layouts:
@@ -492,6 +490,7 @@ def test_store_opens_consolidated_and_records_its_provenance(reference):
     assert made["lfjax_version"] == lfjax.__version__ and made["jax_version"] == jax.__version__
     assert made["host"] == socket.gethostname() and made["jax_devices"] == "1 x cpu"
     assert "lfjax_git_commit" in made and made["created_utc"].endswith("+00:00")
+    assert list(made) == sorted(STAMP_KEYS)  # the one stamp (lfjax._version.stamp), sorted
     first = json.loads(ds.attrs["runs_json"])[0]
     assert first["chunks_computed"] == 3 and first["host"] == socket.gethostname()
     assert made["created_utc"] <= first["ended_utc"] <= ds.attrs["completed_utc"]
@@ -597,7 +596,7 @@ def test_damaged_bookkeeping_and_coefficients_are_named_and_recomputed_on_resume
 def test_the_configuration_and_coordinates_are_covered_by_a_checksum(reference, tmp_path,
                                                                       capsys):
     from lfjax.cli import main
-    from lfjax.sweep.store import StoreDamagedError
+    from lfjax.sweep.store_checks import StoreDamagedError
 
     config, ref_path, _ = reference
     assert verify_store(ref_path).problems == []
@@ -790,7 +789,7 @@ def test_guide_config_lists_every_key_with_its_default():
     import re
 
     from lfjax.sweep import SweepConfig
-    from lfjax.sweep.config import _SCHEMA
+    from lfjax.sweep.config import SCHEMA
 
     guide = Path(__file__).resolve().parents[2] / "docs" / "guides" / "population-sweeps.md"
     guide = guide.read_text()
@@ -798,7 +797,7 @@ def test_guide_config_lists_every_key_with_its_default():
     data = tomllib.loads(block)
     assert config_from_dict(data).as_dict() == SweepConfig().as_dict()
     commented = set(re.findall(r"^# (\w+) =", block, re.M))
-    for section, keys in _SCHEMA.items():
+    for section, keys in SCHEMA.items():
         missing = [k for k in keys if k not in data.get(section, {}) and k not in commented]
         assert not missing, (section, missing)
 

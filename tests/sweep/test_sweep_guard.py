@@ -18,7 +18,7 @@ from lfjax.sweep import (
     load_config,
     run_sweep,
 )
-from lfjax.sweep.config import config_template
+from lfjax.sweep.config_files import config_template
 from lfjax.sweep.guard import check_fits
 from lfjax.vision.prepare import States
 from lfjax.vision.viewing import Viewing
@@ -40,12 +40,12 @@ def one_eye(**sections) -> dict:
 
 
 def toml_text(data: dict) -> str:
-    from lfjax.sweep.config import _toml_value
+    from lfjax.sweep.config_keys import toml_value
 
     lines = []
     for section, body in data.items():
         lines.append(f"[{section}]")
-        lines += [f"{k} = {_toml_value(v)}" for k, v in body.items()]
+        lines += [f"{k} = {toml_value(v)}" for k, v in body.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -71,7 +71,8 @@ def test_every_key_is_declared_once_and_its_declared_range_is_enforced():
     docstring."""
     import dataclasses
 
-    from lfjax.sweep.config import KEYS, OneOf, Range
+    from lfjax.sweep.config import KEYS
+    from lfjax.sweep.config_keys import OneOf, Range
 
     fields = [f.name for f in dataclasses.fields(SweepConfig)
               if f.name not in ("options", "base_dir")]
@@ -250,11 +251,11 @@ def test_lenslet_aberrations_with_strips_are_refused_by_the_config():
 
 def test_template_writes_every_key_with_its_default(tmp_path, capsys):
     from lfjax.cli import main
-    from lfjax.sweep.config import _SCHEMA
+    from lfjax.sweep.config import SCHEMA
 
     text = config_template()
     assert config_from_dict(tomllib.loads(text)).as_dict() == SweepConfig().as_dict()
-    for section, keys in _SCHEMA.items():
+    for section, keys in SCHEMA.items():
         for key in keys:
             assert f"\n{key} = " in text or f"\n# {key} = " in text, key
     target = tmp_path / "new.toml"
@@ -273,11 +274,11 @@ def test_a_killed_reproduce_leaves_no_hidden_folder_after_the_next_run(tmp_path,
     import sys
 
     from lfjax import cli
-    from lfjax import reproduce as rep
+    from lfjax.reproduce import run as rep  # where reproduce looks its parts up
 
     gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True, check=True)
-    orphan = tmp_path / f".lfjax-reproduce-{socket.gethostname()}-{int(gone.stdout)}-x1y2"
+    orphan = tmp_path / f".lfjax-staging-res-{socket.gethostname()}-{int(gone.stdout)}-x1y2"
     orphan.mkdir()
     (orphan / "results.nc").write_text("half written")
 
@@ -289,7 +290,7 @@ def test_a_killed_reproduce_leaves_no_hidden_folder_after_the_next_run(tmp_path,
     monkeypatch.setattr(cli.cache, "enable_compilation_cache", lambda folder=None: None)
     code = cli.main(["reproduce", "--quick", "--no-progress", "--out", str(tmp_path / "res")])
     assert code == 1
-    assert "removed 1 folder(s) left by an interrupted lfjax reproduce" in capsys.readouterr().err
+    assert "removed 1 folder(s) left by an interrupted run" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -210,7 +210,7 @@ def test_stored_config_rebuilds_json_layouts(tmp_path):
     from lfjax.layout_opt import save_layout_json
     from lfjax.model.layouts import make_layout
     from lfjax.sweep.compute import resolve_layout
-    from lfjax.sweep.config import config_to_toml
+    from lfjax.sweep.config_files import config_to_toml
 
     layout = make_layout([[-0.6, 0.0], [0.6, 0.0]], [1.0, 1.2], 3.0, name="pair")
     save_layout_json(tmp_path / "pair.json", layout, 3.0)
@@ -379,7 +379,7 @@ def test_reproduce_population_section(store, ds, tmp_path, monkeypatch):
     after it — claims, tables, the section, REPORT.md — runs as in ``lfjax reproduce``."""
     import xarray as xr
 
-    from lfjax import reproduce as rep
+    from lfjax.reproduce import run as rep  # where reproduce looks its parts up
 
     view = study_view(ds)
     study = view.drop_vars(["vsotf", "strehl"]).assign(
@@ -408,7 +408,7 @@ def test_reproduce_population_section(store, ds, tmp_path, monkeypatch):
 
 
 def test_reproduce_population_checked_before_any_work(store, tmp_path, capsys, monkeypatch):
-    from lfjax import reproduce as rep
+    from lfjax.reproduce import run as rep  # where reproduce looks its parts up
 
     def no_study(*args, **kwargs):
         raise AssertionError("the study ran before the population store was checked")
