@@ -115,11 +115,11 @@ def test_the_check_sees_a_cycle(tmp_path):
 
 
 SWEEP = LFJAX / "sweep"
-SWEEP_LAYERS = {"config_keys": 0, "config": 1, "config_files": 2, "compute": 3,
-                "store_checks": 3, "store_lock": 3, "guard": 4, "store": 4, "run": 5,
-                "ten_eyes": 5, "report": 6, "__init__": 7}
-"""lfjax.sweep: config_keys ← config ← config_files ← compute / store_checks / store_lock ←
-guard / store ← run / ten_eyes ← report ← entry."""
+SWEEP_LAYERS = {"config_keys": 0, "target": 0, "distributed": 0, "config": 1,
+                "config_files": 2, "compute": 3, "store_checks": 3, "store_lock": 3, "guard": 4,
+                "store": 4, "run": 5, "ten_eyes": 5, "report": 6, "__init__": 7}
+"""lfjax.sweep: config_keys / target / distributed ← config ← config_files ← compute /
+store_checks / store_lock ← guard / store ← run / ten_eyes ← report ← entry."""
 
 
 def test_sweep_parts_import_only_lower_layers():
@@ -143,7 +143,7 @@ def test_the_sweep_never_imports_the_reproduction():
 
 
 LAYOUT_OPT = LFJAX / "layout_opt"
-LAYOUT_OPT_ORDER = ("_params", "_feasible", "_problem", "_objectives", "_evaluation", "_solver",
+LAYOUT_OPT_ORDER = ("_eye_draw", "_params", "_feasible", "_problem", "_objectives", "_evaluation", "_solver",
                     "_files", "_run", "__init__")
 """lfjax.layout_opt: each private part imports only the parts before it; the face imports all."""
 
