@@ -46,8 +46,8 @@ from lfjax.reproduce.report import (
     summary_table,
     write_report,
 )
+from lfjax.reproduce.examples import compute_examples
 from lfjax.reproduce.study import (
-    compute_examples,
     layout_through_focus,
     run_study,
     study_sampling,

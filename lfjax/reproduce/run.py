@@ -47,7 +47,8 @@ from lfjax.reproduce.report import (
     summary_table,
     write_report,
 )
-from lfjax.reproduce.study import compute_examples, run_study, study_wavelength_rules
+from lfjax.reproduce.examples import compute_examples
+from lfjax.reproduce.study import run_study, study_wavelength_rules
 
 MARKER_FILE = ".lfjax-reproduce"
 """Empty file marking a folder written by :func:`reproduce` (``--force`` replaces only these)."""

@@ -7,6 +7,7 @@ that turns the compilation cache on).
 Covers: lfjax.cli.common, lfjax.cli.flags, lfjax.cli.cache, lfjax.cli.reproduce
 Covers: lfjax.reproduce, lfjax.reproduce.config
 Covers: lfjax.reproduce.study, lfjax.reproduce.report, lfjax.reproduce.figures
+Covers: lfjax.reproduce.examples
 """
 
 import argparse

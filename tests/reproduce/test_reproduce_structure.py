@@ -16,6 +16,7 @@ PACKAGE = LFJAX / "reproduce"
 LAYERS = {
     "config": 0,
     "study": 1,
+    "examples": 2,
     "settling": 2,
     "alternatives": 3,
     "report": 3,
