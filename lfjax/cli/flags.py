@@ -56,6 +56,8 @@ FLAGS: dict[str, dict[str, str]] = {
         "n_depths": "--n-depths", "views_per_side": "--views", "wavelengths_nm": "--wavelengths",
         "steps": "--steps", "report_accuracy": "--report-accuracy", "freq_step_cpd": "--freq-step",
         "report_counts": "--report-counts",
+        # lfjax.layout_opt.EyeDraw
+        "seed": "--seed", "train_eyes": "--train-eyes", "test_eyes": "--test-eyes",
         # lfjax.base.files.check_output_folder
         "out_dir": "--out", "force": "--force",
     },

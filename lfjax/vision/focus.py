@@ -348,8 +348,8 @@ def through_focus_variants(
         # exported once and reloaded by later processes, like through_focus's program: on
         # an accelerator (batch "vmap") tracing it cost seconds per layout in every process
         metrics, found = call_cached(
-            _metrics_and_peaks_variants, eyes, first.scene, wl, weights, rho_tables,
-            parameters, first.states.states_D, first.states.index,
+            _metrics_and_peaks_variants, eyes, first.scene, wl, weights,
+            (parameters, rho_tables), first.states.states_D, first.states.index,
             jnp.asarray(viewing.pupil_diameter_mm, float), first.states.allowed, config=config,
             peaks=peaks, batch=batch,
         )
@@ -367,12 +367,12 @@ VARIANT_BATCHES = ("auto", "vmap", "map", "loop")
 # Arrays first, static choices by keyword: the form lfjax.base.programs.call_cached exports
 # and reloads, so each program has one definition.
 @eqx.filter_jit
-def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables, parameters,
-                                states_D, pair_index, pupil_diameter_mm, allowed, *, config,
+def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, variants, states_D,
+                                pair_index, pupil_diameter_mm, allowed, *, config,
                                 peaks: PeakOptions, batch: str = "vmap"):
-    """:func:`_metrics_and_peaks` over stacked ModelParameters (leading axis) and their ρ(λ)
-    tables (n_variants, n_wavelengths), vmapped or mapped (``batch``): one compiled program
-    for them all."""
+    """:func:`_metrics_and_peaks` over the ``variants``: (stacked ModelParameters (leading
+    axis), their ρ(λ) tables (n_variants, n_wavelengths)), vmapped or mapped (``batch``): one
+    compiled program for them all."""
 
     def one(p, rho_table):
         spectrum = model_spectrum(wavelengths_nm, weights, rho_table, p)
@@ -381,8 +381,8 @@ def _metrics_and_peaks_variants(eyes, scene, wavelengths_nm, weights, rho_tables
                                   peaks=peaks)
 
     if batch == "map":
-        return jax.lax.map(lambda xs: one(*xs), (parameters, rho_tables))
-    return jax.vmap(one)(parameters, rho_tables)
+        return jax.lax.map(lambda xs: one(*xs), variants)
+    return jax.vmap(one)(*variants)
 
 
 @eqx.filter_jit

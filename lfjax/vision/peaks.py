@@ -62,6 +62,9 @@ code; the pipeline never raises inside the batch (``throw=False``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import NamedTuple
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -225,6 +228,115 @@ def single_state_metric(measured_pupil_mm: float, scene: Scene, spectrum: Spectr
     return value_fn
 
 
+class _Curves(NamedTuple):
+    """One grid of through-focus curves and what refining their peaks needs (host-static
+    choices and traced arrays, all (n_eyes, n_depth, n_k) or (n_eyes, n_depth))."""
+
+    values: jnp.ndarray  # the metric on the grid
+    states: jnp.ndarray  # each curve's states, D
+    allowed: jnp.ndarray  # the states a peak may sit on
+    usable: jnp.ndarray  # allowed states, NaN elsewhere
+    value_fn: Callable  # the metric of one (eye, depth) at one state
+    args: tuple  # (coefficients, depths) of every (eye, depth)
+    method: str  # resolved refinement
+    batch: int  # pairs refined together
+    peaks: PeakOptions
+
+    @property
+    def masked(self):
+        return jnp.where(self.allowed, self.values, -jnp.inf)
+
+
+def _take(x, i):
+    return jnp.take_along_axis(x, jnp.maximum(i, 0)[..., None], -1)[..., 0]
+
+
+def _bracket_of(c: _Curves, index):
+    """The bracket of the grid maximum at ``index``: its neighbours among the allowed states
+    (disallowed ones lie below 0 D or outside the window, both ends of the usable grid)."""
+    n = c.states.shape[-1]
+    lo, hi = _bracket(c.states, jnp.maximum(index, 0))
+    lo = jnp.where(jnp.isfinite(_take(c.usable, jnp.maximum(index - 1, 0))) & (index > 0), lo,
+                   _take(c.states, index))
+    hi = jnp.where(jnp.isfinite(_take(c.usable, jnp.minimum(index + 1, n - 1)))
+                   & (index < n - 1), hi, _take(c.states, index))
+    return jnp.maximum(lo, 0.0), hi
+
+
+def _unrefined(location, value) -> Peak:
+    """A peak located without a solver (no steps, result −1, success)."""
+    return Peak(location, value, jnp.ones(location.shape, bool),
+                jnp.full(location.shape, -1, jnp.int32), jnp.zeros(location.shape, jnp.int32))
+
+
+def _grid_located(c: _Curves, index) -> Peak:
+    """The grid parabola's vertex of the maximum at ``index``, valued on the grid."""
+    located = jnp.clip(parabola_vertex(c.states, c.masked, index), *_bracket_of(c, index))
+    return _unrefined(located, _take(c.values, index))
+
+
+def _refine(c: _Curves, index) -> Peak:
+    """The maximum at grid ``index`` (n_eyes, n_depth) refined by ``c.method``."""
+    lo, hi = _bracket_of(c, index)
+    start = _take(c.states, index)
+    if c.method == "grid":
+        return _unrefined(start, _take(c.values, index))
+    if c.method == "parabola":
+        a = jnp.clip(parabola_vertex(c.states, c.masked, index), lo, hi)
+        return _unrefined(a, map_pairs(c.value_fn, c.batch, a, c.args))
+    if c.method == "vertex":
+        a = jnp.clip(parabola_vertex(c.states, c.masked, index), lo, hi)
+        return _unrefined(a, parabola_value(c.states, c.masked, index, a))
+    if c.method == "local":
+        return local_refinement(c.value_fn, parabola_vertex(c.states, c.masked, index), lo, hi,
+                                c.args, c.batch)
+    if c.method == "newton":  # start from the grid parabola's vertex: fewer steps
+        start = jnp.clip(parabola_vertex(c.states, c.masked, index), lo, hi)
+    solve = lambda lo_, hi_, s_, z_, d_: refine_peak(  # noqa: E731
+        c.value_fn, lo_, hi_, s_, (z_, d_), c.method, c.peaks.atol_D, c.peaks.max_steps)
+    return map_pairs(solve, c.batch, lo, hi, start, *c.args)
+
+
+def _adaptive(c: _Curves, best, second_index, has_second) -> tuple[Peak, Peak]:
+    """``"adaptive"``: (global, second) candidates, refined only where the grid's own
+    estimate cannot answer. The candidates go side by side along the eye axis (not vmapped:
+    under vmap the skipped batches would be computed); a pair with a second peak refines
+    both, since the choice between them reads their refined values."""
+    second_peaks = c.peaks.second_peaks
+    n_cand = 2 if second_peaks else 1
+    index = jnp.concatenate([best, second_index][:n_cand])
+    bounds = [_bracket_of(c, i) for i in (best, second_index)[:n_cand]]
+    lo = jnp.concatenate([b[0] for b in bounds])
+    hi = jnp.concatenate([b[1] for b in bounds])
+    tile = lambda x: jnp.concatenate([x] * n_cand)  # noqa: E731
+    estimate = grid_peak_estimate(tile(c.states), tile(c.masked), index)
+    vertex = parabola_vertex(tile(c.states), tile(c.masked), index)
+    force = tile(has_second) if second_peaks else jnp.zeros(index.shape, bool)
+    n_pairs = index.shape[0] * index.shape[1]
+    adaptive_batch = max(1, min(c.batch, -(-n_pairs // ADAPTIVE_BATCHES)))
+    both = adaptive_refinement(c.value_fn, estimate, vertex, lo, hi,
+                               tuple(tile(a) for a in c.args), c.peaks.tolerance_D, force,
+                               adaptive_batch)
+    n_eyes = c.values.shape[0]
+    main = jax.tree_util.tree_map(lambda x: x[:n_eyes], both)
+    if second_peaks:
+        return main, jax.tree_util.tree_map(lambda x: x[n_eyes:], both)
+    return main, _grid_located(c, second_index)
+
+
+def _candidates(c: _Curves, best, second_index, has_second) -> tuple[Peak, Peak]:
+    """The global and the second candidate, each refined as ``c.peaks`` says."""
+    if c.method == "adaptive":
+        return _adaptive(c, best, second_index, has_second)
+    if c.peaks.second_peaks:
+        # Both candidates in one batched solve: one compiled solver (a lax.cond between two
+        # solves compiled the pipeline's derivatives twice).
+        both = jax.vmap(lambda i: _refine(c, i))(jnp.stack([best, second_index]))
+        return (jax.tree_util.tree_map(lambda x: x[0], both),
+                jax.tree_util.tree_map(lambda x: x[1], both))
+    return _refine(c, best), _grid_located(c, second_index)
+
+
 def peaks_from_grid(
     values, eyes: Eyes, scene: Scene, spectrum: Spectrum, grid: Accommodation,
     config: PipelineConfig, reference, metric: str = "vsotf",
@@ -239,8 +351,6 @@ def peaks_from_grid(
         raise ParameterError("peaks", "{peaks} must be lfjax.PeakOptions, got {got}",
                              got=type(peaks).__name__)
     method = resolved_method(metric, peaks.method)
-    prominence, atol_D, max_steps = peaks.prominence, peaks.atol_D, peaks.max_steps
-    refine_second, tolerance_D = peaks.second_peaks, peaks.tolerance_D
     if grid.pair_index.shape[-1] < 2:
         raise ValueError(
             f"a peak needs a grid of >= 2 accommodation states per depth to bracket it, got "
@@ -250,122 +360,43 @@ def peaks_from_grid(
     allowed = jnp.ones(states.shape, bool) if allowed is None else jnp.asarray(allowed, bool)
     states_b = jnp.broadcast_to(states, values.shape)
     allowed_b = jnp.broadcast_to(allowed, values.shape)
-    best, second = _local_maxima(values, allowed_b, prominence)
-    take = lambda x, i: jnp.take_along_axis(x, jnp.maximum(i, 0)[..., None], -1)[..., 0]  # noqa: E731
-    grid_peak, grid_value = take(states_b, best), take(values, best)
-    # Brackets: the neighbours among allowed states (disallowed ones lie below 0 D or
-    # outside the window, both ends of the usable grid).
+    best, second = _local_maxima(values, allowed_b, peaks.prominence)
     usable = jnp.where(allowed_b, states_b, jnp.nan)
-    first = jnp.nanmin(usable, axis=-1)
-    last = jnp.nanmax(usable, axis=-1)
-
-    def bracket_of(index):
-        lo, hi = _bracket(states_b, jnp.maximum(index, 0))
-        lo = jnp.where(jnp.isfinite(take(usable, jnp.maximum(index - 1, 0))) & (index > 0), lo,
-                       take(states_b, index))
-        hi = jnp.where(jnp.isfinite(take(usable, jnp.minimum(index + 1, states.shape[-1] - 1)))
-                       & (index < states.shape[-1] - 1), hi, take(states_b, index))
-        return jnp.maximum(lo, 0.0), hi
-
-    value_fn = single_state_metric(eyes.measured_pupil_mm, scene, spectrum, grid, config,
-                                   reference, metric)
-    depths_b = jnp.broadcast_to(scene.depths_D[None, :], values.shape[:2])
     coefficients = eye_coefficients(eyes, config)
-    z_b = jnp.broadcast_to(coefficients[:, None, :], values.shape[:2] + coefficients.shape[-1:])
-
-    n_candidates = 2 if refine_second else 1
-    batch = pairs_per_batch(scene, config, method, n_candidates)
-
-    masked = jnp.where(allowed_b, values, -jnp.inf)
+    curves = _Curves(
+        values, states_b, allowed_b, usable,
+        single_state_metric(eyes.measured_pupil_mm, scene, spectrum, grid, config, reference,
+                            metric),
+        (jnp.broadcast_to(coefficients[:, None, :], values.shape[:2] + coefficients.shape[-1:]),
+         jnp.broadcast_to(scene.depths_D[None, :], values.shape[:2])),
+        method, pairs_per_batch(scene, config, method, 2 if peaks.second_peaks else 1), peaks)
     has_second = second >= 0
-    second_index = jnp.where(has_second, second, best)
+    main, other = _candidates(curves, best, jnp.where(has_second, second, best), has_second)
+    return _chosen(curves, main, other, best, second, has_second)
 
-    def refine(index):  # index (n_eyes, n_depth)
-        lo, hi = bracket_of(index)
-        start = take(states_b, index)
-        if method == "grid":
-            return Peak(start, take(values, index), jnp.ones(start.shape, bool),
-                        jnp.full(start.shape, -1, jnp.int32), jnp.zeros(start.shape, jnp.int32))
-        if method == "parabola":
-            a = jnp.clip(parabola_vertex(states_b, jnp.where(allowed_b, values, -jnp.inf), index), lo, hi)
-            v = map_pairs(value_fn, batch, a, (z_b, depths_b))
-            return Peak(a, v, jnp.ones(a.shape, bool), jnp.full(a.shape, -1, jnp.int32),
-                        jnp.zeros(a.shape, jnp.int32))
-        if method == "vertex":
-            masked = jnp.where(allowed_b, values, -jnp.inf)
-            a = jnp.clip(parabola_vertex(states_b, masked, index), lo, hi)
-            v = parabola_value(states_b, masked, index, a)
-            return Peak(a, v, jnp.ones(a.shape, bool), jnp.full(a.shape, -1, jnp.int32),
-                        jnp.zeros(a.shape, jnp.int32))
-        if method == "local":
-            return local_refinement(value_fn, parabola_vertex(
-                states_b, jnp.where(allowed_b, values, -jnp.inf), index), lo, hi, (z_b, depths_b),
-                batch)
-        if method == "newton":  # start from the grid parabola's vertex: fewer steps
-            start = jnp.clip(parabola_vertex(states_b, jnp.where(allowed_b, values, -jnp.inf),
-                                             index), lo, hi)
-        solve = lambda lo_, hi_, s_, z_, d_: refine_peak(  # noqa: E731
-            value_fn, lo_, hi_, s_, (z_, d_), method, atol_D, max_steps)
-        return map_pairs(solve, batch, lo, hi, start, z_b, depths_b)
 
-    if method == "adaptive":
-        # The candidates go side by side along the eye axis (not vmapped: under vmap the
-        # skipped batches would be computed); a pair with a second peak refines both, since
-        # the choice between them reads their refined values.
-        n_cand = 2 if refine_second else 1
-        index = jnp.concatenate([best, second_index][:n_cand])
-        bounds = [bracket_of(i) for i in (best, second_index)[:n_cand]]
-        lo = jnp.concatenate([b[0] for b in bounds])
-        hi = jnp.concatenate([b[1] for b in bounds])
-        tile = lambda x: jnp.concatenate([x] * n_cand)  # noqa: E731
-        estimate = grid_peak_estimate(tile(states_b), tile(masked), index)
-        vertex = parabola_vertex(tile(states_b), tile(masked), index)
-        force = tile(has_second) if refine_second else jnp.zeros(index.shape, bool)
-        n_pairs = index.shape[0] * index.shape[1]
-        adaptive_batch = max(1, min(batch, -(-n_pairs // ADAPTIVE_BATCHES)))
-        both = adaptive_refinement(value_fn, estimate, vertex, lo, hi,
-                                    (tile(z_b), tile(depths_b)), tolerance_D, force,
-                                    adaptive_batch)
-        n_eyes = values.shape[0]
-        main = jax.tree_util.tree_map(lambda x: x[:n_eyes], both)
-        if refine_second:
-            other = jax.tree_util.tree_map(lambda x: x[n_eyes:], both)
-        else:
-            located = jnp.clip(parabola_vertex(states_b, masked, second_index),
-                               *bracket_of(second_index))
-            other = Peak(located, take(values, second_index), jnp.ones(located.shape, bool),
-                         jnp.full(located.shape, -1, jnp.int32),
-                         jnp.zeros(located.shape, jnp.int32))
-    elif refine_second:
-        # Both candidates in one batched solve: one compiled solver (a lax.cond between two
-        # solves compiled the pipeline's derivatives twice).
-        both = jax.vmap(refine)(jnp.stack([best, second_index]))
-        main = jax.tree_util.tree_map(lambda x: x[0], both)
-        other = jax.tree_util.tree_map(lambda x: x[1], both)
-    else:
-        main = refine(best)
-        lo, hi = bracket_of(second_index)
-        located = jnp.clip(parabola_vertex(states_b, jnp.where(allowed_b, values, -jnp.inf),
-                                           second_index), lo, hi)
-        other = Peak(located, take(values, second_index), jnp.ones(located.shape, bool),
-                     jnp.full(located.shape, -1, jnp.int32), jnp.zeros(located.shape, jnp.int32))
+def _chosen(c: _Curves, main: Peak, other: Peak, best, second, has_second) -> Peaks:
+    """The higher refined candidate as the peak, the other as the second peak where it is
+    distinct, with the flags of the grid's ends."""
     swap = has_second & (other.value > main.value)
     pick = lambda a, b: jnp.where(swap, b, a)  # noqa: E731
     peak = jax.tree_util.tree_map(pick, main, other)
     alt = jax.tree_util.tree_map(pick, other, main)
     distinct = has_second & (jnp.abs(alt.accommodation_D - peak.accommodation_D) > 1e-3)
-    at_limit = peak.accommodation_D <= 10 * atol_D
+    at_limit = peak.accommodation_D <= 10 * c.peaks.atol_D
     edge_index = jnp.where(swap, second, best)
-    edge_state = take(states_b, edge_index)
+    edge_state = _take(c.states, edge_index)
+    first = jnp.nanmin(c.usable, axis=-1)
+    last = jnp.nanmax(c.usable, axis=-1)
     at_edge = ((edge_state >= last - 1e-9) | ((edge_state <= first + 1e-9) & (first > 1e-9)))
     return Peaks(
         accommodation_D=peak.accommodation_D, value=peak.value,
         success=peak.success & ~at_edge, result=peak.result, n_steps=peak.n_steps,
-        grid_accommodation_D=grid_peak, grid_value=grid_value,
+        grid_accommodation_D=_take(c.states, best), grid_value=_take(c.values, best),
         second_accommodation_D=jnp.where(distinct, alt.accommodation_D, jnp.nan),
         second_value=jnp.where(distinct, alt.value, jnp.nan),
         at_hyperopic_limit=at_limit, at_grid_edge=at_edge,
-        grid_error_D=grid_peak_estimate(states_b, masked, edge_index).error_D,
+        grid_error_D=grid_peak_estimate(c.states, c.masked, edge_index).error_D,
     )
 
 

@@ -410,10 +410,14 @@ def _library_inputs():
                    {"scene", "viewing", "pupil_diameter_mm", "options", "boundary",
                     "memory_limit_bytes", "need_bytes", "parameter", "progress", "cls",
                     "image_path", "depth_path", "path"}),
+        # ReportSettings names its accuracy and counts report_accuracy and report_counts;
+        # check_design checks the target's fields (DesignTarget, above it)
         "design": ([check_output_folder, design.design_cdp_D, design.design_panel,
-                    design.DesignConstraints, Sampling, design.check_design],
+                    design.DesignConstraints, Sampling, design.DesignTarget, design.FitSettings,
+                    design.ReportSettings, layout_opt.EyeDraw, design.check_design],
                    {"min_gap_fraction", "panel", "n_fft", "transform", "mft_pupil_samples",
-                    "edge_width_samples", "need_bytes", "parameter"}),
+                    "edge_width_samples", "need_bytes", "parameter", "accuracy", "counts",
+                    "target", "tol", "eye_chunk"}),
     }
 
 
@@ -466,8 +470,10 @@ def test_a_refused_optimisation_names_a_parameter_of_the_table(command, make):
     lambda d: d.DesignConstraints(distance_range_mm=(100.0, 50.0)),
     lambda d: d.DesignConstraints(min_f_number=3.0, max_f_number=2.0),
     lambda d: d.design_cdp_D((0.0, 20.0)),  # beyond the model's range
-    lambda d: d.check_design(d.design_panel("near-eye", 1.5), (1.0, 2.0), views_per_side=(9,)),
-    lambda d: d.check_design(d.design_panel("near-eye", 1.5), (1.0, 2.0), wavelengths_nm=(800.0,)),
+    lambda d: d.check_design(d.design_panel("near-eye", 1.5),
+                             d.DesignTarget((1.0, 2.0), views_per_side=(9,))),
+    lambda d: d.check_design(d.design_panel("near-eye", 1.5),
+                             d.DesignTarget((1.0, 2.0), wavelengths_nm=(800.0,))),
 ])
 def test_a_refused_design_names_a_parameter_of_the_table(make):
     from lfjax import design
