@@ -15,7 +15,7 @@ them out), and ``--full`` the default study (``lfjax reproduce``, alternatives i
 folder again for a warm one).
 
 Run:  PYTHONPATH=. .venv/bin/python benchmarks/speed/count_compiles.py --cache DIR --out DIR
-      [--alternatives | --full] [--accuracy claims|vsotf]
+      [--alternatives | --full] [--accuracy claims|vsotf] [--programs FILE]
 """
 
 from __future__ import annotations
@@ -39,6 +39,9 @@ def main(argv=None) -> int:
                         help="the default (full) study, alternatives included")
     parser.add_argument("--accuracy", choices=("claims", "vsotf"), default=None,
                         help="passed to lfjax reproduce (default: its own)")
+    parser.add_argument("--programs", default=None,
+                        help="JSON file of every compiled program's name and count (to find "
+                             "which program a change adds or removes)")
     args = parser.parse_args(argv)
     os.environ["LFJAX_CACHE_DIR"] = str(Path(args.cache).resolve())
 
@@ -94,6 +97,9 @@ def main(argv=None) -> int:
         "accuracy": args.accuracy or "default",
     }
     print(json.dumps(result))
+    if args.programs:
+        names = collections.Counter(name for _, name in largest)
+        Path(args.programs).write_text(json.dumps(dict(sorted(names.items())), indent=1) + "\n")
     return rc
 
 
