@@ -10,6 +10,7 @@ import sys
 import numpy as np
 
 from lfjax.base.errors import ParameterError
+from lfjax._version import stamp
 from lfjax.base.files import check_output_folder, staged_output
 from lfjax.cli import common, flags
 from lfjax.display.panel import PRESETS
@@ -134,7 +135,8 @@ def run(args) -> int:
                    layer_depths_D=[float(d) for d in result["depths_D"]],
                    freq_step_cpd=result["freq_step_cpd"], display=args.display,
                    primaries=args.primaries, eye=args.eye, pixel_arcmin=args.pixel_arcmin,
-                   occlusion=not args.no_occlusion, command=common.command_line(args.argv))
+                   occlusion=not args.no_occlusion, command=common.command_line(args.argv),
+                   provenance=stamp())
     def write() -> None:
         with staged_output(out, args.force) as tmp:
             np.save(tmp / "retina.npy", retina)
