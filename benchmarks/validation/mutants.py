@@ -36,8 +36,8 @@ MUTANTS = {
     "sa-sign": (
         "lfjax/kernel/scene.py",
         "the accommodation-dependent SA's sign flipped",
-        "return model_numbers(options).sa_slope_um_per_D * accommodation_D * scale",
-        "return -model_numbers(options).sa_slope_um_per_D * accommodation_D * scale"),
+        "[jnp.asarray(slope * scale, float), jnp.asarray(radius, float)]",
+        "[jnp.asarray(-slope * scale, float), jnp.asarray(radius, float)]"),
     "view-shift-sign": (
         "lfjax/kernel/pipeline.py",
         "the display's view shift sign flipped (D_CDP − D for D − D_CDP)",
