@@ -24,7 +24,9 @@ EYE_DRAW_KEYS = ("seed_train", "n_train_eyes", "seed_test", "n_test_eyes")
 """The provenance keys of an eye draw (:meth:`EyeDraw.provenance`), in order."""
 
 
-def _whole(name: str, value, lowest: int, below: int | None = None) -> int:
+def whole_number(name: str, value, lowest: int, below: int | None = None) -> int:
+    """``value`` as an int when it is a whole number in [``lowest``, ``below``); else a
+    :class:`~lfjax.base.errors.ParameterError` naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lowest or (
             below is not None and value >= below):
         top = f" and < {below}" if below is not None else ""
@@ -51,9 +53,9 @@ class EyeDraw:
     test_eyes: int = 20
 
     def __post_init__(self):
-        _whole("train_eyes", self.train_eyes, 1)
-        _whole("test_eyes", self.test_eyes, 0)
-        _whole("seed", self.seed, 0, 2**32)
+        whole_number("train_eyes", self.train_eyes, 1)
+        whole_number("test_eyes", self.test_eyes, 0)
+        whole_number("seed", self.seed, 0, 2**32)
 
     @property
     def held_out(self) -> bool:
@@ -91,4 +93,4 @@ def planning_eyes(train: Eyes, test: Eyes | None) -> Eyes:
                 train.measured_pupil_mm)
 
 
-__all__ = ["MEASURED_PUPIL_MM", "EYE_DRAW_KEYS", "EyeDraw", "planning_eyes"]
+__all__ = ["MEASURED_PUPIL_MM", "EYE_DRAW_KEYS", "EyeDraw", "planning_eyes", "whole_number"]

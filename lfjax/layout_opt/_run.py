@@ -34,7 +34,7 @@ from lfjax.model.layout_files import jsonable
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import make_spectrum
 from lfjax.layout_opt._evaluation import through_focus_curves
-from lfjax.layout_opt._eye_draw import MEASURED_PUPIL_MM, EyeDraw, planning_eyes
+from lfjax.layout_opt._eye_draw import MEASURED_PUPIL_MM, EyeDraw, planning_eyes, whole_number
 from lfjax.layout_opt._feasible import Constraints, feasible_start, initial_lattice, to_box
 from lfjax.layout_opt._files import save_layout_json
 from lfjax.layout_opt._params import default_max_diameter_mm, free_params, lattice_sites
@@ -54,15 +54,6 @@ diameter (:class:`LatticeParams`, :class:`FreeParams`)."""
 
 FIT_OPTIONS = ModelOptions(vsotf_reference="open_pupil")
 """The model options of every layout objective (:func:`make_problem`)."""
-
-
-def _whole(name: str, value, lowest: int, below: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lowest or (
-            below is not None and value >= below):
-        top = f" and < {below}" if below is not None else ""
-        raise ParameterError(name, "{%s} must be a whole number >= {lowest}{top}, got {got!r}" % name,
-                             lowest=lowest, top=top, got=value)
-    return int(value)
 
 
 def _one_of(name: str, value, allowed) -> str:
@@ -171,7 +162,7 @@ class OptimisationSettings:
             objective = Objective.parse(objective, self.accommodation_tolerance_D)
         eye_draw = EyeDraw(self.seed, self.train_eyes, self.test_eyes)
         if self.front is not None:
-            if _whole("front", self.front, 1) < 2:
+            if whole_number("front", self.front, 1) < 2:
                 raise ParameterError("front", "{front} must be >= 2 points, got {got}", got=self.front)
             if self.test_eyes == 0:
                 raise ParameterError("front", "{front} needs held-out eyes ({test_eyes} >= 1)")
@@ -184,7 +175,7 @@ class OptimisationSettings:
             display_primaries(self.spectrum)
         make_spectrum(self.wavelengths_nm, FIT_OPTIONS)  # checks them
         _one_of("method", self.method, METHODS)
-        _whole("steps", self.steps, 0)
+        whole_number("steps", self.steps, 0)
         _one_of("report_accuracy", self.report_accuracy, ACCURACIES)
         set_(self, "_built", dict(constraints=constraints, depths_D=depths, sampling=sampling,
                                   fit_objective=objective, display=display,
