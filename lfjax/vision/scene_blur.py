@@ -20,10 +20,11 @@ rendered depth. A point at depth ``d`` (D) is then seen
 
 Both are computed per primary of the display (:func:`lfjax.display.spectra.display_spectrum`
 with channel ``"red"``, ``"green"``, ``"blue"``), so the chromatic defocus of the eye
-(LCA: the eye has more power at short wavelengths, so blue is in focus for objects *farther*
-than the green accommodation and red for objects *nearer*) shows as a signed difference
-between the red and blue blur (:func:`chromatic_cue`): for a point nearer than focus red is
-sharper than blue, for a farther one blue is sharper (Cholewiak, Love & Banks, J. Vis. 2018).
+(LCA: the eye has more power at short wavelengths, so blue comes to focus for objects
+*nearer* than the green accommodation and red for objects *farther*) shows as a signed
+difference between the red and blue blur (:func:`chromatic_cue`): for a point farther than
+focus red is sharper than blue, for a nearer one blue is sharper (Cholewiak, Love & Banks,
+J. Vis. 2018).
 
 Measures (:func:`blur_measures`):
 
@@ -247,8 +248,8 @@ def weighted_mtf(otf, weights):
 
 def chromatic_cue(otf, weights, red: int = 0, blue: int = 2):
     """Signed chromatic blur (m_R − m_B)/(m_R + m_B) with m the NCSF-weighted MTF of a
-    channel (axis 0 of ``otf``): > 0 red sharper than blue (a point nearer than focus in
-    natural viewing), < 0 blue sharper (farther). Shape: ``otf.shape[1:-2]``."""
+    channel (axis 0 of ``otf``): > 0 red sharper than blue (a point farther than focus in
+    natural viewing), < 0 blue sharper (nearer). Shape: ``otf.shape[1:-2]``."""
     m = weighted_mtf(otf, weights)
     return (m[red] - m[blue]) / (m[red] + m[blue])
 
