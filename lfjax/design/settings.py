@@ -18,6 +18,7 @@ from lfjax.display.aberrations import LENS_FORMS
 from lfjax.layout_opt import check_depth_range, depth_grid
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import make_spectrum
+from lfjax.vision.prepare import check_eye_chunk
 
 
 @dataclass(frozen=True)
@@ -193,8 +194,7 @@ class FitSettings:
     def __post_init__(self):
         object.__setattr__(self, "steps", _integer("steps", self.steps, 0))
         object.__setattr__(self, "tol", finite_scalar("tol", self.tol, 0.0, lo_open=True))
-        if self.eye_chunk is not None:
-            object.__setattr__(self, "eye_chunk", _integer("eye_chunk", self.eye_chunk, 1))
+        object.__setattr__(self, "eye_chunk", check_eye_chunk(self.eye_chunk))
 
 
 @dataclass(frozen=True)

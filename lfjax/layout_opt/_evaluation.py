@@ -72,8 +72,7 @@ def _values_jit(layout, problem: LayoutProblem):
         peaks = predicted_peaks(layout, problem)
         vsotf, radial_mtf = m.vsotf[..., 0], m.radial_mtf[..., 0, :]
     else:
-        scene = Scene(layout.centres_mm, layout.diameters_mm, problem.cdp_D, problem.peak_depths_D,
-                      problem.pupil_diameter_mm, problem.display)
+        scene = problem.scene(layout, problem.peak_depths_D)
         both = retinal_metrics(problem.eyes, scene, problem.spectrum, problem.values_grid,
                                problem.config, problem.reference)
         peaks = peaks_from_grid(both.vsotf[..., :-1], problem.eyes, scene, problem.spectrum,

@@ -177,7 +177,8 @@ def through_focus(
     peaks : :class:`~lfjax.vision.peak_options.PeakOptions`: the metrics whose continuous peak is
         refined from the grid in the same compiled call (default none: grid peaks only), the
         method, its tolerance and whether second peaks are refined
-    eye_chunk : eyes evaluated together inside the pipeline's map (None: one at a time)
+    eye_chunk : eyes evaluated together inside the pipeline's map, an integer ≥ 1 (None: one
+        at a time)
 
     Elemental OTFs are computed once per distinct absolute state and reused by every depth.
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
