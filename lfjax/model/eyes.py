@@ -47,18 +47,21 @@ def check_coefficients(zernike_um, measured_pupil_mm: float) -> None:
     otherwise. Traced coefficients pass (checked where they are concrete)."""
     if not is_concrete(zernike_um):
         return
-    z = np.asarray(zernike_um)
+    z = np.asarray(zernike_um).reshape(-1, np.shape(zernike_um)[-1])
     bound = max_coefficient_um(measured_pupil_mm)
-    bad = ~np.isfinite(z) | (np.abs(z) > bound)
+    infinite = ~np.isfinite(z)
+    bad = infinite | (np.abs(z) > bound)
     if np.any(bad):
-        eye, j = (int(i) for i in np.argwhere(bad.reshape(-1, z.shape[-1]))[0])
+        eye, j = (int(i) for i in np.argwhere(infinite if np.any(infinite) else bad)[0])
+        what = ("contains non-finite values (NaN or inf)" if np.any(infinite)
+                else "has a coefficient beyond any human eye")
         raise ParameterError(
-            "zernike_um", "{zernike_um} must be finite with |c| <= {bound:.3g} µm on the "
+            "zernike_um", "{zernike_um} %s: got {got!r} µm at eye {eye}, ANSI j = {j} ({n} "
+            "coefficient(s) outside); each must be finite with |c| <= {bound:.3g} µm on the "
             "{pupil:g} mm measured pupil (the defocus coefficient of a {refraction:g} D "
-            "refractive error, beyond any human eye's), got {got!r} µm (eye {eye}, ANSI j = "
-            "{j}; {n} coefficient(s) outside)",
+            "refractive error)" % what,
             bound=bound, pupil=float(measured_pupil_mm), refraction=MAX_REFRACTION_D,
-            got=float(z.reshape(-1, z.shape[-1])[eye, j]), eye=eye, j=j, n=int(bad.sum()))
+            got=float(z[eye, j]), eye=eye, j=j, n=int(bad.sum()))
 
 
 class Eyes(eqx.Module):
