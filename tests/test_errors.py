@@ -1,6 +1,7 @@
 """Bad input: each is a ValueError that names the offending parameter (before any compile
 where the value is known on the host)."""
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -123,7 +124,11 @@ def test_non_finite_coefficients(bad):
     z[0, 4] = bad
     with pytest.raises(ValueError, match="non-finite"):
         lfjax.model.eyes.make_eyes(z, 3.0)
-    eyes = lfjax.Eyes(jnp.asarray(z), 3.0)  # bypasses make_eyes
+    with pytest.raises(ValueError, match="zernike_um contains non-finite"):
+        lfjax.Eyes(jnp.asarray(z), 3.0)  # refused where it is built, as by make_eyes
+    # eqx.tree_at builds no new Eyes (no check): the entry points check again
+    eyes = eqx.tree_at(lambda e: e.zernike_um, lfjax.Eyes(jnp.zeros((1, 6)), 3.0),
+                       jnp.asarray(z))
     with pytest.raises(ValueError, match="zernike_um contains non-finite"):
         _otf(eyes=eyes)
     with pytest.raises(ValueError, match="zernike_um contains non-finite"):

@@ -67,4 +67,19 @@ def _rebuild(cls, parameter, template, owner, values):
     return cls(parameter, template, owner=owner, **values)
 
 
-__all__ = ["ParameterError"]
+FLAT_CURVE_RANGE = 1e-4
+"""Relative range, (max − min)/max over a through-focus curve's states, below which its peak
+is undetermined (:class:`FlatCurveWarning`): ten times finer than the planner's default VSOTF
+accuracy (``lfjax.planner.targets.Targets.vsotf``, 1e-3), so the sampling's own error could
+move the peak anywhere on such a curve; float32 rounding (1e-7) is far below it. Such curves
+come from a pupil or views so small that defocus barely changes the image (a 0.01 mm pupil:
+the depth of focus spans hundreds of dioptres)."""
+
+
+class FlatCurveWarning(UserWarning):
+    """A through-focus curve too flat for its peak to be a result (range below
+    :data:`FLAT_CURVE_RANGE` of its maximum): its grid peak is the first state of the grid
+    and its predicted accommodation, error and cut-off are undetermined."""
+
+
+__all__ = ["ParameterError", "FlatCurveWarning", "FLAT_CURVE_RANGE"]

@@ -9,7 +9,8 @@ import warnings
 from pathlib import Path
 
 from lfjax.cli import common, flags
-from lfjax.sweep.report import FlatCurveWarning, default_out_dir, sweep_report
+from lfjax.base.errors import FlatCurveWarning
+from lfjax.sweep.report import default_out_dir, sweep_report
 
 COMMAND = "sweep-report"
 

@@ -30,6 +30,7 @@ from lfjax.layout_opt import (
 from lfjax.model.eyes import Eyes
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import make_spectrum
+from lfjax.vision.prepare import check_eye_chunk
 
 
 # ----------------------------------------------------------------------------- feasible map
@@ -148,10 +149,8 @@ def eye_chunk_size(n_eyes: int, eye_chunk: int | None) -> int:
     n = int(n_eyes)
     if eye_chunk is None:
         return n
-    if isinstance(eye_chunk, bool) or int(eye_chunk) != eye_chunk or eye_chunk < 1:
-        raise ParameterError("eye_chunk", "{eye_chunk} must be an integer >= 1 or None, got {got!r}",
-                             got=eye_chunk)
-    return max(c for c in range(1, min(int(eye_chunk), n) + 1) if n % c == 0)
+    chunk = check_eye_chunk(eye_chunk)
+    return max(c for c in range(1, min(chunk, n) + 1) if n % c == 0)
 
 
 def design_loss_chunked(x, problem, template: Panel, n_per_side: int,

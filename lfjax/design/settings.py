@@ -18,6 +18,13 @@ from lfjax.display.aberrations import LENS_FORMS
 from lfjax.layout_opt import check_depth_range, depth_grid
 from lfjax.model.options import ModelOptions
 from lfjax.model.spectral import make_spectrum
+from lfjax.vision.prepare import check_eye_chunk
+
+
+MIN_F_NUMBER = 0.5
+"""Fastest lenslet f-number a design may ask for: a lens in air has a numerical aperture
+NA = 1/(2N) of at most 1, so no lens is faster than f/0.5 (real lenslet arrays stay above
+about f/1)."""
 
 
 @dataclass(frozen=True)
@@ -29,7 +36,9 @@ class DesignConstraints:
     min_eye_box_mm : the viewing zone Δu·(1 + z_m/z_0) must be at least this wide, mm
         (default 10: a 3 mm pupil and the eye's movement in a near-eye display)
     min_fill : smallest lenslet fill (aperture/pitch), in (0, 1] (default 0.5)
-    min_f_number, max_f_number : the lenslets' focal length over aperture (default 1 … 8)
+    min_f_number, max_f_number : the lenslets' focal length over aperture (default 1 … 8),
+        min_f_number ≥ :data:`MIN_F_NUMBER` (no lens in air is faster), max_f_number ≥
+        min_f_number
     distance_range_mm : (low, high) to fit the viewing distance too, mm; None (default)
         keeps the panel's
     lens_form : None (default: aberration-free lenslets, the designs as before) or the
@@ -63,8 +72,8 @@ class DesignConstraints:
         finite_scalar("min_eye_box_mm", self.min_eye_box_mm, 0.0, lo_open=True)
         finite_scalar("min_fill", self.min_fill, 0.0, 1.0, lo_open=True)
         # the two ends of one range (one flag, --f-number LO HI): each says which end it is
-        lo = finite_scalar("low end", self.min_f_number, 0.0, lo_open=True,
-                           parameter="min_f_number")
+        lo = finite_scalar(f"low end (no lens in air is faster than f/{MIN_F_NUMBER:g})", self.min_f_number,
+                           MIN_F_NUMBER, parameter="min_f_number")
         finite_scalar("high end (at least the low end)", self.max_f_number, lo,
                       parameter="max_f_number")
         if self.distance_range_mm is not None:
@@ -193,8 +202,7 @@ class FitSettings:
     def __post_init__(self):
         object.__setattr__(self, "steps", _integer("steps", self.steps, 0))
         object.__setattr__(self, "tol", finite_scalar("tol", self.tol, 0.0, lo_open=True))
-        if self.eye_chunk is not None:
-            object.__setattr__(self, "eye_chunk", _integer("eye_chunk", self.eye_chunk, 1))
+        object.__setattr__(self, "eye_chunk", check_eye_chunk(self.eye_chunk))
 
 
 @dataclass(frozen=True)
@@ -221,4 +229,4 @@ class ReportSettings:
 
 
 __all__ = ["DesignConstraints", "DesignTarget", "FitSettings", "ReportSettings", "REPORT_ACCURACIES",
-           "REPORT_COUNTS", "FAST_REPORT_WAVELENGTHS_NM", "cdp_within"]
+           "REPORT_COUNTS", "FAST_REPORT_WAVELENGTHS_NM", "MIN_F_NUMBER", "cdp_within"]

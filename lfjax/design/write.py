@@ -102,18 +102,19 @@ def design_record(result, command: str | None = None) -> dict:
 
 
 def save_design(result, out_dir, command: str | None = None, force: bool = False) -> list[Path]:
-    """Write a design's files into ``out_dir``, both or neither (built in a staging folder
+    """Write a design's files into ``out_dir``, all or none (built in a staging folder
     beside it, then renamed into place: :func:`~lfjax.base.files.staged_output`; ``force``:
     into a folder with files in it): ``design.json``, ``result.record(command)`` (every
     count's specification and scores, every number with its unit; the chosen count marked),
     and ``design.png``, ``result.figure()`` (the chosen count's lenses and its views in the
-    pupil; none when no count has a panel). ``result``: an n×n design
+    pupil; not written when no count has a panel, e.g. only 1×1, which is refused before it
+    is built: ``design.json`` is then the one file). ``result``: an n×n design
     (:class:`lfjax.design.report.DesignResult`) or a lenticular one
     (:class:`lfjax.design.lenticular.LenticularDesign`). Returns the paths."""
     out = Path(out_dir)
     record = result.record(command)
     names = ["design.json"]
-    with staged_output(out, force) as stage:  # both files, or neither
+    with staged_output(out, force) as stage:  # every file, or none
         atomic_write_text(stage / "design.json", json.dumps(jsonable(record), indent=2) + "\n")
         fig = result.figure()
         if fig is not None:

@@ -88,14 +88,28 @@ def strip_display(layout: Layout | None = None, *, y_defocus_D=0.0, leakage_weig
                       neighbours=neighbours, pixel_height_arcmin=pixel_height_arcmin)
 
 
-def check_display_for_layout(display: DisplayOptics | None, layout: Layout) -> None:
-    """A :class:`ViewOptics`' neighbour matrix must have one row per view of ``layout``."""
+def check_display_for_layout(display: DisplayOptics | None, layout: Layout, *,
+                             parameter: str = "display", path: str = "") -> None:
+    """A display's neighbour matrix (a strip display's, :func:`strip_display`) must have one
+    row per view of ``layout``: one built for another layout would mix the wrong views (or
+    fail inside the compiled program). Shapes only, so it holds for traced arrays too.
+
+    A refused display is a :class:`~lfjax.base.errors.ParameterError` naming ``parameter``
+    (the entry point's name of the display; ``path`` is appended to it, e.g.
+    ``parameter="viewing", path=".display"``), the views it was built for and the layout's.
+    The one check of that concept: every entry point that takes a display with a layout
+    (:func:`lfjax.vision.prepare.prepare`, :func:`lfjax.vision.peaks.accommodation_peaks`,
+    the planner's :class:`~lfjax.planner.scene.PlanScene`, the layout optimiser's
+    problem) calls it."""
     a = None if display is None else display.neighbours
-    if a is not None and np.shape(a)[0] != layout.n_subapertures:
-        raise ParameterError("neighbours", "{neighbours} has {rows} rows but layout {name!r} has "
-                             "{n} views: build it with strip_display(layout, ...)",
-                             owner="ViewOptics", rows=int(np.shape(a)[0]), name=layout.name,
-                             n=layout.n_subapertures)
+    n = int(np.shape(layout.diameters_mm)[0])
+    if a is not None and np.shape(a)[0] != n:
+        raise ParameterError(
+            parameter, "{%s}%s is a strip display built for %d views (its neighbours matrix "
+            "has %d rows), but layout {name!r} has {n} views: build it with "
+            "strip_display(layout, ...) for that layout" % (parameter, path, np.shape(a)[0],
+                                                             np.shape(a)[0]),
+            name=getattr(layout, "name", "custom"), n=n)
 
 
 class LenticularPanel(eqx.Module):

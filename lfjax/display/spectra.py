@@ -85,7 +85,13 @@ import numpy as np
 
 from lfjax.base.errors import ParameterError
 from lfjax.model.options import ModelOptions
-from lfjax.model.spectral import Spectrum, lef_data, lef_range_nm, make_spectrum, sce_rho_data
+from lfjax.model.spectral import (
+    Spectrum,
+    computed_range_nm,
+    lef_data,
+    lef_range_nm,
+    make_spectrum,
+)
 
 CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
 D65_XY = (0.3127, 0.3290)
@@ -222,16 +228,6 @@ def display_primaries(name: str) -> DisplayPrimaries:
         raise ParameterError("name", "{name} {got!r} is not a built-in display; allowed: {allowed}",
                              got=name, allowed=", ".join(DISPLAY_NAMES))
     return _builtin(name)
-
-
-def computed_range_nm(options: ModelOptions = ModelOptions()) -> tuple[float, float]:
-    """Wavelength range (nm) the model can compute: the LEF data (390–830 nm), and the
-    Stiles–Crawford ρ(λ) table (400–700 nm) unless ``options.sce == "off"``."""
-    lo, hi = lef_range_nm()
-    if options.sce != "off":
-        wl, _ = sce_rho_data(options.sce_table)
-        lo, hi = max(lo, float(wl[0])), min(hi, float(wl[-1]))
-    return lo, hi
 
 
 @lru_cache(maxsize=1)
@@ -526,7 +522,6 @@ __all__ = [
     "DisplayPrimaries",
     "display_primaries",
     "gaussian_primaries",
-    "computed_range_nm",
     "emission_XYZ",
     "channel_drive",
     "resample_weights",

@@ -72,8 +72,7 @@ def _values_jit(layout, problem: LayoutProblem):
         peaks = predicted_peaks(layout, problem)
         vsotf, radial_mtf = m.vsotf[..., 0], m.radial_mtf[..., 0, :]
     else:
-        scene = Scene(layout.centres_mm, layout.diameters_mm, problem.cdp_D, problem.peak_depths_D,
-                      problem.pupil_diameter_mm, problem.display)
+        scene = problem.scene(layout, problem.peak_depths_D)
         both = retinal_metrics(problem.eyes, scene, problem.spectrum, problem.values_grid,
                                problem.config, problem.reference)
         peaks = peaks_from_grid(both.vsotf[..., :-1], problem.eyes, scene, problem.spectrum,
@@ -132,7 +131,7 @@ def parallax_warning(layout, evaluation: dict | None = None) -> str | None:
 
 
 def evaluate_layout(layout, problem: LayoutProblem, eyes: Eyes | None = None, terms=None,
-                    chunk: int | None = None) -> dict:
+                    chunk: int | None = None, progress=None) -> dict:
     """Everything a report says of a layout on a population (host numbers).
 
     ``eyes`` (default the problem's) are evaluated ``chunk`` at a time (default the
@@ -152,7 +151,8 @@ def evaluate_layout(layout, problem: LayoutProblem, eyes: Eyes | None = None, te
     ``image_at_peak_by_depth``, ``cutoff_by_depth`` (cpd), ``peak_by_depth`` (D),
     ``peak_error_by_depth`` (D), ``worst_depth_vsotf``, ``accuracy`` (the problem's
     setting) and the per-(eye, depth) arrays under ``values``. ``terms`` is accepted for
-    compatibility and ignored: every quantity is reported.
+    compatibility and ignored: every quantity is reported. ``progress``: None, or a callable
+    told the number of eyes each finished chunk scored (a progress bar's ``update``).
     """
     del terms
     eyes = problem.eyes if eyes is None else eyes
@@ -161,6 +161,8 @@ def evaluate_layout(layout, problem: LayoutProblem, eyes: Eyes | None = None, te
     for sub, valid in _eye_chunks(eyes, problem.eyes.n_eyes if chunk is None else chunk):
         vals = _values_jit(layout, problem.with_eyes(sub))
         parts.append({k: np.asarray(v)[valid] for k, v in vals.items()})
+        if progress is not None:
+            progress(int(np.sum(valid)))
     values = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     depths = np.asarray(problem.depths_D, float)
     out = {"n_eyes": eyes.n_eyes, "depths_D": depths.tolist(), "accuracy": problem.accuracy,

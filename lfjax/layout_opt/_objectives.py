@@ -13,7 +13,6 @@ from lfjax.vision.peak_options import PeakOptions
 from lfjax.vision.peaks import Peaks, peaks_from_grid
 from lfjax.kernel.pipeline import (
     RetinalMetrics,
-    Scene,
     retinal_metrics,
 )
 from lfjax.layout_opt._problem import MAXIMISED, LayoutProblem, Objective
@@ -62,8 +61,7 @@ def predicted_peaks(layout, problem: LayoutProblem) -> Peaks:
     maximum's index is piecewise constant). Fields (n_eyes, n_depth + 1): the rendered
     depths, then the CDP (``problem.peak_depths_D``); ``success`` is False where the
     maximum lies on a window edge (``at_grid_edge``)."""
-    scene = Scene(layout.centres_mm, layout.diameters_mm, problem.cdp_D, problem.peak_depths_D,
-                  problem.pupil_diameter_mm, problem.display)
+    scene = problem.scene(layout, problem.peak_depths_D)
     grid = problem.peak_grid
     values = retinal_metrics(problem.eyes, scene, problem.spectrum, grid, problem.config,
                              problem.reference).vsotf

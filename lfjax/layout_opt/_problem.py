@@ -18,10 +18,12 @@ from lfjax.base.errors import ParameterError
 from lfjax.base.types import finite_scalar
 from lfjax.base.units import check_dioptres
 from lfjax.display.lenslets import DisplayOptics
+from lfjax.display.lenticular import check_display_for_layout
 from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout, make_layout
 from lfjax.model.options import ModelOptions
 from lfjax.vision.peak_options import PEAK_METHODS
+from lfjax.vision.prepare import check_eye_chunk
 from lfjax.kernel.pipeline import (
     Accommodation,
     PipelineConfig,
@@ -255,8 +257,13 @@ class LayoutProblem(eqx.Module):
         return ProblemSetting(self.accuracy, self.peak_step_D, self.peak_margin_D,
                               self.peak_method, self.window_D, self.config.eye_chunk)
 
-    def scene(self, layout) -> Scene:
-        return Scene(layout.centres_mm, layout.diameters_mm, self.cdp_D, self.depths_D,
+    def scene(self, layout, depths_D=None) -> Scene:
+        """The pipeline's scene of ``layout`` (a :class:`~lfjax.model.layouts.Layout`, mm) in
+        this problem, rendering ``depths_D`` (D; default the problem's); the problem's strip
+        display must be built for the layout's views."""
+        check_display_for_layout(self.display, layout)
+        return Scene(layout.centres_mm, layout.diameters_mm, self.cdp_D,
+                     self.depths_D if depths_D is None else depths_D,
                      self.pupil_diameter_mm, self.display)
 
 
@@ -462,10 +469,7 @@ class ProblemSetting:
                                finite_scalar("peak_margin_D", self.peak_margin_D, 0.0))
         object.__setattr__(self, "window_D",
                            finite_scalar("window_D", self.window_D, 0.0, None, lo_open=True))
-        chunk = self.eye_chunk
-        if chunk is not None and (isinstance(chunk, bool) or int(chunk) != chunk or chunk < 1):
-            raise ParameterError("eye_chunk", "{eye_chunk} must be an integer >= 1 or None, "
-                                 "got {got!r}", got=chunk)
+        object.__setattr__(self, "eye_chunk", check_eye_chunk(self.eye_chunk))
 
     def resolved(self) -> dict:
         """The peak grid's step and margin (D) and the refinement method, the accuracy's

@@ -4,6 +4,7 @@ Part of :mod:`lfjax.layout_opt` (its public names are re-exported there)."""
 
 from __future__ import annotations
 
+import sys
 import time
 import warnings
 from dataclasses import dataclass
@@ -273,7 +274,7 @@ def optimise_layout(
     initial_layout = to_layout(initial, constraints, "initial")
     train = {"before": evaluate_layout(initial, problem), "after": evaluate_layout(fitted, problem)}
     t_eval = time.perf_counter()
-    test = _held_out_scores(initial, fitted, problem, test_eyes, report_problem)
+    test = _held_out_scores(initial, fitted, problem, test_eyes, report_problem, progress)
     t_end = time.perf_counter()
     fit = LayoutFit(layout, fitted, initial_layout, initial, history, method, len(history) - 1,
                     bool(converged), t_fit, train, test, problem.objective, constraints,
@@ -356,9 +357,11 @@ def _fit_bfgs(initial, problem: LayoutProblem, max_steps, tol, stall: tuple, his
 
 
 def _held_out_scores(initial, fitted, problem: LayoutProblem, test_eyes: Eyes | None,
-                     report_problem) -> dict | None:
+                     report_problem, progress: bool = False) -> dict | None:
     """The initial and fitted layouts scored on ``test_eyes`` at ``report_problem``'s setting
-    (:func:`optimise_layout`), {"before": …, "after": …}; None without held-out eyes."""
+    (:func:`optimise_layout`), {"before": …, "after": …}; None without held-out eyes.
+    ``progress``: a line on stderr saying what is scored, then a bar over the eyes (the
+    full setting's first chunk compiles for a minute or more)."""
     if test_eyes is None:
         return None
     if isinstance(report_problem, LayoutProblem):
@@ -366,8 +369,19 @@ def _held_out_scores(initial, fitted, problem: LayoutProblem, test_eyes: Eyes | 
     else:
         held_out = problem.at_accuracy(report_problem or problem.accuracy, eyes=test_eyes)
     chunk = min(test_eyes.n_eyes, max(problem.eyes.n_eyes, 8))
-    return {"before": evaluate_layout(initial, held_out, chunk=chunk),
-            "after": evaluate_layout(fitted, held_out, chunk=chunk)}
+    if not progress:
+        return {"before": evaluate_layout(initial, held_out, chunk=chunk),
+                "after": evaluate_layout(fitted, held_out, chunk=chunk)}
+    from tqdm.auto import tqdm
+
+    tqdm.write(f"held-out report: the initial and fitted layouts on {test_eyes.n_eyes} held-out "
+               f"eyes, {chunk} at a time, at the {held_out.accuracy!r} setting "
+               f"({held_out.spectrum.n_wavelengths} wavelengths; the first chunk compiles)",
+               file=sys.stderr)
+    with tqdm(total=2 * test_eyes.n_eyes, desc="held-out report", unit="eye",
+              leave=True) as bar:
+        return {"before": evaluate_layout(initial, held_out, chunk=chunk, progress=bar.update),
+                "after": evaluate_layout(fitted, held_out, chunk=chunk, progress=bar.update)}
 
 
 @dataclass

@@ -6,6 +6,7 @@ An :class:`Eyes` is a pytree with a leading batch axis (``zernike_um`` has shape
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 from importlib import resources
 from io import BytesIO
@@ -15,11 +16,52 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lfjax.base.types import FULL, as_real_array
+from lfjax.base.errors import ParameterError
+from lfjax.base.types import FULL, as_real_array, is_concrete
 from lfjax.base.zernike import mirror_sign_vector, nm_from_ansi
 
 THIBOS_PUPILS_MM = (3.0, 4.5, 6.0, 7.5)
 """Pupil diameters (mm) over which the Thibos et al. (2002) statistics were fitted."""
+
+MAX_REFRACTION_D = 40.0
+"""Largest refractive error (D, either sign) whose defocus coefficient bounds every Zernike
+coefficient of an eye (:func:`max_coefficient_um`). The strongest refractive errors measured
+in human eyes are about 30 D (pathological myopia); 40 D leaves margin. A real eye's
+higher-order coefficients are far smaller than its defocus, so a coefficient beyond this is
+a unit or data error (nm or mm for µm), not an eye: it would ask the field guard for an FFT
+no machine holds."""
+
+
+def max_coefficient_um(measured_pupil_mm: float) -> float:
+    """The bound on |c_j| of any Zernike coefficient of an eye, µm: the defocus coefficient
+    c(2,0) = D·R²/(4√3) of :data:`MAX_REFRACTION_D` dioptres on the measured pupil of radius
+    R = ``measured_pupil_mm``/2 (mm): 13 µm on a 3 mm pupil, 81 µm on 7.5 mm."""
+    radius = 0.5 * float(measured_pupil_mm)
+    return MAX_REFRACTION_D * radius * radius / (4.0 * math.sqrt(3.0))
+
+
+def check_coefficients(zernike_um, measured_pupil_mm: float) -> None:
+    """Host check of concrete Zernike coefficients (µm, (n_eyes, n_modes)) on the measured
+    pupil (mm): every one finite with |c| ≤ :func:`max_coefficient_um`; a
+    :class:`~lfjax.base.errors.ParameterError` naming ``zernike_um``, its unit and range
+    otherwise. Traced coefficients pass (checked where they are concrete)."""
+    if not is_concrete(zernike_um):
+        return
+    z = np.asarray(zernike_um).reshape(-1, np.shape(zernike_um)[-1])
+    bound = max_coefficient_um(measured_pupil_mm)
+    infinite = ~np.isfinite(z)
+    bad = infinite | (np.abs(z) > bound)
+    if np.any(bad):
+        eye, j = (int(i) for i in np.argwhere(infinite if np.any(infinite) else bad)[0])
+        what = ("contains non-finite values (NaN or inf)" if np.any(infinite)
+                else "has a coefficient beyond any human eye")
+        raise ParameterError(
+            "zernike_um", "{zernike_um} %s: got {got!r} µm at eye {eye}, ANSI j = {j} ({n} "
+            "coefficient(s) outside); each must be finite with |c| <= {bound:.3g} µm on the "
+            "{pupil:g} mm measured pupil (the defocus coefficient of a {refraction:g} D "
+            "refractive error)" % what,
+            bound=bound, pupil=float(measured_pupil_mm), refraction=MAX_REFRACTION_D,
+            got=float(z[eye, j]), eye=eye, j=j, n=int(bad.sum()))
 
 
 class Eyes(eqx.Module):
@@ -50,12 +92,12 @@ class Eyes(eqx.Module):
                 f"{self.zernike_um.shape}"
             )
         nm_from_ansi(self.zernike_um.shape[1] - 1)  # raises for unsupported orders
-        if not (self.measured_pupil_mm > 0):
-            raise ValueError(
-                f"measured_pupil_mm must be > 0 mm, got {self.measured_pupil_mm}"
-            )
+        if not (math.isfinite(self.measured_pupil_mm) and self.measured_pupil_mm > 0):
+            raise ParameterError("measured_pupil_mm", "{measured_pupil_mm} must be finite and > 0 "
+                                 "mm, got {got!r}", owner="Eyes", got=self.measured_pupil_mm)
         if self.orientation not in ("left", "right"):
             raise ValueError(f"orientation must be 'left' or 'right', got {self.orientation!r}")
+        check_coefficients(self.zernike_um, self.measured_pupil_mm)
 
     @property
     def n_eyes(self) -> int:
@@ -103,12 +145,13 @@ are 24 GiB): a larger population is drawn in parts (seeds) or chunks."""
 
 
 def make_eyes(zernike_um, measured_pupil_mm: float, orientation: str = "left") -> Eyes:
-    """Eyes from coefficients, µm, shape (n_modes,) or (n_eyes, n_modes); checks finiteness."""
+    """Eyes from coefficients, µm, shape (n_modes,) or (n_eyes, n_modes), measured on a pupil
+    of ``measured_pupil_mm`` (mm); each coefficient finite and within
+    :func:`max_coefficient_um` (checked on the host, before any tracing)."""
     z = np.asarray(zernike_um, dtype=float)
     if z.ndim == 1:
         z = z[None]
-    if not np.all(np.isfinite(z)):
-        raise ValueError("zernike_um contains non-finite values (NaN or inf)")
+    check_coefficients(z, measured_pupil_mm)  # float64, before float32 rounds 1e39 to inf
     return Eyes(jnp.asarray(z), float(measured_pupil_mm), orientation)
 
 
@@ -238,6 +281,9 @@ __all__ = [
     "THIBOS_PUPILS_MM",
     "Eyes",
     "MAX_SAMPLED_EYES",
+    "MAX_REFRACTION_D",
+    "max_coefficient_um",
+    "check_coefficients",
     "check_eyes",
     "make_eyes",
     "aberration_free_eye",

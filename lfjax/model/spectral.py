@@ -98,6 +98,28 @@ def sce_rho_per_mm2(wavelengths_nm, table: str = "isetbio_berendschot_data") -> 
     return np.interp(wavelengths_nm, wl, rho)
 
 
+def computed_range_nm(options: ModelOptions = ModelOptions()) -> tuple[float, float]:
+    """Wavelength range (nm) the model can compute: the LEF data (390–830 nm), narrowed to
+    the Stiles–Crawford ρ(λ) table (400–700 nm) unless ``options.sce == "off"``. The one
+    statement of that range: every spectrum (:func:`make_spectrum`) is refused outside it."""
+    lo, hi = lef_range_nm()
+    if options.sce != "off":
+        wl, _ = sce_rho_data(options.sce_table)
+        lo, hi = max(lo, float(wl[0])), min(hi, float(wl[-1]))
+    return lo, hi
+
+
+def check_computed_range(wavelengths_nm, options: ModelOptions = ModelOptions()) -> None:
+    """Wavelengths (nm) inside :func:`computed_range_nm`; a
+    :class:`~lfjax.base.errors.ParameterError` naming ``wavelengths_nm``, the range and why
+    otherwise (host; before the luminous-efficiency data are loaded)."""
+    lo, hi = computed_range_nm(options)
+    why = "the LEF data" if options.sce == "off" else (
+        f"the Stiles–Crawford ρ(λ) table, read while ModelOptions.sce is {options.sce!r}; "
+        "with sce='off' the LEF data's range applies")
+    _check_range("wavelengths_nm", np.atleast_1d(np.asarray(wavelengths_nm, float)), lo, hi, why)
+
+
 class Spectrum(eqx.Module):
     """Sampled spectrum with the chromatic properties of the eye at each wavelength.
 
@@ -147,8 +169,8 @@ def make_spectrum(
     Parameters
     ----------
     wavelengths_nm : array_like, nm
-        Strictly increasing wavelengths inside the LEF data (390–830 nm), and inside
-        400–700 nm when the Stiles–Crawford effect is on.
+        Strictly increasing wavelengths inside the range the model computes
+        (:func:`computed_range_nm`: narrower with the Stiles–Crawford effect on).
     options : ModelOptions
         LCA constants, SCE form and table.
     weights : array_like, optional
@@ -169,6 +191,7 @@ def make_spectrum(
     if wl.size > 1 and np.any(np.diff(wl) <= 0):
         raise ParameterError("wavelengths_nm", "{wavelengths_nm} must be strictly increasing, got {got}",
                              got=wl.tolist())
+    check_computed_range(wl, options)
     v = luminous_efficiency(wl)
     if weights is None:
         if wl.size == 1:
@@ -341,7 +364,8 @@ def model_spectrum(wavelengths_nm, weights, sce_rho_table_per_mm2,
 
 
 def monochromatic_spectrum(wavelength_nm: float, options: ModelOptions = ModelOptions()):
-    """One-wavelength spectrum (weight 1)."""
+    """One-wavelength spectrum (weight 1) at ``wavelength_nm`` (nm, inside
+    :func:`computed_range_nm` of ``options``)."""
     return make_spectrum([wavelength_nm], options)
 
 
@@ -350,6 +374,8 @@ __all__ = [
     "lef_data",
     "lef_range_nm",
     "lca_dioptres",
+    "computed_range_nm",
+    "check_computed_range",
     "sce_rho_per_mm2",
     "sce_rho_data",
     "Spectrum",

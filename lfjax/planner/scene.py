@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lfjax.display.lenslets import DisplayOptics
+from lfjax.display.lenticular import check_display_for_layout
 from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout, open_pupil
 from lfjax.model.options import ModelOptions
@@ -127,6 +128,7 @@ class PlanScene:
                 raise ValueError("spectral_weights needs wavelengths_nm (the wavelengths they weigh)")
         if self.layout is None:
             object.__setattr__(self, "layout", open_pupil(self.pupil_diameter_mm))
+        check_display_for_layout(self.display, self.layout)
         if self.pairs is None:
             pair_acc, pair_depth = _scene_pairs(self.depths_D, self.accommodation_D,
                                                 self.accommodation_window_D)

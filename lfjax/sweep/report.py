@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from lfjax.base.apertures import CIRCLE, STRIP
-from lfjax.base.errors import ParameterError
+from lfjax.base.errors import FlatCurveWarning, ParameterError
 from lfjax.base.tables import printable
 from lfjax.model.layout_plots import draw_layout
 from lfjax.model.layouts import LF_LAYOUTS
@@ -82,10 +82,6 @@ _MORE_COLOURS = ("tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:olive
 def _virtual(ds):
     """The store's virtual eyes (the average eye left out of every population statistic)."""
     return ds.isel(eye=np.flatnonzero(~ds.is_average.values))
-
-
-class FlatCurveWarning(UserWarning):
-    """A stored through-focus curve has no maximum: its peak quantities are left out."""
 
 
 PEAK_VARIABLES = ("predicted_accommodation", "accommodation_error",
@@ -654,7 +650,6 @@ def _wavelength_step(ds, config) -> float:
 
 
 __all__ = [
-    "FlatCurveWarning",
     "flat_curves",
     "without_flat_curves",
     "FILES",

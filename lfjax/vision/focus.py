@@ -9,6 +9,7 @@ one eye's OTF stack (eyes are mapped in chunks).
 from __future__ import annotations
 
 import functools
+import warnings
 from collections.abc import Sequence
 
 import equinox as eqx
@@ -17,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Real
 
-from lfjax.base.errors import ParameterError
+from lfjax.base.errors import FLAT_CURVE_RANGE, FlatCurveWarning, ParameterError
 from lfjax.base.types import shape_checked
 from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout
@@ -76,8 +77,11 @@ class ThroughFocus(eqx.Module):
         return getattr(self, name)
 
     def peak_index(self, metric: str = "vsotf"):
-        """Index of the grid peak along accommodation among allowed states, (n_eyes, n_depth)."""
+        """Index of the grid peak along accommodation among allowed states, (n_eyes, n_depth).
+        A :class:`~lfjax.base.errors.FlatCurveWarning` says how many curves are too flat for
+        their peak to be determined (:func:`flat_curves`)."""
         values = np.where(np.asarray(self.allowed)[None], np.asarray(self.metric(metric)), -np.inf)
+        warn_flat_curves(values, metric)
         return np.argmax(values, axis=-1)
 
     def predicted_accommodation_D(self, metric: str = "vsotf"):
@@ -107,8 +111,12 @@ class ThroughFocus(eqx.Module):
         return self.peaks[metric]
 
     def continuous_accommodation_D(self, metric: str = "vsotf"):
-        """Continuous predicted accommodation (global maximum), D, (n_eyes, n_depth)."""
-        return np.asarray(self.continuous_peaks(metric).accommodation_D, float)
+        """Continuous predicted accommodation (global maximum), D, (n_eyes, n_depth); a
+        :class:`~lfjax.base.errors.FlatCurveWarning` as :meth:`peak_index`'s."""
+        peaks = self.continuous_peaks(metric)
+        warn_flat_curves(np.where(np.asarray(self.allowed)[None], np.asarray(self.metric(metric)),
+                                  -np.inf), metric)
+        return np.asarray(peaks.accommodation_D, float)
 
     def continuous_error_D(self, metric: str = "vsotf"):
         """Continuous predicted accommodation minus rendered depth, D."""
@@ -122,6 +130,35 @@ class ThroughFocus(eqx.Module):
         """Cut-off frequency (cpd) of the MTF at the predicted accommodation."""
         return _cutoff_at_index(self.radial_mtf, jnp.asarray(self.peak_index(metric)),
                                 self.radial_freq_cpd, float(threshold))
+
+
+def flat_curves(values) -> np.ndarray:
+    """Where a through-focus curve is too flat for its peak to be determined: bool
+    (…) over the last axis of ``values`` (…, n_acc; states not computed −inf or NaN), True
+    where at least two finite states differ by less than
+    :data:`~lfjax.base.errors.FLAT_CURVE_RANGE` of the curve's largest magnitude."""
+    v = np.asarray(values, float)
+    finite = np.isfinite(v)
+    top = np.max(np.where(finite, v, -np.inf), axis=-1)
+    low = np.min(np.where(finite, v, np.inf), axis=-1)
+    scale = np.max(np.where(finite, np.abs(v), 0.0), axis=-1)
+    with np.errstate(invalid="ignore"):
+        return (finite.sum(axis=-1) >= 2) & (top - low <= FLAT_CURVE_RANGE * scale)
+
+
+def warn_flat_curves(values, metric: str = "vsotf") -> None:
+    """A :class:`~lfjax.base.errors.FlatCurveWarning` when any curve of ``values`` (…,
+    n_acc) is flat (:func:`flat_curves`), saying how many and that their peaks are not
+    results."""
+    flat = flat_curves(values)
+    if np.any(flat):
+        warnings.warn(
+            f"{int(flat.sum())} of {flat.size} {metric} through-focus curves vary by less than "
+            f"{FLAT_CURVE_RANGE:g} of their value over the accommodation states: their peak is "
+            f"undetermined (the grid peak is just the first state), and so are the predicted "
+            f"accommodation, its error and the cut-off there. A pupil or views this small "
+            f"barely change the image with focus; use a larger pupil (a human pupil is at "
+            f"least about 1.5 mm) or wider views", FlatCurveWarning, stacklevel=3)
 
 
 # One compiled program per shape: run eagerly, these few lines were about ten small
@@ -177,7 +214,8 @@ def through_focus(
     peaks : :class:`~lfjax.vision.peak_options.PeakOptions`: the metrics whose continuous peak is
         refined from the grid in the same compiled call (default none: grid peaks only), the
         method, its tolerance and whether second peaks are refined
-    eye_chunk : eyes evaluated together inside the pipeline's map (None: one at a time)
+    eye_chunk : eyes evaluated together inside the pipeline's map, an integer ≥ 1 (None: one
+        at a time)
 
     Elemental OTFs are computed once per distinct absolute state and reused by every depth.
     The VSOTF/Strehl reference follows ``options.vsotf_reference`` (default: the same layout,
@@ -453,4 +491,5 @@ def metrics_at(
                             prepared.config)
 
 
-__all__ = ["ThroughFocus", "through_focus", "through_focus_variants", "metrics_at"]
+__all__ = ["ThroughFocus", "through_focus", "through_focus_variants", "metrics_at",
+           "flat_curves", "warn_flat_curves"]

@@ -73,6 +73,7 @@ from jaxtyping import Array, ArrayLike, Bool
 from lfjax.base.errors import ParameterError
 from lfjax.base.parabola import parabola_vertex
 from lfjax.base.types import shape_checked
+from lfjax.display.lenticular import check_display_for_layout
 from lfjax.kernel.pipeline import (
     Accommodation,
     PipelineConfig,
@@ -202,6 +203,7 @@ def accommodation_peaks(
     if metric not in METRICS:
         raise ParameterError("metric", "{metric} must be one of {allowed}, got {got!r}",
                              allowed=METRICS, got=metric)
+    check_display_for_layout(scene.display, scene, parameter="scene", path=".display")
     reference = reference_normalisers(scene, spectrum, grid, config)
     on_grid = retinal_metrics(eyes, scene, spectrum, grid, config, reference)
     return peaks_from_grid(getattr(on_grid, metric), eyes, scene, spectrum, grid, config,

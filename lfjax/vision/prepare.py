@@ -34,6 +34,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.sampling import AliasingError, Sampling, finer_step
 from lfjax.base.types import is_concrete
 from lfjax.base.units import check_dioptres
@@ -341,6 +342,26 @@ def with_aliasing_retry(compute: Callable, sampling: Sampling | Sequence[Samplin
 # ----------------------------------------------------------------------------- prepare
 
 
+def check_eye_chunk(eye_chunk) -> int | None:
+    """``eye_chunk`` as an ``int``, or None: the number of eyes one step of a map over eyes
+    evaluates together (memory grows with it), an integer ≥ 1; None keeps each entry
+    point's own meaning (the pipeline: one eye at a time; the display design's gradient:
+    every eye at once). A :class:`~lfjax.base.errors.ParameterError` naming ``eye_chunk``
+    otherwise (0 or a negative count would reach ``jax.lax.map`` as no batching or a
+    reshape error). The one check of every entry point that takes it."""
+    if eye_chunk is None:
+        return None
+    try:
+        whole = (not isinstance(eye_chunk, (bool, np.bool_)) and int(eye_chunk) == eye_chunk)
+    except (TypeError, ValueError, OverflowError):
+        whole = False
+    if not whole or eye_chunk < 1:
+        raise ParameterError("eye_chunk", "{eye_chunk} must be an integer >= 1 (eyes evaluated "
+                             "together) or None, got {got!r}", got=eye_chunk)
+    return int(eye_chunk)
+
+
+
 def _check_layout(layout: Layout) -> None:
     """Host check of a concrete layout: finite centres, diameters > 0 mm."""
     c = np.asarray(layout.centres_mm, float)
@@ -411,7 +432,8 @@ def prepare(
     sampling : checked against the field guard when given (``check_aliasing``; concrete
         inputs only); planned by :func:`default_sampling` when None (concrete depths, states,
         pupil and CDP only — give it when they are traced)
-    eye_chunk : eyes evaluated together inside the pipeline's map (None: one at a time)
+    eye_chunk : eyes evaluated together inside the pipeline's map, an integer ≥ 1 (None: one
+        at a time); :func:`check_eye_chunk`
     traced_checks : False when every input is checked here on the host (the layout too):
         the compiled program then carries no host callbacks, so JAX's persistent compilation
         cache can keep it across processes. True checks traced inputs inside the program
@@ -423,6 +445,7 @@ def prepare(
     """
     check_viewing(viewing)
     pupil_diameter_mm, cdp_D, display = viewing.pupil_diameter_mm, viewing.cdp_D, viewing.display
+    eye_chunk = check_eye_chunk(eye_chunk)
     check_eyes(eyes)
     validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)
     validate_states(None, None, cdp_D)
@@ -435,7 +458,7 @@ def prepare(
         layout = (open_pupil(pupil_static) if is_concrete(pupil_diameter_mm) else Layout(
             jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
             pupil_static, "natural"))
-    check_display_for_layout(display, layout)  # a strip display built for another layout
+    check_display_for_layout(display, layout, parameter="viewing", path=".display")
     if is_concrete(layout.centres_mm, layout.diameters_mm, pupil_diameter_mm):
         # a view outside the pupil brings no light: VSOTF would be 0/0 (NaN, or 1)
         check_views_in_pupil(layout.centres_mm, layout.diameters_mm, pupil_diameter_mm,
@@ -473,6 +496,7 @@ __all__ = [
     "States",
     "Prepared",
     "prepare",
+    "check_eye_chunk",
     "default_sampling",
     "with_aliasing_retry",
     "relative_accommodation_grid",

@@ -143,9 +143,17 @@ def common_sampling(eye: Eyes, layouts, accommodation_D: float, depths_D, spectr
             options=options,
         )
     )
-    sampling = min(steps, key=lambda s: s.freq_step_cpd)
-    # One FFT size for every channel: the OTF grid grows at short wavelengths (the pupil's
-    # support in cycles per degree is d/λ), so the bluest channel's size is used by all.
+    return with_channels_n_fft(min(steps, key=lambda s: s.freq_step_cpd), spectra,
+                               pupil_diameter_mm, options)
+
+
+def with_channels_n_fft(sampling: Sampling, spectra, pupil_diameter_mm: float,
+                        options: ModelOptions = ModelOptions()) -> Sampling:
+    """``sampling`` with one FFT size for every channel's spectrum (``spectra``) on the open
+    pupil of ``pupil_diameter_mm`` (mm): the largest any of them needs, or the sampling's own
+    ``n_fft`` if larger. The OTF grid grows at short wavelengths (the pupil's support in
+    cycles per degree is d/λ), so the bluest channel's size is used by all, and the
+    channels' OTFs stack on one grid."""
     n_fft = max(PipelineConfig.build(s.wavelengths_nm, pupil_diameter_mm, pupil_diameter_mm,
                                      sampling, options).n_fft for s in spectra)
     return dataclasses.replace(sampling, n_fft=max(n_fft, sampling.n_fft or 0))
@@ -159,9 +167,13 @@ def natural_otfs(eye: Eyes, accommodation_D: float, object_depths_D, spectra,
 
     The open pupil with its CDP at the object (defocus ``a − d``), its accommodation SA at
     ``a``: :func:`lfjax.kernel.pipeline.otf_stack` mapped over the CDP leaf, one compiled
-    program for every object depth."""
+    program for every object depth. A ``sampling`` without ``n_fft`` gets the one FFT size
+    of every channel (:func:`with_channels_n_fft`), so that the channels stack."""
     eye = single_eye(eye)
     depths = jnp.asarray(_check_depths("object_depths_D", object_depths_D))
+    spectra = tuple(spectra)
+    if sampling.n_fft is None:
+        sampling = with_channels_n_fft(sampling, spectra, pupil_diameter_mm, options)
     out = []
     for spectrum in spectra:
         prepared = prepare(
@@ -351,6 +363,7 @@ __all__ = [
     "channel_spectra",
     "single_eye",
     "common_sampling",
+    "with_channels_n_fft",
     "natural_otfs",
     "display_otfs",
     "embed_otf",

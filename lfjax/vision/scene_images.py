@@ -239,7 +239,7 @@ def predicted_accommodation(eye: Eyes, layout: Layout | None, fixation_D: float,
     tf = through_focus(
         single_eye(eye),
         layout,
-        States.grid(None, depths_D=[float(fixation_D)]),
+        States.around([float(fixation_D)], SEARCH_OFFSETS_D),
         Viewing(pupil_diameter_mm=pupil_diameter_mm, cdp_D=cdp_D, display=display),
         spectrum=white,
         options=options,

@@ -26,7 +26,7 @@ def _full_spectrum(name, channel, options=ModelOptions()):
     primaries = ds.display_primaries(name)
     wl = primaries.wavelengths_nm
     w = ds._fine_weights(wl, primaries.emission @ ds.channel_drive(primaries, channel))
-    lo, hi = ds.computed_range_nm(options)
+    lo, hi = spectral.computed_range_nm(options)
     inside = (wl >= lo) & (wl <= hi) & (w > 0)
     return spectral.make_spectrum(wl[inside], options, weights=w[inside] / w[inside].sum())
 

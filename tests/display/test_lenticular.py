@@ -87,7 +87,7 @@ def test_the_view_fields_are_declared_on_every_display_and_mean_nothing_when_uns
     (lambda: LenticularPanel(0.05, 0.45, 0.0, 3.0, 2.9, 350.0), "fill"),
     (lambda: LenticularPanel(0.05, 0.45, 1.0, 3.0, 3.5, 350.0), "gap_mm"),
     (lambda: LenticularPanel(0.05, 0.45, 1.0, 3.0, 2.9, 350.0, 2.0), "leakage_weight"),
-    (lambda: check_display_for_layout(strip_display(strip_layout(3)), strip_layout(2)), "neighbours"),
+    (lambda: check_display_for_layout(strip_display(strip_layout(3)), strip_layout(2)), "display"),
 ])
 def test_bad_input_names_the_parameter_and_its_range(build, parameter):
     with pytest.raises(ParameterError) as info:
