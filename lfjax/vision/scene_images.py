@@ -60,10 +60,11 @@ from lfjax.vision.scene_blur import (
 from lfjax.vision.peak_options import PeakOptions
 from lfjax.vision.prepare import States
 
-BYTES_PER_PIXEL_LAYER = 4 * 2 * 4
+BYTES_PER_PIXEL_LAYER = 4 * 2 * 4 + 4
 """Working memory per padded pixel, layer and channel, bytes: float32 colour and coverage,
-each with its complex spectrum and the OTF on the scene grid (a bound measured on the
-512×512×8×3 benchmark: the peak stays below it). The scene is padded on every side by the
+each with its complex spectrum and the OTF on the scene grid, and the host's float32 layers
+(measured on the demo scene, 3 layers, 1 arcmin pixels: 2.5 GB above the process's own at
+3072², under this bound's 3.1 GB). The scene is padded on every side by the
 kernel's half width (:func:`lfjax.vision.images.kernel_half_width`: the PSF's field in
 scene pixels), known once the OTFs' sampling is."""
 
@@ -93,7 +94,9 @@ def _real_numbers(name: str, x) -> np.ndarray:
 
 
 def _finite_image(name: str, x, ndim: tuple[int, ...]) -> np.ndarray:
-    a = _real_numbers(name, x).astype(float)
+    """``x`` checked (real, finite, >= 0) as float32, the precision of the images (no
+    float64 copy of a large image)."""
+    a = _real_numbers(name, x).astype(np.float32, copy=False)
     if a.ndim not in ndim:
         raise ParameterError(name, "{" + name + "} must have {dims} dimensions, got shape {got}",
                              dims=" or ".join(map(str, ndim)), got=a.shape)
@@ -163,7 +166,7 @@ def layers_from_depth_map(image, depth_map_D, n_layers: int = 8, *,
 def check_layers(layers, alpha, depths_D):
     """Host checks of a layer stack (:func:`composite_layers`' inputs); returns NumPy arrays."""
     lay = _finite_image("layers", layers, (4,))
-    a = np.asarray(alpha, float)
+    a = _real_numbers("alpha", alpha).astype(np.float32, copy=False)
     if a.shape != (lay.shape[0],) + lay.shape[-2:]:
         raise ParameterError("alpha", "{alpha} must have shape (n_layers, H, W) = {want}, got {got}",
                              want=(lay.shape[0],) + lay.shape[-2:], got=a.shape)
@@ -197,7 +200,8 @@ def check_scene_memory(shape, n_layers: int, memory_limit_bytes: int | None = No
     limit = default_memory_limit_bytes() if memory_limit_bytes is None else int(memory_limit_bytes)
     if need > limit:
         padded = f", padded by {pad} pixels a side (the PSF's field)" if pad else ""
-        raise ParameterError(parameter, "the scene needs about {need:.2f} GB of working memory "
+        raise ParameterError(parameter, "{" + parameter + "}: the scene needs about {need:.2f} "
+                             "GB of working memory "
                              "({n} layers × 3 primaries × {h}×{w} pixels{padded}), over the "
                              "limit of {limit:.2f} GB: use fewer layers, a smaller image or "
                              "larger pixels", need=need / 1e9, n=n_layers, h=h, w=w,
