@@ -2,7 +2,7 @@
 run on every change: each asserts the fixed behaviour, a conserved luminance or a one-line
 refusal naming the flag, at tiny sizes.
 
-Covers: lfjax/vision/scene_images.py, lfjax/vision/scene_files.py, lfjax/cli/retina.py
+Covers: lfjax.vision.scene_images, lfjax.vision.scene_files, lfjax.cli.retina
 """
 
 import time

@@ -195,6 +195,8 @@ def check_scene_memory(shape, n_layers: int, memory_limit_bytes: int | None = No
     layers, 3 primaries, padded by ``pad`` pixels (:data:`BYTES_PER_PIXEL_LAYER`); over
     ``memory_limit_bytes`` (default half the RAM) a ``ParameterError`` naming ``parameter``
     with the estimate and the limit. It needs only the sizes: call it before allocating."""
+    if len(tuple(shape)) < 2:
+        return 0  # not an image: its own check says so
     h, w = (int(v) for v in tuple(shape)[-2:])
     need = working_bytes((h, w), int(n_layers), 3, int(pad))
     limit = default_memory_limit_bytes() if memory_limit_bytes is None else int(memory_limit_bytes)
