@@ -169,7 +169,8 @@ def kernel_half_width(freq_step_cpd: float, pixel_arcmin: float) -> int:
 
 def psf_on_grid(otf_half, freq_step_cpd: float, pixel_arcmin: float, n_pixels: int,
                 n_fft: int | None = None):
-    """Pixel-integrated PSF on an ``n_pixels`` square grid of ``pixel_arcmin`` (sums to 1).
+    """Pixel-integrated PSF on an ``n_pixels`` square grid of ``pixel_arcmin`` (sums to 1 on a
+    grid that covers the PSF's field).
 
     Zero angle is at index ``n_pixels // 2``. The PSF is the model's: the band-limited
     function whose Fourier coefficients are the OTF samples (period ``T = 60/df`` arcmin),
