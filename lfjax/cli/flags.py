@@ -69,7 +69,7 @@ FLAGS: dict[str, dict[str, str]] = {
         "n_layers": "--n-layers", "pixel_arcmin": "--pixel-arcmin", "display": "--display",
         "primaries": "--primaries", "eye": "--eye", "accommodation_D": "--accommodation",
         "fixation_D": "--fixation", "cdp_D": "--cdp", "occlusion": "--no-occlusion",
-        "out_dir": "--out", "force": "--force",
+        "size": "--size", "out_dir": "--out", "force": "--force",
     },
 }
 """The one parameter↔flag table: for each subcommand, the library parameter a check names

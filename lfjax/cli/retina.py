@@ -18,11 +18,14 @@ from lfjax.display.spectra import DISPLAY_NAMES
 from lfjax.model.eyes import average_eye, sample_eyes
 from lfjax.model.layouts import grid_layout
 from lfjax.vision.scene_files import read_depth_map_scene, read_layers_file, save_retina_figure
-from lfjax.vision.scene_images import LayeredScene, demo_scene, retinal_scene
+from lfjax.vision.scene_images import (LayeredScene, check_scene_memory, demo_scene,
+                                       retinal_scene)
 from lfjax.vision.viewing import Viewing
 
 COMMAND = "retina"
 DISPLAY_CHOICES = ("natural", "2x2", "3x3", "4x4") + tuple(PRESETS)
+DEMO_SIZE, N_LAYERS, CDP_D = 256, 8, 2.0  # --size, --n-layers and --cdp where they apply
+DEMO_DEPTHS = 3  # the --demo scene's distinct depths (demo_scene)
 
 
 def add_parser(sub) -> None:
@@ -33,9 +36,9 @@ def add_parser(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
             "The retinal image of a scene with depth (lfjax.vision.scene_images). The scene is\n"
-            "an image with a depth map (--image, --depth: .npy arrays, the image (3, H, W) or\n"
-            "(H, W, 3) luminance per R, G, B primary or (H, W) grey, the depth map (H, W) in\n"
-            "dioptres), layers at depths (--layers-file: an .npz with layers (n, 3, H, W)\n"
+            "an image with a depth map (--image, --depth: the image an .npy of (3, H, W) or\n"
+            "(H, W, 3) luminance per R, G, B primary or (H, W) grey, or an opaque .png (sRGB\n"
+            "decoded to linear luminance); the depth map an .npy of (H, W) dioptres), layers at depths (--layers-file: an .npz with layers (n, 3, H, W)\n"
             "premultiplied colour, alpha (n, H, W) coverage and depths_D (n,) nearest first),\n"
             "or --demo (a synthetic scene at 4, 2 and 0.5 D). Each layer is blurred by its own\n"
             "polychromatic PSF per primary - the display's rendering of its depth, or a real\n"
@@ -51,22 +54,25 @@ def add_parser(sub) -> None:
         ),
     )
     src = rp.add_mutually_exclusive_group(required=True)
-    src.add_argument("--image", metavar="IMG.npy", help="image, .npy (with --depth)")
+    src.add_argument("--image", metavar="IMG",
+                     help="image, .npy or .png (with --depth); luminance, real and >= 0")
     src.add_argument("--layers-file", metavar="LAYERS.npz",
                      help=".npz with layers, alpha and depths_D (nearest first)")
     src.add_argument("--demo", action="store_true", help="the synthetic three-depth scene")
-    rp.add_argument("--depth", metavar="DEPTH.npy", help="depth map, D, .npy of the image's shape")
-    rp.add_argument("--size", metavar="N", type=flags.positive_int, default=256,
-                    help="pixels across the --demo scene (default 256)")
-    rp.add_argument("--n-layers", metavar="N", type=flags.positive_int, default=8,
-                    help="layers cut from a depth map (default 8)")
+    rp.add_argument("--depth", metavar="DEPTH.npy",
+                    help="depth map of --image, D, .npy of the image's shape")
+    rp.add_argument("--size", metavar="N", type=flags.positive_int, default=None,
+                    help=f"pixels across the --demo scene (default {DEMO_SIZE})")
+    rp.add_argument("--n-layers", metavar="N", type=flags.positive_int, default=None,
+                    help=f"layers cut from a depth map (--image or --demo; default {N_LAYERS})")
     rp.add_argument("--pixel-arcmin", metavar="A", type=flags.finite_float, default=1.0,
                     help="visual angle of one scene pixel, arcmin (default 1)")
     rp.add_argument("--display", choices=DISPLAY_CHOICES, default="3x3",
                     help="natural viewing, the paper's n x n views (CDP --cdp) or a panel preset "
                          "(its own CDP, lenslet diffraction and pixels) (default 3x3)")
-    rp.add_argument("--cdp", metavar="D", type=flags.finite_float, default=2.0,
-                    help="CDP of the n x n layouts, D (default 2)")
+    rp.add_argument("--cdp", metavar="D", type=flags.finite_float, default=None,
+                    help=f"CDP of the n x n layouts, D (default {CDP_D:g}); a panel preset has its "
+                         "own, natural viewing none")
     rp.add_argument("--primaries", choices=DISPLAY_NAMES, default="oled",
                     help="the display's primaries (default oled)")
     rp.add_argument("--eye", metavar="N", default="average",
@@ -95,8 +101,34 @@ def _eye(text: str):
     return sample_eyes(0, index + 1, 3.0)[index:index + 1]
 
 
+def check_combinations(args) -> None:
+    """Each flag given applies to the scene and display asked for (none is ignored), or a
+    ``ParameterError`` naming it; fills in the defaults of those that apply."""
+    source = "--demo" if args.demo else "--layers-file" if args.layers_file else "--image"
+    if args.depth is not None and source != "--image":
+        raise ParameterError("depth_map_D", "{depth_map_D} is the depth map of {image}; "
+                             "{source} brings its own depths", source=source)
+    if args.size is not None and source != "--demo":
+        raise ParameterError("size", "{size} sets the --demo scene's pixels; {source} has its "
+                             "own", source=source)
+    if args.n_layers is not None and source == "--layers-file":
+        raise ParameterError("n_layers", "{n_layers} cuts a depth map into layers; "
+                             "--layers-file gives the layers")
+    if args.cdp is not None and (args.display == "natural" or args.display in PRESETS):
+        raise ParameterError("cdp_D", "{cdp_D} sets the CDP of the n x n layouts (--display "
+                             "2x2, 3x3, 4x4); {which}", which="natural viewing has none"
+                             if args.display == "natural" else
+                             f"the panel preset {args.display!r} has its own")
+    args.size = DEMO_SIZE if args.size is None else args.size
+    args.n_layers = N_LAYERS if args.n_layers is None else args.n_layers
+    args.cdp = CDP_D if args.cdp is None else args.cdp
+
+
 def _scene(args) -> LayeredScene:
     if args.demo:
+        # from the size alone, before the demo's arrays are made
+        check_scene_memory((args.size, args.size), min(args.n_layers, DEMO_DEPTHS),
+                           parameter="size")
         return LayeredScene.from_depth_map(*demo_scene(args.size), args.pixel_arcmin,
                                            args.n_layers)
     if args.layers_file:
@@ -115,6 +147,7 @@ def _display(name: str):
 def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
     def work():
+        check_combinations(args)
         out = check_output_folder(args.out, args.force, parameter="out_dir")
         eye = _eye(args.eye)
         scene = _scene(args)

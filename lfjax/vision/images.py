@@ -7,11 +7,17 @@ The retinal image is the scene convolved with the point-spread function; here th
 by multiplying the scene's spectrum by the OTF on the scene's own frequency grid.
 
 The OTFs of :mod:`lfjax.kernel.optics` live on another grid: frequency step ``df`` (cpd), so the
-PSF is periodic with period (field) 60/df arcmin and sampled at 60/(df·L) arcmin. The
-resampling onto the scene grid is exact for that band-limited PSF: each scene pixel's
-kernel weight is the integral of the PSF over the pixel, evaluated from the OTF as a
-trigonometric sum (OTF × pixel-aperture sinc, summed at the pixel centres). So the scene
-pixel may be finer or coarser than the PSF pixel; nothing is interpolated.
+PSF is the band-limited function with those Fourier coefficients, periodic with period
+(field) ``T = 60/df`` arcmin; the model's PSF is one period of it, ``[-T/2, T/2]²``, and zero
+outside. The resampling onto the scene grid is exact for that PSF at any pixel size: each
+scene pixel's kernel weight is the integral of the PSF over the part of the pixel inside
+the field, evaluated from the OTF as a trigonometric sum (:func:`psf_on_grid`), and the
+kernel spans the whole field. Pixels finer than the PSF's samples (``T/L``) see the PSF
+between its samples as its band limit defines it; pixels coarser than the field hold the
+whole PSF in one pixel (the retinal image is the scene). The weights sum to OTF(0) = 1, so a
+uniform scene stays uniform at its luminance and the light of any scene is conserved,
+within float32 rounding (about 1e-6 relative); tests/vision/test_images.py checks it from
+0.01 to 1000 arcmin and against a direct float64 convolution.
 
 Everything here is ``jax.numpy``: differentiable in the scene, the OTF and (for
 :func:`snellen_e`) the letter size.
@@ -149,15 +155,33 @@ def _otf_from_psf(psf, psf_pixel_arcmin: float):
     return jnp.fft.rfft2(centred), 60.0 / (psf_pixel_arcmin * n), n
 
 
+def kernel_half_width(freq_step_cpd: float, pixel_arcmin: float) -> int:
+    """Half width (pixels) of the scene-grid kernel that tiles the PSF's whole field.
+
+    The model's PSF is one period ``T = 60/freq_step_cpd`` arcmin wide; pixels ``-h … h``
+    of ``pixel_arcmin`` cover ``[-T/2, T/2]`` when ``(h + ½)·pixel ≥ T/2``. One pixel
+    more is kept so rounding never leaves a sliver of the field uncovered (its weight is
+    the PSF over an empty overlap: zero)."""
+    period = 60.0 / _positive_scalar(freq_step_cpd, "freq_step_cpd")
+    return int(math.floor(period / (2.0 * _positive_scalar(pixel_arcmin, "pixel_arcmin"))
+                          + 0.5)) + 1
+
+
 def psf_on_grid(otf_half, freq_step_cpd: float, pixel_arcmin: float, n_pixels: int,
                 n_fft: int | None = None):
-    """Pixel-integrated PSF on an ``n_pixels`` square grid of ``pixel_arcmin`` (sums to ≈ 1).
+    """Pixel-integrated PSF on an ``n_pixels`` square grid of ``pixel_arcmin`` (sums to 1 on a
+    grid that covers the PSF's field).
 
-    Zero angle is at index ``n_pixels // 2``. The value of pixel m is the integral of the
-    band-limited PSF over that pixel, computed exactly from the OTF:
-    ``Σ_f OTF(f) sinc(f_x p) sinc(f_y p) exp(2πi f·θ_m) (df/60)² p²`` with f in cycles per
-    arcmin. Pixels farther than half the PSF field (30/df arcmin) from the centre are zero
-    (the model's PSF is periodic with that period).
+    Zero angle is at index ``n_pixels // 2``. The PSF is the model's: the band-limited
+    function whose Fourier coefficients are the OTF samples (period ``T = 60/df`` arcmin),
+    taken over one period ``[-T/2, T/2]²`` and zero outside it (the field the optics were
+    computed for). The value of pixel m is the integral of that PSF over the part of the
+    pixel inside the field, computed exactly from the OTF as a trigonometric sum: with
+    ``[a, b]`` the pixel's overlap with ``[-T/2, T/2]`` along each axis, width ``w = b − a``
+    and centre ``c``, ``Σ_f OTF(f) w sinc(f w) exp(2πi f c)`` per axis, over ``T²``, f in
+    cycles per arcmin. Pixels that tile the field sum to OTF(0) = 1 at any pixel size
+    (larger than the field: the centre pixel holds the whole PSF, weight 1); a grid smaller
+    than the field keeps only its part of the PSF.
 
     Parameters
     ----------
@@ -183,14 +207,29 @@ def psf_on_grid(otf_half, freq_step_cpd: float, pixel_arcmin: float, n_pixels: i
 @partial(jax.jit, static_argnames=("n", "L"))
 def _psf_on_grid(otf_half, df, p, n: int, L: int):
     otf = full_plane(otf_half, L)  # (…, L, L) FFT order
-    f = jnp.fft.fftfreq(L, 1.0 / L) * df / 60.0  # cycles per arcmin (FFT order)
-    aperture = jnp.sinc(f * p)  # pixel box integration (sinc(x) = sin(πx)/(πx))
-    theta = (jnp.arange(n) - n // 2) * p
-    kernel = jnp.exp(2j * jnp.pi * theta[:, None] * f[None, :]) * aperture[None, :]  # (n, L)
+    order = jnp.fft.fftfreq(L, 1.0 / L)  # harmonic k: f = k/T, T = 60/df arcmin the field
+    u = p * df / 60.0  # the pixel, in periods
+    m = jnp.arange(n) - n // 2.0
+    # the pixel's overlap with the field [-½, ½] (periods): interior pixels are exactly u
+    # wide (not a difference of two far-off edges, which loses digits in float32)
+    over_hi = jnp.maximum((m + 0.5) * u - 0.5, 0.0)
+    over_lo = jnp.maximum(-0.5 - (m - 0.5) * u, 0.0)
+    width = jnp.maximum(u - over_hi - over_lo, 0.0)
+    centre = m * u + 0.5 * (over_lo - over_hi)
+    cycles = order[None, :] * centre[:, None]
+    cycles = cycles - jnp.round(cycles)  # the phase k·c reduced to [-½, ½) cycles
+    # (n, L): ∫ over pixel m's part of the field of e^{2πikθ/T} dθ / T
+    kernel = width[:, None] * jnp.sinc(order[None, :] * width[:, None]) * jnp.exp(
+        2j * jnp.pi * cycles)
+    # Pixels that tile the field integrate every harmonic but k = 0 over whole periods: their
+    # sums are exactly 0 (and 1 for k = 0). The float32 residue of those sums is spread over
+    # the pixels in proportion to their overlap and removed, so the kernel sums to OTF(0).
+    covers = (n // 2 + 0.5) * u >= 0.5
+    total = jnp.sum(width)
+    residue = jnp.sum(kernel, axis=0) - (order == 0) * total
+    kernel = jnp.where(covers, kernel - width[:, None] * residue[None, :] / total, kernel)
     psf = jnp.einsum("ik,...kl,jl->...ij", kernel, otf, kernel, precision=FULL)
-    psf = jnp.real(psf) * (df / 60.0) ** 2 * p * p
-    inside = jnp.abs(theta) <= 30.0 / df  # one period of the model's periodic PSF
-    return psf * (inside[:, None] & inside[None, :])
+    return jnp.real(psf)
 
 
 def retinal_image(
@@ -209,8 +248,11 @@ def retinal_image(
     Give the optics either as a half-plane OTF (as :func:`lfjax.polychromatic_otf` returns,
     ``otf_half`` with ``freq_step_cpd``) or as a centred PSF image (``psf`` sampled at
     ``psf_pixel_arcmin``, zero angle at index L//2, any normalisation: it is scaled to unit
-    sum). Both are resampled onto the scene grid exactly (see :func:`psf_on_grid`), so the
-    scene's ``pixel_arcmin`` need not match the PSF sampling.
+    sum). Both are resampled onto the scene grid exactly (module docstring,
+    :func:`psf_on_grid`), so the scene's ``pixel_arcmin`` need not match the PSF sampling.
+    The scene is padded by the kernel's half width (:func:`kernel_half_width`: half the
+    PSF's field in scene pixels) for the "edge" and "constant" boundaries: memory grows as
+    ``(H + 60/(df·pixel_arcmin))·(W + …)`` for pixels much finer than the field.
 
     Parameters
     ----------
@@ -261,12 +303,22 @@ def retinal_image(
                 f"otf_half must have shape (..., L, L//2+1) in rfft2 layout, got {otf_half.shape}"
             )
     df = _positive_scalar(freq_step_cpd, "freq_step_cpd")
-    H, W = int(scene.shape[-2]), int(scene.shape[-1])
-    # Kernel extent: the PSF field (60/df arcmin), at most what the scene can see.
-    field_px = int(math.ceil(60.0 / df / p))
-    half = min(field_px // 2 + 1, max(H, W))
+    # The kernel tiles the PSF's whole field, however small the scene: light from beyond
+    # the scene's border (its edge or constant continuation) reaches it.
+    half = kernel_half_width(df, p)
     return _convolve(scene, otf_half, float(df), float(p), int(n_fft), half, boundary,
                      float(constant))
+
+
+def _fold(kernel, half: int, big_h: int, big_w: int):
+    """The (…, 2·half+1, 2·half+1) kernel on a (big_h, big_w) torus, its centre at (0, 0):
+    a periodic scene smaller than the kernel wraps it, and the wrapped entries are summed as
+    a reduction (a scatter-add of thousands of entries per cell loses digits in float32)."""
+    n = 2 * half + 1
+    reps_h, reps_w = -(-n // big_h), -(-n // big_w)
+    widths = [(0, 0)] * (kernel.ndim - 2) + [(0, reps_h * big_h - n), (0, reps_w * big_w - n)]
+    tiles = jnp.pad(kernel, widths).reshape(kernel.shape[:-2] + (reps_h, big_h, reps_w, big_w))
+    return jnp.roll(jnp.sum(tiles, axis=(-4, -2)), (-half, -half), axis=(-2, -1))
 
 
 @partial(jax.jit, static_argnames=("L", "half", "boundary"))
@@ -285,15 +337,11 @@ def _convolve(scene, otf_half, df, p, L, half, boundary, constant):
     else:
         padded = scene
     big_h, big_w = padded.shape[-2], padded.shape[-1]
-    # kernel centre at index (0, 0); a periodic scene smaller than the kernel wraps it
-    ky = (jnp.arange(n_kernel) - half) % big_h
-    kx = (jnp.arange(n_kernel) - half) % big_w
-    placed = jnp.zeros(kernel.shape[:-2] + (big_h, big_w), kernel.dtype)
-    placed = placed.at[..., ky[:, None], kx[None, :]].add(kernel)
+    placed = _fold(kernel, half, big_h, big_w)
     spectrum = jnp.fft.rfft2(padded) * jnp.fft.rfft2(placed)
     image = jnp.fft.irfft2(spectrum, s=(big_h, big_w))
     return image[..., pad : pad + H, pad : pad + W]
 
 
-__all__ = ["ORIENTATIONS", "snellen_e", "psf_on_grid", "retinal_image"]
+__all__ = ["ORIENTATIONS", "snellen_e", "kernel_half_width", "psf_on_grid", "retinal_image"]
 

@@ -39,6 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from lfjax.base.errors import ParameterError
+from lfjax.base.units import check_dioptres
 from lfjax.base.sampling import Sampling
 from lfjax.display.lenslets import DisplayOptics
 from lfjax.display.panel import Panel
@@ -47,7 +48,7 @@ from lfjax.model.eyes import Eyes
 from lfjax.model.layouts import Layout
 from lfjax.model.options import ModelOptions
 from lfjax.vision.focus import through_focus
-from lfjax.vision.images import retinal_image
+from lfjax.vision.images import kernel_half_width, retinal_image
 from lfjax.vision.viewing import Viewing
 from lfjax.vision.scene_blur import (
     single_eye,
@@ -58,12 +59,14 @@ from lfjax.vision.scene_blur import (
 )
 from lfjax.vision.peak_options import PeakOptions
 from lfjax.vision.prepare import States
-from lfjax.vision.viewing import Viewing
 
-BYTES_PER_PIXEL_LAYER = 4 * 2 * 4
+BYTES_PER_PIXEL_LAYER = 4 * 2 * 4 + 4
 """Working memory per padded pixel, layer and channel, bytes: float32 colour and coverage,
-each with its complex spectrum and the OTF on the scene grid (a bound measured on the
-512×512×8×3 benchmark: the peak stays below it)."""
+each with its complex spectrum and the OTF on the scene grid, and the host's float32 layers
+(measured on the demo scene, 3 layers, 1 arcmin pixels: 2.5 GB above the process's own at
+3072², under this bound's 3.1 GB). The scene is padded on every side by the
+kernel's half width (:func:`lfjax.vision.images.kernel_half_width`: the PSF's field in
+scene pixels), known once the OTFs' sampling is."""
 
 
 SEARCH_OFFSETS_D = tuple(np.round(np.arange(-3.0, 1.0 + 1e-9, 0.2), 6))
@@ -79,8 +82,21 @@ def default_memory_limit_bytes() -> int:
         return 8 * 2**30
 
 
+def _real_numbers(name: str, x) -> np.ndarray:
+    """``x`` as an array of real numbers (a luminance, a coverage, a depth), unconverted:
+    complex, text or object arrays are a ``ParameterError`` naming ``name``."""
+    a = np.asarray(x)
+    if a.dtype.kind not in "biuf":
+        what = "complex" if a.dtype.kind == "c" else f"of dtype {a.dtype}"
+        raise ParameterError(name, "{" + name + "} must be real numbers (a luminance is real "
+                             "and >= 0), got an array {what}", what=what)
+    return a
+
+
 def _finite_image(name: str, x, ndim: tuple[int, ...]) -> np.ndarray:
-    a = np.asarray(x, float)
+    """``x`` checked (real, finite, >= 0) as float32, the precision of the images (no
+    float64 copy of a large image)."""
+    a = _real_numbers(name, x).astype(np.float32, copy=False)
     if a.ndim not in ndim:
         raise ParameterError(name, "{" + name + "} must have {dims} dimensions, got shape {got}",
                              dims=" or ".join(map(str, ndim)), got=a.shape)
@@ -94,7 +110,7 @@ def _finite_image(name: str, x, ndim: tuple[int, ...]) -> np.ndarray:
 
 def check_depths(name: str, depths) -> np.ndarray:
     """Finite depths in the model's range [0, 10] D, or a ``ParameterError`` naming ``name``."""
-    d = np.asarray(depths, float)
+    d = _real_numbers(name, depths).astype(float)
     if np.any(np.isnan(d)):
         raise ParameterError(name, "{" + name + "} contains NaN")
     if np.any(~np.isfinite(d)) or np.any(d < 0) or np.any(d > 10):
@@ -104,7 +120,8 @@ def check_depths(name: str, depths) -> np.ndarray:
     return d
 
 
-def layers_from_depth_map(image, depth_map_D, n_layers: int = 8):
+def layers_from_depth_map(image, depth_map_D, n_layers: int = 8, *,
+                          memory_limit_bytes: int | None = None):
     """Cut an image with a depth map into layers, nearest first.
 
     Parameters
@@ -113,12 +130,20 @@ def layers_from_depth_map(image, depth_map_D, n_layers: int = 8):
     depth_map_D : (H, W) depth of every pixel, D, in [0, 10]
     n_layers : int >= 1; the layers are evenly spaced in dioptres from the nearest to the
         farthest depth present (fewer when the map has fewer distinct depths)
+    memory_limit_bytes : refuse (:func:`check_scene_memory`) an image whose retinal image
+        would not fit in it, before the layers are made (default half the RAM)
 
     Returns
     -------
     (layers (n_layers, n_channel, H, W) premultiplied α·I, alpha (n_layers, H, W) in {0, 1},
     depths_D (n_layers,) decreasing). Each pixel goes to the layer nearest its depth in D.
     """
+    if int(n_layers) != n_layers or n_layers < 1:
+        raise ParameterError("n_layers", "{n_layers} must be an integer >= 1, got {got}",
+                             got=n_layers)
+    # the bound of one layer before any copy (a huge image is refused at once), the bound
+    # of the layers the depth map gives before they are made
+    check_scene_memory(np.shape(image)[-2:], 1, memory_limit_bytes)
     img = _finite_image("image", image, (2, 3))
     if img.ndim == 2:
         img = img[None]
@@ -126,10 +151,8 @@ def layers_from_depth_map(image, depth_map_D, n_layers: int = 8):
     if depth.shape != img.shape[-2:]:
         raise ParameterError("depth_map_D", "{depth_map_D} must have the image's shape {want}, "
                              "got {got}", want=img.shape[-2:], got=depth.shape)
-    if int(n_layers) != n_layers or n_layers < 1:
-        raise ParameterError("n_layers", "{n_layers} must be an integer >= 1, got {got}",
-                             got=n_layers)
     distinct = np.unique(depth)
+    check_scene_memory(img.shape[-2:], min(distinct.size, int(n_layers)), memory_limit_bytes)
     if distinct.size <= n_layers:
         depths = distinct[::-1].copy()
     else:
@@ -143,7 +166,7 @@ def layers_from_depth_map(image, depth_map_D, n_layers: int = 8):
 def check_layers(layers, alpha, depths_D):
     """Host checks of a layer stack (:func:`composite_layers`' inputs); returns NumPy arrays."""
     lay = _finite_image("layers", layers, (4,))
-    a = np.asarray(alpha, float)
+    a = _real_numbers("alpha", alpha).astype(np.float32, copy=False)
     if a.shape != (lay.shape[0],) + lay.shape[-2:]:
         raise ParameterError("alpha", "{alpha} must have shape (n_layers, H, W) = {want}, got {got}",
                              want=(lay.shape[0],) + lay.shape[-2:], got=a.shape)
@@ -160,9 +183,32 @@ def check_layers(layers, alpha, depths_D):
 
 
 def working_bytes(shape, n_layers: int, n_channel: int, pad: int) -> int:
-    """Estimated working memory of :func:`composite_layers`, bytes."""
+    """Estimated working memory of :func:`composite_layers`, bytes, for (H, W) pixels padded
+    by ``pad`` pixels on every side."""
     h, w = shape
     return int(BYTES_PER_PIXEL_LAYER * n_layers * n_channel * (h + 2 * pad) * (w + 2 * pad))
+
+
+def check_scene_memory(shape, n_layers: int, memory_limit_bytes: int | None = None, *,
+                       pad: int = 0, parameter: str = "image") -> int:
+    """The working memory (bytes) of the retinal image of an (H, W) scene of ``n_layers``
+    layers, 3 primaries, padded by ``pad`` pixels (:data:`BYTES_PER_PIXEL_LAYER`); over
+    ``memory_limit_bytes`` (default half the RAM) a ``ParameterError`` naming ``parameter``
+    with the estimate and the limit. It needs only the sizes: call it before allocating."""
+    if len(tuple(shape)) < 2:
+        return 0  # not an image: its own check says so
+    h, w = (int(v) for v in tuple(shape)[-2:])
+    need = working_bytes((h, w), int(n_layers), 3, int(pad))
+    limit = default_memory_limit_bytes() if memory_limit_bytes is None else int(memory_limit_bytes)
+    if need > limit:
+        padded = f", padded by {pad} pixels a side (the PSF's field)" if pad else ""
+        raise ParameterError(parameter, "{" + parameter + "}: the scene needs about {need:.2f} "
+                             "GB of working memory "
+                             "({n} layers × 3 primaries × {h}×{w} pixels{padded}), over the "
+                             "limit of {limit:.2f} GB: use fewer layers, a smaller image or "
+                             "larger pixels", need=need / 1e9, n=n_layers, h=h, w=w,
+                             padded=padded, limit=limit / 1e9)
+    return need
 
 
 def composite_layers(layers, alpha, otf, freq_step_cpd: float, pixel_arcmin: float, *,
@@ -303,14 +349,16 @@ class LayeredScene:
         object.__setattr__(self, "pixel_arcmin", pixel)
 
     @classmethod
-    def from_depth_map(cls, image, depth_map_D, pixel_arcmin: float,
-                       n_layers: int = 8) -> LayeredScene:
+    def from_depth_map(cls, image, depth_map_D, pixel_arcmin: float, n_layers: int = 8, *,
+                       memory_limit_bytes: int | None = None) -> LayeredScene:
         """An image with a depth map cut into layers (:func:`layers_from_depth_map`).
 
         image : (n_channel, H, W) or (H, W) non-negative luminance per primary;
         depth_map_D : (H, W) depths, D, in [0, 10]; pixel_arcmin : arcmin per pixel;
-        n_layers : layers cut from the depth map, >= 1."""
-        return cls(*layers_from_depth_map(image, depth_map_D, n_layers), pixel_arcmin)
+        n_layers : layers cut from the depth map, >= 1; memory_limit_bytes : as
+        :func:`layers_from_depth_map`."""
+        return cls(*layers_from_depth_map(image, depth_map_D, n_layers,
+                                          memory_limit_bytes=memory_limit_bytes), pixel_arcmin)
 
     @classmethod
     def from_layers(cls, layers, alpha, depths_D, pixel_arcmin: float) -> LayeredScene:
@@ -356,7 +404,9 @@ def retinal_scene(eye: Eyes, scene: LayeredScene, *, viewing: Viewing = Viewing(
     fixation_D : the fixated depth, D; default the depth at the image centre
     occlusion : composite with occlusion (default) or add the layers
     boundary : as :func:`lfjax.vision.images.retinal_image`
-    memory_limit_bytes : refuse scenes whose working set exceeds it (default half the RAM)
+    memory_limit_bytes : refuse scenes whose working set exceeds it (default half the RAM):
+        checked from the sizes before any optics, and again with the padding of the PSF's
+        field once the OTFs' sampling is known, before the images are made
     progress : None, or a callable taking one line: told before each stage (the predicted
         accommodation, the layers' OTFs), which compile on a first run
 
@@ -371,16 +421,13 @@ def retinal_scene(eye: Eyes, scene: LayeredScene, *, viewing: Viewing = Viewing(
     eye = single_eye(eye)
     lay, a, d = scene.layers, scene.alpha, scene.depths_D
     layout, optics, cdp, pupil = resolve_display(display, viewing)
-    # memory bound before any optics: the kernel spans the PSF field, at most the image
+    if fixation_D is not None:
+        fixation_D = float(check_dioptres("fixation_D", fixation_D, "fixated depth"))
+    if accommodation_D is not None:
+        accommodation_D = float(check_dioptres("accommodation_D", accommodation_D,
+                                               "accommodation state"))
     h, w = lay.shape[-2:]
-    pad = max(h, w)
-    need = working_bytes((h, w), lay.shape[0], 3, min(pad, 512))
-    limit = default_memory_limit_bytes() if memory_limit_bytes is None else int(memory_limit_bytes)
-    if need > limit:
-        raise ParameterError("image", "the scene needs about {need:.2f} GB of working memory "
-                             "({n} layers × 3 primaries × {h}×{w} pixels), over the limit of "
-                             "{limit:.2f} GB: use fewer layers or a smaller image",
-                             need=need / 1e9, n=lay.shape[0], h=h, w=w, limit=limit / 1e9)
+    check_scene_memory((h, w), lay.shape[0], memory_limit_bytes)  # unpadded: a lower bound
     if fixation_D is None:
         depth_centre = d[np.argmax(a[:, h // 2, w // 2])] if np.any(a[:, h // 2, w // 2] > 0) else d[0]
         fixation_D = float(depth_centre)
@@ -391,10 +438,15 @@ def retinal_scene(eye: Eyes, scene: LayeredScene, *, viewing: Viewing = Viewing(
         accommodation_D = predicted_accommodation(eye, layout, fixation_D, primaries,
                                                   pupil_diameter_mm=pupil, cdp_D=cdp,
                                                   options=options, display=optics)
+    sampling = common_sampling(eye, [layout], float(accommodation_D), d,
+                               channel_spectra(primaries, options), pupil_diameter_mm=pupil,
+                               cdp_D=cdp, options=options, display=optics)
+    check_scene_memory((h, w), lay.shape[0], memory_limit_bytes,
+                       pad=kernel_half_width(sampling.freq_step_cpd, scene.pixel_arcmin))
     say(f"the {len(d)} layers' OTFs at {float(accommodation_D):.3f} D, per primary, and the "
         f"compositing")
     otf, df = scene_otfs(eye, layout, accommodation_D, d, primaries, pupil_diameter_mm=pupil,
-                         cdp_D=cdp, options=options, display=optics)
+                         cdp_D=cdp, options=options, display=optics, sampling=sampling)
     colour = jnp.asarray(lay if lay.shape[1] == 3 else np.repeat(lay, 3, axis=1))
     retina = composite_layers(colour, jnp.asarray(a), otf, df, scene.pixel_arcmin,
                               occlusion=occlusion, boundary=boundary)
@@ -435,6 +487,7 @@ __all__ = [
     "retinal_scene",
     "LayeredScene",
     "working_bytes",
+    "check_scene_memory",
     "default_memory_limit_bytes",
     "demo_scene",
 ]

@@ -132,6 +132,52 @@ def test_uniform_scene_and_energy_are_preserved():
     assert out.mean() == pytest.approx(float(e.mean()), rel=1e-5)
 
 
+# A PSF field of 24 arcmin (L = 64 samples of 2.5 cpd, 0.375 arcmin apart) and a blur wider
+# than a sample: pixels from 0.01 arcmin (1/37 of a sample) to 1000 arcmin (42 fields).
+FIELD_OTF = dict(sigma_arcmin=1.2, n_fft=64, df=2.5)
+PIXELS_ARCMIN = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 1000.0)
+FLOAT32_SUMS = 2e-6  # float32 rounding of the kernel's sums (measured: <= 8e-7)
+
+
+@pytest.mark.parametrize("pixel", PIXELS_ARCMIN)
+@pytest.mark.parametrize("boundary", ["edge", "periodic", "constant"])
+def test_a_uniform_scene_stays_uniform_at_its_luminance_at_any_pixel_size(pixel, boundary):
+    # the kernel tiles the PSF's whole field and sums to OTF(0) = 1: no pixel size, however
+    # fine (a kernel of 4801 pixels on a 4-pixel scene) or coarse (the field inside one
+    # pixel), loses or adds light
+    otf = gaussian_otf_half(FIELD_OTF["sigma_arcmin"], FIELD_OTF["n_fft"], FIELD_OTF["df"])
+    flat = jnp.full((4, 4), 2.5)
+    out = np.asarray(images.retinal_image(flat, pixel, otf, FIELD_OTF["df"], boundary=boundary,
+                                          constant=2.5))
+    assert np.abs(out / 2.5 - 1).max() <= FLOAT32_SUMS
+
+
+@pytest.mark.parametrize("pixel", (0.01, 0.3, 3.0, 30.0, 1000.0))
+def test_the_light_of_any_scene_is_conserved_at_any_pixel_size(pixel):
+    otf = gaussian_otf_half(FIELD_OTF["sigma_arcmin"], FIELD_OTF["n_fft"], FIELD_OTF["df"])
+    scene = jnp.asarray(np.random.default_rng(7).random((6, 6)), jnp.float32)
+    out = np.asarray(images.retinal_image(scene, pixel, otf, FIELD_OTF["df"],
+                                          boundary="periodic"))
+    assert out.sum() == pytest.approx(float(scene.sum()), rel=FLOAT32_SUMS)  # × pixel area
+
+
+def test_pixels_wider_than_the_psf_field_hold_the_whole_psf():
+    # a 30 arcmin pixel holds the 24 arcmin field: each retinal pixel is its scene pixel
+    otf = gaussian_otf_half(FIELD_OTF["sigma_arcmin"], FIELD_OTF["n_fft"], FIELD_OTF["df"])
+    scene = jnp.asarray(np.random.default_rng(8).random((5, 7)), jnp.float32)
+    out = np.asarray(images.retinal_image(scene, 30.0, otf, FIELD_OTF["df"], boundary="constant"))
+    np.testing.assert_allclose(out, np.asarray(scene), rtol=FLOAT32_SUMS)
+
+
+def test_the_kernel_tiles_the_field_and_no_more():
+    # T = 24 arcmin: 1 arcmin pixels -12…12 cover it ((12 + ½)·1 ≥ 12) and one more
+    assert images.kernel_half_width(2.5, 1.0) == 13
+    assert images.kernel_half_width(2.5, 1000.0) == 1
+    psf = np.asarray(images.psf_on_grid(gaussian_otf_half(1.2, 64, 2.5), 2.5, 1.0, 27))
+    assert psf[0].max() == 0 and psf[:, -1].max() == 0  # pixels ±13: outside the field
+    assert psf.sum() == pytest.approx(1.0, abs=FLOAT32_SUMS)
+
+
 def test_scene_pixel_size_is_handled():
     """A scene blurred at a fine pixel, then box-averaged, equals the same scene blurred at
     the coarse pixel: the kernel is the pixel-integrated PSF on each grid."""

@@ -34,7 +34,20 @@ def test_a_layers_file_reads_as_its_arrays(tmp_path):
     (lambda p: (np.savez(p / "x.npz", layers=np.ones((1, 3, 4, 4))),
                 sf.read_layers_file(p / "x.npz", 1.0)), "layers_file", "lacks alpha, depths_D"),
     (lambda p: (np.save(p / "x.npy", np.ones(3)), sf.read_layers_file(p / "x.npy", 1.0)),
-     "layers_file", "is not an .npz"),
+     "layers_file", "must be a file of type .npz"),
+    (lambda p: ((p / "x.npz").write_text("layers"), sf.read_layers_file(p / "x.npz", 1.0)),
+     "layers_file", "is not a NumPy .npz archive"),
+    (lambda p: (np.save(p / "x.npy", np.array([{}]), allow_pickle=True),
+                sf.read_depth_map_scene(p / "x.npy", p / "x.npy", 1.0)), "image",
+     "cannot be read"),  # a pickle is never loaded
+    (lambda p: (np.save(p / "x.npy", np.ones((4, 4))), sf.read_depth_map_scene(
+        p / "x.npy", p / "x.npy", 1.0, memory_limit_bytes=100)), "image", "over the limit"),
+    (lambda p: (np.savez(p / "x.npz", layers=np.ones((2, 3, 4, 4)), alpha=np.ones((2, 4, 4)),
+                         depths_D=[2.0, 1.0]),
+                sf.read_layers_file(p / "x.npz", 1.0, memory_limit_bytes=100)),
+     "layers_file", "2 layers × 3 primaries × 4×4 pixels"),
+    (lambda p: ((p / "x.jpg").write_bytes(b"\xff\xd8"), sf.read_image(p / "x.jpg")), "image",
+     "must be a file of type .npy, .png"),
     (lambda p: sf.read_depth_map_scene(p / "img.npy", None, 1.0), "depth_map_D", "required"),
     (lambda p: sf.read_depth_map_scene(p / "none.npy", p / "d.npy", 1.0), "image",
      "cannot be read"),
@@ -50,3 +63,25 @@ def test_the_figure_is_written(tmp_path):
     scene = LayeredScene.from_depth_map(img, depth, 1.0)
     path = sf.save_retina_figure(tmp_path / "retina.png", scene, img * 0.5, "a title")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_png_is_decoded_from_srgb_to_linear_luminance(tmp_path):
+    import matplotlib.image
+
+    rgb = np.zeros((4, 6, 3))
+    rgb[..., 0], rgb[..., 1], rgb[..., 2] = 1.0, 128 / 255, 0.0
+    matplotlib.image.imsave(tmp_path / "x.png", rgb)
+    image = sf.read_image(tmp_path / "x.png")
+    assert image.shape == (4, 6, 3) and sf.array_shape(tmp_path / "x.png", "image") == (4, 6)
+    # sRGB 128/255 is 21.6 % of the white's light (IEC 61966-2-1), not 50 %
+    np.testing.assert_allclose(image[0, 0], [1.0, 0.2158605, 0.0], rtol=1e-5)
+
+
+def test_a_png_with_transparency_is_refused(tmp_path):
+    import matplotlib.image
+
+    rgba = np.ones((4, 4, 4))
+    rgba[0, 0, 3] = 0.5
+    matplotlib.image.imsave(tmp_path / "x.png", rgba)
+    with pytest.raises(ParameterError, match="transparent"):
+        sf.read_image(tmp_path / "x.png")
