@@ -571,8 +571,8 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
     if ds.sizes["eye"] == 0 or not np.any(~ds.is_average.values):
         raise ParameterError("store_path", "{store_path} {store} has no complete chunk of virtual eyes yet",
                              store=store)
-    # every file built in a staging folder beside out, then moved in (each whole; files of
-    # the same names replaced): an interrupted or failed report leaves out as it was
+    # every file staged, then moved in (each whole; files of the same names replaced): an
+    # interrupted or failed report leaves out as it was
     with staged_output(out, force=True) as stage:
         files = _write_report(store, ds, stage, draws, sample_size, seed, dpi, progress)
     return {key: out / path.name for key, path in files.items()}
