@@ -353,6 +353,7 @@ PROJECT_WIDE_TESTS = {
     "test_isetbio_style.py": "the ISETBio-style baseline kept beside the tests",
     "test_module_tests.py": "every module with logic has tests named after it",
     "test_precision.py": "every matrix product asks for full precision",
+    "test_probes_outputs.py": "issue #52's probes of output folders and stores, kept as tests",
     "test_reference_selfcheck.py": "the float64 reference against analytic results",
     "test_shapes.py": "the shape checks of every public numerical entry point",
     "test_transforms.py": "every public numerical function under jit, vmap and grad",
