@@ -126,7 +126,7 @@ def check_output_folder(out_dir, force: bool = False, *, need_bytes: int = 0,
     if out.is_dir() and folder_contents(out) and not force:
         raise ParameterError(parameter, name + " {path} is not empty (use {force} to write "
                              "into it)", path=out)
-    check_writable(staging_parent(out), need_bytes, parameter, shown=out)
+    check_writable(out, need_bytes, parameter)  # in staging_parent(out), or refused there
     return out
 
 
