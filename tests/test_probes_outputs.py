@@ -25,7 +25,6 @@ Covers: lfjax.cli.sweep_report
 
 from __future__ import annotations
 
-import errno
 import os
 import shutil
 import subprocess
