@@ -356,6 +356,7 @@ PROJECT_WIDE_TESTS = {
     "test_probes_inputs.py": "issue #52's probes: every input checked before work, at every "
                              "entry point",
     "test_probes_images.py": "issue #52's probes of retinal images and the retina command",
+    "test_probes_outputs.py": "issue #52's probes of output folders and stores, kept as tests",
     "test_reference_selfcheck.py": "the float64 reference against analytic results",
     "test_shapes.py": "the shape checks of every public numerical entry point",
     "test_transforms.py": "every public numerical function under jit, vmap and grad",

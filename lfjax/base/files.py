@@ -7,9 +7,11 @@ another host's (whose processes cannot be checked from here), alone.
 
 :func:`check_output_folder` checks, before any work, a folder a result will be written into
 (new or empty, writable, with room for the estimated outputs). :func:`staged_output` builds
-a result folder beside it and renames it into place when complete, so an output folder is
-whole or absent; :func:`atomic_write_bytes` (``_text``, :func:`atomic_savefig`) writes one
-file whole or not at all (temporary name, then rename).
+a result in a staging folder and moves it into place when complete — a new folder renamed
+into place whole, or, into a folder that exists (a mount point, a folder whose parent is
+read-only), its files renamed in one by one, each whole; :func:`staging_parent` says which,
+and both check the same folder. :func:`atomic_write_bytes` (``_text``,
+:func:`atomic_savefig`) writes one file whole or not at all (temporary name, then rename).
 """
 
 from __future__ import annotations
@@ -47,17 +49,26 @@ def owned_temp_dir(parent, prefix: str) -> Path:
 def remove_orphans(parent, prefix: str, what: str) -> list[Path]:
     """Remove ``parent/PREFIX-HOST-PID-*`` folders of dead processes on this host, saying
     so on stderr (``what`` names what left them); returns them."""
-    host = socket.gethostname()
     removed = []
-    for folder in Path(parent).glob(f"{prefix}-{host}-*"):
-        pid = folder.name[len(f"{prefix}-{host}-"):].split("-", 1)[0]
-        if folder.is_dir() and pid.isdigit() and not pid_alive(int(pid)):
+    for folder in Path(parent).glob(f"{prefix}-{socket.gethostname()}-*"):
+        if folder.is_dir() and is_orphan(folder, prefix):
             shutil.rmtree(folder, ignore_errors=True)
             removed.append(folder)
     if removed:
         print(f"lfjax: removed {len(removed)} folder(s) left by {what}: "
               f"{', '.join(p.name for p in removed)}", file=sys.stderr)
     return removed
+
+
+def is_orphan(folder, prefix: str) -> bool:
+    """Whether ``folder`` is named ``PREFIX-HOST-PID-…`` for this host and a process that
+    is gone (its owner was killed)."""
+    head = f"{prefix}-{socket.gethostname()}-"
+    name = Path(folder).name
+    if not name.startswith(head):
+        return False
+    pid = name[len(head):].split("-", 1)[0]
+    return pid.isdigit() and not pid_alive(int(pid))
 
 
 # ----------------------------------------------------------------------------- output folders
@@ -73,19 +84,38 @@ def nearest_existing(path) -> Path:
     return p
 
 
+def staging_parent(out_dir) -> Path:
+    """Where :func:`staged_output` builds a result for ``out_dir``, and so the folder that
+    must take files and hold the result's size: ``out_dir`` itself when it is an existing
+    folder (the result's files are then renamed into it one by one: a mount point, or a
+    folder whose parent is read-only, can be written into but not renamed or replaced),
+    else the nearest existing folder above it (the staging folder is renamed to
+    ``out_dir`` whole)."""
+    out = Path(out_dir).absolute()
+    return out if out.is_dir() else nearest_existing(out.parent)
+
+
+def folder_contents(out_dir) -> list[Path]:
+    """What an existing output folder holds, less the staging folders of
+    :func:`staged_output` runs that were killed (removed by the next run into it)."""
+    out = Path(out_dir)
+    prefix = f"{STAGING_PREFIX}-{out.absolute().name}"
+    return [p for p in out.iterdir() if not (p.is_dir() and is_orphan(p, prefix))]
+
+
 def check_output_folder(out_dir, force: bool = False, *, need_bytes: int = 0,
                         parameter: str = "out_dir") -> Path:
     """``out_dir`` as a Path if a result may be written into it, checked before any work:
 
     * a new folder, an empty one, or (``force``) one with files in it (files of the same
       names are then replaced); not a file;
-    * writable: a probe file is created and removed in the folder holding it (where
-      :func:`staged_output` builds the result; for a new folder, its nearest existing
-      ancestor) and in it when it exists, so a read-only folder or file system is found
-      now, not after the work (permission bits alone say nothing for root or a read-only
-      mount);
-    * ``need_bytes`` (the estimated size of what will be written, bytes) free on its file
-      system.
+    * writable where :func:`staged_output` will build the result (:func:`staging_parent`:
+      the folder itself when it exists, a mount point included; for a new folder, its
+      nearest existing ancestor): a probe file is created and removed there, so a
+      read-only folder or file system is found now, not after the work (permission bits
+      alone say nothing for root or a read-only mount);
+    * ``need_bytes`` (the estimated size of what will be written, bytes) free on that
+      folder's file system.
 
     Otherwise a :class:`~lfjax.base.errors.ParameterError` naming ``parameter`` (the
     caller's name for the folder: ``out_dir``, ``out``, ``store``)."""
@@ -93,15 +123,10 @@ def check_output_folder(out_dir, force: bool = False, *, need_bytes: int = 0,
     name = "{" + parameter + "}"
     if out.exists() and not out.is_dir():
         raise ParameterError(parameter, name + " {path} exists and is not a folder", path=out)
-    if out.is_dir() and any(out.iterdir()) and not force:
+    if out.is_dir() and folder_contents(out) and not force:
         raise ParameterError(parameter, name + " {path} is not empty (use {force} to write "
                              "into it)", path=out)
-    # the result is built beside out (staged_output) and renamed, or moved into it: both
-    # the folder holding out and out itself must take files
-    check_writable(out.absolute().parent if out.exists() else out, need_bytes, parameter,
-                   shown=out)
-    if out.is_dir():
-        check_writable(out, 0, parameter)
+    check_writable(out, need_bytes, parameter)  # in staging_parent(out), or refused there
     return out
 
 
@@ -213,63 +238,76 @@ def emergency_cleanup() -> None:
 
 @contextlib.contextmanager
 def staged_output(out_dir, force: bool = False, *, replace: bool = False):
-    """Build a result folder whole or not at all.
+    """Build a result folder whole, or its files each whole, never a file in part.
 
-    Yields an empty staging folder beside ``out_dir`` (``.lfjax-staging-NAME-HOST-PID-…``,
-    in its nearest existing ancestor, so on the same file system); write every file there.
-    When the block ends normally the staging folder is renamed to ``out_dir`` (a new or
-    empty ``out_dir``: one rename, so the folder appears complete; folders above it are
-    made only then). When ``out_dir`` has files and ``force`` is set, each file is renamed
-    into it (each whole; files of the same names replaced), or, with ``replace``, the whole
-    folder is swapped for the staged one (the old one renamed aside, then removed: no file
-    of an earlier result is left beside the new ones). When the block raises (an error, a
-    full disk, Ctrl-C) the staging folder is removed and ``out_dir`` and its parents are as
-    they were. Staging folders of killed processes are removed on the next call
-    (:func:`remove_orphans`)."""
+    Which way is decided on entry, before the block's work (:func:`staging_parent`; the
+    folder :func:`check_output_folder` checked):
+
+    * ``out_dir`` does not exist: the result is built in ``.lfjax-staging-NAME-HOST-PID-…``
+      beside it (in its nearest existing ancestor, so on the same file system) and renamed
+      to ``out_dir`` when the block ends: one rename, so a reader sees no folder, then the
+      complete one (folders above it are made only then).
+    * ``out_dir`` exists (empty, or with files and ``force``; else FileExistsError on
+      entry): the result is built in such a hidden folder inside it, so a mount point or a
+      folder in a read-only parent works, and each file is renamed into ``out_dir`` when the
+      block ends (files of the same names replaced). A reader sees the hidden folder while
+      the block runs, then the files appear one by one, each whole; with ``replace`` (an
+      earlier result is replaced, not merged) the files of the earlier result that the new
+      one does not have are removed after the new ones are in.
+
+    When the block raises (an error, a full disk, Ctrl-C) the staging folder is removed and
+    ``out_dir`` and its parents are as they were. A process killed in the block, or in the
+    final renames (a few milliseconds), leaves no partial file — at most some of the new
+    files in ``out_dir`` — and its staging folder, which the next call for ``out_dir``
+    removes (:func:`remove_orphans`) and :func:`check_output_folder` does not count as
+    contents."""
     out = Path(out_dir).absolute()
-    anchor = nearest_existing(out.parent)
+    parent = staging_parent(out)
+    if parent == out and folder_contents(out) and not force:
+        raise FileExistsError(f"{out} is not empty: the result is not written into it "
+                              f"without force")
     prefix = f"{STAGING_PREFIX}-{out.name}"
-    remove_orphans(anchor, prefix, "an interrupted run")
-    tmp = owned_temp_dir(anchor, prefix)
+    remove_orphans(parent, prefix, "an interrupted run")
+    tmp = owned_temp_dir(parent, prefix)
     os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes it private; the result is ordinary
     _LIVE_STAGING.add(tmp)
     try:
         yield tmp
-        out.parent.mkdir(parents=True, exist_ok=True)
-        _move_into_place(tmp, out, force, replace)
+        if not out.exists():
+            out.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                os.replace(tmp, out)  # one rename: the folder appears complete
+                return
+            except OSError:
+                if not out.is_dir():  # not made meanwhile: a real failure
+                    raise
+        _move_files_in(tmp, out, force, replace)
     finally:
         _LIVE_STAGING.discard(tmp)
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _move_into_place(tmp: Path, out: Path, force: bool, replace: bool) -> None:
-    if out.is_dir() and any(out.iterdir()):
-        if not force:
-            raise FileExistsError(f"{out} is no longer empty: the result is not moved into it")
-        if replace:
-            _swap_folder(tmp, out)
-            return
-        for item in sorted(tmp.iterdir()):
-            target = out / item.name
-            if target.is_dir() and not item.is_dir():
-                raise IsADirectoryError(f"{target} is a folder; the file {item.name} would replace it")
-            if item.is_dir() and target.exists():
-                shutil.rmtree(target) if target.is_dir() else target.unlink()
-            os.replace(item, target)
-        return
-    os.replace(tmp, out)  # a new name, or over an empty folder: one rename
-
-
-def _swap_folder(tmp: Path, out: Path) -> None:
-    """``tmp`` renamed to ``out``, whose old folder is renamed aside first and removed after
-    (put back if the second rename fails, so ``out`` is never lost)."""
-    old = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}-old-{out.name}-", dir=out.parent))
-    old.rmdir()
-    out.rename(old)
-    try:
-        tmp.rename(out)
-    except OSError:
-        old.rename(out)
-        raise
-    shutil.rmtree(old, ignore_errors=True)
+def _move_files_in(tmp: Path, out: Path, force: bool, replace: bool) -> None:
+    """Each item of ``tmp`` renamed into the existing folder ``out`` (a file: one atomic
+    rename over one of the same name; a folder: the old one removed first); with
+    ``replace``, then the rest of ``out`` removed (other staging folders left alone)."""
+    earlier = [p for p in folder_contents(out) if p != tmp]
+    if earlier and not force:
+        raise FileExistsError(f"{out} is no longer empty: the result is not moved into it")
+    items = sorted(tmp.iterdir())
+    for item in items:
+        target = out / item.name
+        if target.is_dir() and not item.is_dir():
+            raise IsADirectoryError(f"{target} is a folder; the file {item.name} would replace it")
+    for item in items:
+        target = out / item.name
+        if item.is_dir() and target.exists():
+            shutil.rmtree(target) if target.is_dir() else target.unlink()
+        os.replace(item, target)
+    if replace:
+        new = {item.name for item in items}
+        for old in earlier:
+            if old.name in new or old.name.startswith(STAGING_PREFIX):
+                continue
+            shutil.rmtree(old) if old.is_dir() and not old.is_symlink() else old.unlink()

@@ -9,7 +9,7 @@ import shutil
 import time
 
 from lfjax.base.errors import ParameterError
-from lfjax.base.files import check_output_folder
+from lfjax.base.files import check_output_folder, check_writable
 from lfjax.base.sampling import Sampling
 from lfjax.cli import cache, common, flags
 from lfjax.design import (
@@ -147,6 +147,9 @@ def _inputs(args):
     # writable, with room for design.json, design.png and the kept counts: now, not after
     # the work
     out = check_output_folder(args.out, args.force, need_bytes=DESIGN_OUTPUT_BYTES)
+    # the finished counts are kept beside it (counts_folder), in its parent even when out
+    # exists (a mount point): that folder must take them too, or the first count is lost
+    check_writable(counts_folder(out), parameter="out_dir", shown=out)
     cdp = design_cdp_D(args.depths, args.cdp)
     panel = design_panel(args.panel, cdp, distance_mm=args.distance,
                          pixel_pitch_mm=args.pixel_pitch, pixel_count=args.pixel_count,

@@ -59,8 +59,8 @@ def add_parser(sub) -> None:
             "objective with before/after values, provenance), layouts.png (before/after),\n"
             "through_focus.png (population-mean VSOTF before/after), history.png (loss per\n"
             "step); with --front N also front.png and front.json (the trade-off). DIR is\n"
-            "checked first (writable, room for the files); they are built beside it and\n"
-            "moved in when all are written: a failure or Ctrl-C leaves none of them.\n"
+            "checked first (writable, room for the files); they are staged and moved in\n"
+            "when all are written: a failure or Ctrl-C leaves none of them.\n"
             "Units: mm in the pupil, dioptres (D), cycles per degree (cpd), nm."
         ),
     )

@@ -144,13 +144,25 @@ def _display(name: str):
     return grid_layout(int(name[0]))
 
 
+def output_bytes(shape) -> int:
+    """Room ``lfjax retina`` asks of its output folder's disk before any work, bytes, for a
+    scene of ``shape`` (H, W) pixels: retina.npy (3 × H × W, 8 bytes allowed per value),
+    retina.png (880 × 462 pixels whatever the scene: under 2 MB) and retina.json, with
+    4 MiB of margin."""
+    height, width = (int(n) for n in shape)
+    return 3 * height * width * 8 + 4 * 2**20
+
+
 def run(args) -> int:
     prog = f"{common.PROG} {COMMAND}"
     def work():
         check_combinations(args)
-        out = check_output_folder(args.out, args.force, parameter="out_dir")
+        check_output_folder(args.out, args.force, parameter="out_dir")
         eye = _eye(args.eye)
         scene = _scene(args)
+        # room for the outputs, known with the scene's size: before the retinal image
+        out = check_output_folder(args.out, args.force, parameter="out_dir",
+                                  need_bytes=output_bytes(scene.layers.shape[-2:]))
         display = _display(args.display)
         result = retinal_scene(eye, scene, viewing=Viewing(cdp_D=args.cdp), display=display,
                                primaries=args.primaries, accommodation_D=args.accommodation,

@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from lfjax.base.errors import ParameterError
 from lfjax.base.files import atomic_write_text, check_writable
 from lfjax.cli import cache, common, flags
 from lfjax.sweep import (
@@ -111,6 +112,8 @@ def run(args) -> int:
         try:
             start_distributed(args.coordinator, args.num_processes, args.process_id,
                               timeout_s=args.distributed_timeout, on_timeout=timed_out)
+        except ParameterError as err:  # a value refused before anything started
+            return common.refuse(prog, err, COMMAND)
         except Exception as err:  # noqa: BLE001 - report any start-up failure in one line
             return common.refuse(prog, f"jax.distributed.initialize failed: {err}")
 

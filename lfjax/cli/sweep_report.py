@@ -23,7 +23,9 @@ def add_parser(sub) -> None:
         description=(
             "Report on a population sweep store (lfjax sweep), counting only the eyes of\n"
             "complete chunks; the Thibos average eye is left out of every population\n"
-            "statistic. Outputs in DIR: accommodation_error.png (VSOTF accommodation error,\n"
+            "statistic. Only a store that 'lfjax sweep STORE --verify' passes is read: a\n"
+            "damaged one is refused (exit 2, nothing written), naming each damaged chunk\n"
+            "and the command that recomputes it. Outputs in DIR: accommodation_error.png (VSOTF accommodation error,\n"
             "D, per layout against rendered depth - CDP: median and 25-75 %, 5-95 % bands),\n"
             "cutoff_frequency.png (cpd, the same way), layouts.png (subapertures in each\n"
             "pupil), percentiles.csv (5/25/50/75/95 %, mean and n per pupil x layout x depth\n"

@@ -102,8 +102,8 @@ def design_record(result, command: str | None = None) -> dict:
 
 
 def save_design(result, out_dir, command: str | None = None, force: bool = False) -> list[Path]:
-    """Write a design's files into ``out_dir``, all or none (built in a staging folder
-    beside it, then renamed into place: :func:`~lfjax.base.files.staged_output`; ``force``:
+    """Write a design's files into ``out_dir``, all or none (staged, then moved into
+    place: :func:`~lfjax.base.files.staged_output`; ``force``:
     into a folder with files in it): ``design.json``, ``result.record(command)`` (every
     count's specification and scores, every number with its unit; the chosen count marked),
     and ``design.png``, ``result.figure()`` (the chosen count's lenses and its views in the

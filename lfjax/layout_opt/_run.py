@@ -264,7 +264,7 @@ def optimise_and_save(settings: OptimisationSettings, out_dir, *, force: bool = 
     and scores the start and the fit on the held-out eyes at ``settings.report_accuracy``.
     Writes into ``out_dir`` (new or empty unless ``force``, writable, with room for the
     outputs: checked before any work, :func:`~lfjax.base.files.check_output_folder`),
-    whole or not at all (built in a staging folder beside it, then renamed into place:
+    whole or not at all (staged, then moved into place:
     :func:`~lfjax.base.files.staged_output`): ``layout.json`` (the layout, the
     objective with its before/after values, the parameters and the provenance —
     ``command`` among it), ``layouts.png``, ``through_focus.png`` and ``history.png``; with

@@ -268,8 +268,8 @@ class StageBar:
 def reproduce(out, config: StudyConfig = StudyConfig(), force: bool = False,  # noqa: B008
               progress: bool = True, population_store=None,
               population_draws: int = 1000, display_effects_eyes: int | None = None) -> dict:
-    """Run the study and write everything into ``out`` (atomically: a staging folder beside
-    it, renamed into place when complete, :func:`~lfjax.base.files.staged_output`; with
+    """Run the study and write everything into ``out`` (staged, then moved into place when
+    complete, :func:`~lfjax.base.files.staged_output`; with
     ``force`` an earlier result of :func:`reproduce` is replaced whole).
 
     ``population_store``: a population sweep store (``lfjax sweep``); the report then adds

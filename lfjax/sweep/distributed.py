@@ -33,6 +33,25 @@ XLA_GRACE_S = 60
 one-line message comes first."""
 
 
+def check_coordinator(address: str | None) -> str | None:
+    """``address`` if it is HOST:PORT — a host name or address (an IPv6 address in
+    brackets, ``[::1]:1234``) and a port, a whole number 1 ... 65535 — or None (found from
+    the cluster environment); else a :class:`~lfjax.base.errors.ParameterError` naming
+    ``coordinator_address``, before anything starts."""
+    if address is None:
+        return None
+    host, colon, port = str(address).strip().rpartition(":")
+    bare = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    ok = (colon and bare and not any(c.isspace() for c in bare) and port.isascii()
+          and port.isdigit() and 1 <= int(port) <= 65535 and (":" not in bare or host != bare))
+    if not ok:
+        raise ParameterError(
+            "coordinator_address", "{coordinator_address} must be HOST:PORT (a host name or "
+            "address, an IPv6 one in brackets, and a port 1 ... 65535, e.g. host0:12345), "
+            "got {got!r}", got=address)
+    return str(address).strip()
+
+
 def coordinator_reachable(address: str | None) -> str:
     """Whether something accepts connections at ``address`` (HOST:PORT), in words."""
     host, _, port = (address or "").rpartition(":")
@@ -115,6 +134,7 @@ def start_distributed(coordinator_address: str | None = None, num_processes: int
     """
     if not (timeout_s > 0):
         raise ParameterError("timeout_s", "{timeout_s} must be > 0 s, got {got}", got=timeout_s)
+    coordinator_address = check_coordinator(coordinator_address)
     given = {k: v for k, v in (("coordinator_address", coordinator_address),
                                ("num_processes", num_processes),
                                ("process_id", process_id)) if v is not None}
@@ -139,5 +159,5 @@ def start_distributed(coordinator_address: str | None = None, num_processes: int
         connected.set()
 
 
-__all__ = ["DISTRIBUTED_TIMEOUT_S", "clients_connected", "coordinator_reachable",
+__all__ = ["DISTRIBUTED_TIMEOUT_S", "check_coordinator", "clients_connected", "coordinator_reachable",
            "start_distributed", "startup_timeout"]

@@ -2,7 +2,8 @@
 
 :func:`sweep_report` (``lfjax sweep-report STORE``) reads a sweep store
 (:mod:`lfjax.sweep.store`) — only the eyes of complete chunks, so a sweep still running or
-interrupted is reported on what it has — and writes into a folder:
+interrupted is reported on what it has, and only a store that ``lfjax sweep --verify``
+passes — and writes into a folder:
 
 * ``percentiles.csv`` (:func:`percentile_table`): per pupil × layout × rendered depth and
   quantity, the 5th, 25th, 50th, 75th and 95th percentiles, mean and count over the virtual
@@ -41,8 +42,8 @@ from lfjax.sweep.config import config_from_dict
 from lfjax.sweep.config_keys import strip_views
 from lfjax.sweep.guard import display_effects
 from lfjax.base.files import check_writable, staged_output
-from lfjax.sweep.store import open_store
-from lfjax.sweep.store_checks import is_store, store_damage
+from lfjax.sweep.store import open_verified_store
+from lfjax.sweep.store_checks import StoreCorruptError, is_store, store_damage
 from lfjax.sweep.ten_eyes import ten_eye_claims, ten_eye_markdown, ten_eye_table
 
 PERCENTILES = (5, 25, 50, 75, 95)
@@ -532,7 +533,11 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
     """Write the report of the sweep store ``store_path`` into the folder ``out_dir``.
 
     Only the eyes of complete chunks count (the summary says how many of the total that
-    is). ``draws``, ``sample_size``, ``seed``: the ten-eye table's samples
+    is), and only from a store that ``lfjax sweep --verify`` passes
+    (:func:`~lfjax.sweep.store.open_verified_store`): a damaged store — a chunk file
+    deleted, replaced or altered, a chunk mark or the configuration damaged — is refused
+    with a :class:`~lfjax.base.errors.ParameterError` naming ``store_path``, each damaged
+    chunk and the command that repairs it, and nothing is written. ``draws``, ``sample_size``, ``seed``: the ten-eye table's samples
     (:func:`lfjax.sweep.ten_eyes.ten_eye_claims`), made for every pupil when the store has
     more than ``sample_size`` complete virtual eyes, its average eye and the layouts the
     claims need (natural and two of 2x2, 3x3, 4x4). ``dpi``: resolution of the PNGs.
@@ -558,7 +563,11 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
         raise ParameterError("out_dir", "{out_dir} {out} exists and is not a folder", out=out)
 
     check_writable(out, REPORT_BYTES, "out_dir")  # read-only or full: said before any work
-    ds = open_store(store, complete_only=True)
+    try:  # only what lfjax sweep --verify passes: damaged numbers are never reported
+        ds = open_verified_store(store, complete_only=True)
+    except StoreCorruptError as err:
+        raise ParameterError("store_path", "{store_path} {why}; no report is written",
+                             why=str(err)) from None
     for pupil, layout, metric, eyes, _ in flat_curve_cells(ds):
         warnings.warn(f"{store}: {pupil:g} mm {layout}: the {metric} curve of {eyes} eye(s) is "
                       f"flat over every accommodation state (no peak); the report leaves "
@@ -567,8 +576,8 @@ def sweep_report(store_path, out_dir, *, draws: int = 1000, sample_size: int = 1
     if ds.sizes["eye"] == 0 or not np.any(~ds.is_average.values):
         raise ParameterError("store_path", "{store_path} {store} has no complete chunk of virtual eyes yet",
                              store=store)
-    # every file built in a staging folder beside out, then moved in (each whole; files of
-    # the same names replaced): an interrupted or failed report leaves out as it was
+    # every file staged, then moved in (each whole; files of the same names replaced): an
+    # interrupted or failed report leaves out as it was
     with staged_output(out, force=True) as stage:
         files = _write_report(store, ds, stage, draws, sample_size, seed, dpi, progress)
     return {key: out / path.name for key, path in files.items()}

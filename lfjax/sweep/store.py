@@ -47,16 +47,23 @@ from lfjax.sweep.config_files import config_to_toml
 from lfjax.sweep.store_checks import (
     BOOKKEEPING,
     CHECKSUM_SCHEME,
+    EYE_VARIABLES,
     STORE_FORMAT,
     ZARR_FORMAT,
+    StoreCorruptError,
+    Verification,
     chunk_checksum,
+    chunk_mismatch,
     consolidated_damage,
     is_store,
     metadata_checksum,
+    metadata_problem,
     not_a_store,
+    one_line,
     open_group,
     read_bookkeeping,
     stored_record,
+    verify_store,
 )
 
 
@@ -522,6 +529,60 @@ def open_store(path, complete_only: bool = False):
     return ds
 
 
+def open_verified_store(path, complete_only: bool = True):
+    """:func:`open_store` of a store that ``lfjax sweep --verify`` passes, or a
+    :class:`~lfjax.sweep.store_checks.StoreCorruptError` naming every damage
+    (:func:`~lfjax.sweep.store_checks.verify_store`'s checks: the configuration and
+    coordinates against ``metadata_checksum``, the consolidated metadata, the chunk marks,
+    and each complete chunk's data against its checksum; a chunk without a checksum, from a
+    store older than checksums, is read unchecked as there).
+
+    The store is read once: the eyes of complete chunks (all of them unless
+    ``complete_only``: the rest are not checked) are loaded, then each complete chunk is
+    hashed in memory (BLAKE2b of its eye variables, a fraction of the read's time), and
+    ``metadata_checksum`` re-reads only the arrays without an ``eye`` axis. Only when the
+    load fails (a file that does not decode) is the store read chunk by chunk
+    (:func:`~lfjax.sweep.store_checks.verify_store`) to name the chunks."""
+    import xarray as xr
+
+    path = Path(path)
+    if not is_store(path):
+        raise ValueError(not_a_store(path))
+    found = Verification([], {}, [], [])
+    found.problems += [why for why in (consolidated_damage(path), metadata_problem(path))
+                       if why is not None]
+    marks = read_bookkeeping(path)
+    found.corrupt.update(marks.damaged)
+    lazy = xr.open_zarr(str(path), consolidated=False, zarr_format=ZARR_FORMAT)
+    size, n_eye = int(lazy.attrs["chunk_size"]), lazy.sizes["eye"]
+    done = np.repeat(marks.done, size)[:n_eye]
+    try:
+        ds = lazy.drop_vars(list(BOOKKEEPING), errors="ignore")
+        ds = (ds.isel(eye=np.flatnonzero(done)) if complete_only else ds).load()
+    except Exception as err:  # noqa: BLE001 - a file that does not decode: find which
+        checked = verify_store(path)
+        if checked.healthy:  # not in a complete chunk's data
+            checked.problems.append(f"its data cannot be read ({one_line(err)})")
+        raise StoreCorruptError(path, checked) from None
+    with_zernike = int(lazy.attrs.get("checksum_scheme", 1)) >= 2
+    names = list(EYE_VARIABLES) + (["zernike_um"] if with_zernike else [])
+    for i in np.flatnonzero(marks.done & (marks.sums != 0)):
+        first, last = i * size, min((i + 1) * size, n_eye)
+        start = int(done[:first].sum()) if complete_only else first  # its place in ds
+        why = chunk_mismatch(ds[names].isel(eye=slice(start, start + last - first)),
+                             int(marks.sums[i]), with_zernike)
+        if why is not None:
+            found.corrupt[int(i)] = why
+    if not found.healthy:
+        raise StoreCorruptError(path, found)
+    ds["chunk_complete"] = ("chunk", marks.done)
+    ds["chunk_complete"].attrs.update(lazy["chunk_complete"].attrs)
+    if marks.has_checksums:
+        ds["chunk_checksum"] = ("chunk", marks.sums)
+        ds["chunk_checksum"].attrs.update(lazy["chunk_checksum"].attrs)
+    return ds
+
+
 def _has_consolidated(path) -> bool:
     return (Path(path) / ".zmetadata").is_file()
 
@@ -564,6 +625,7 @@ __all__ = [
     "create_store",
     "is_disk_full",
     "open_store",
+    "open_verified_store",
     "record_run",
     "spectral_record",
     "stored_attribute",

@@ -354,13 +354,43 @@ def verify_store(path, chunks=None) -> Verification:
         except Exception as err:  # noqa: BLE001 - any decode failure means corrupt data
             result.corrupt[i] = f"unreadable ({one_line(err)})"
             continue
-        zernike = part["zernike_um"].values if with_zernike else None
-        if chunk_checksum(part, zernike) != int(marks.sums[i]):
-            result.corrupt[i] = ("data do not match the checksum written with them (a chunk "
-                                 "file missing or altered, its eyes' zernike_um among them)")
+        why = chunk_mismatch(part, int(marks.sums[i]), with_zernike)
+        if why is not None:
+            result.corrupt[i] = why
             continue
         result.ok.append(i)
     return result
+
+
+def chunk_mismatch(part, checksum: int, with_zernike: bool) -> str | None:
+    """Why a chunk's data ``part`` (its eyes of the :data:`EYE_VARIABLES`, with
+    ``zernike_um`` when ``with_zernike``) do not match the ``checksum`` written with them,
+    or None when they do."""
+    zernike = part["zernike_um"].values if with_zernike else None
+    if chunk_checksum(part, zernike) != checksum:
+        return ("data do not match the checksum written with them (a chunk file missing or "
+                "altered, its eyes' zernike_um among them)")
+    return None
+
+
+class StoreCorruptError(ValueError):
+    """A store that :func:`verify_store` would not pass (``verification``: what it found),
+    read by something that must not use its numbers (``lfjax sweep-report``)."""
+
+    def __init__(self, path, verification: Verification):
+        self.verification = verification
+        v = verification
+        damage = [f"store: {why}" for why in v.problems]
+        damage += [f"chunk {i}: {why}" for i, why in sorted(v.corrupt.items())]
+        if any(why.startswith("its configuration or coordinates") for why in v.problems):
+            fix = ("Its configuration cannot be trusted, so it cannot be resumed: run the "
+                   "sweep again into another --out")
+        else:
+            fix = (f"Repair it with lfjax sweep CONFIG.toml --out {path} --resume (it "
+                   f"recomputes the damaged chunks; CONFIG.toml: the sweep's own "
+                   f"configuration, kept in the store's attribute config_toml)")
+        super().__init__(f"{path} fails verification (what lfjax sweep --verify checks): "
+                         + "; ".join(damage) + f". {fix}")
 
 
 __all__ = [
@@ -369,6 +399,7 @@ __all__ = [
     "check_store_matches",
     "CHECKSUM_SCHEME",
     "chunk_checksum",
+    "chunk_mismatch",
     "completed_chunks",
     "consolidated_damage",
     "EYE_VARIABLES",
@@ -382,6 +413,7 @@ __all__ = [
     "store_damage",
     "STORE_FORMAT",
     "stored_record",
+    "StoreCorruptError",
     "StoreDamagedError",
     "StoreMismatchError",
     "Verification",

@@ -144,31 +144,42 @@ def test_a_staged_folder_replaces_an_empty_one_and_merges_with_force(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     with files.staged_output(out) as stage:
+        assert stage.parent == out  # an existing folder: staged inside it
         (stage / "a.txt").write_text("1")
-    assert (out / "a.txt").read_text() == "1"
+        assert [p.name for p in out.iterdir()] == [stage.name]  # hidden while it runs
+    assert sorted(p.name for p in out.iterdir()) == ["a.txt"]
     (out / "keep.txt").write_text("kept")
     with files.staged_output(out, force=True) as stage:
         (stage / "a.txt").write_text("2")
     assert (out / "a.txt").read_text() == "2" and (out / "keep.txt").read_text() == "kept"
-    with pytest.raises(FileExistsError, match="no longer empty"):  # filled while it ran
+    with pytest.raises(FileExistsError, match="is not empty"):  # said on entry, before work
         with files.staged_output(out) as stage:
+            raise AssertionError("the block ran")
+    with pytest.raises(FileExistsError, match="no longer empty"):  # filled while it ran
+        with files.staged_output(tmp_path / "late") as stage:
             (stage / "a.txt").write_text("3")
+            (tmp_path / "late").mkdir()
+            (tmp_path / "late" / "theirs.txt").write_text("")
+    assert sorted(p.name for p in (tmp_path / "late").iterdir()) == ["theirs.txt"]
     assert (out / "a.txt").read_text() == "2"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["late", "out"]
 
 
 def test_a_staged_folder_with_replace_swaps_the_whole_folder(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "old.txt").write_text("an earlier result")
+    (out / "same.txt").write_text("old")
     with files.staged_output(out, force=True, replace=True) as stage:
         (stage / "new.txt").write_text("new")
-    assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # the old one is gone
-    with pytest.raises(FileExistsError, match="no longer empty"):  # replace needs force
+        (stage / "same.txt").write_text("new")
+    assert sorted(p.name for p in out.iterdir()) == ["new.txt", "same.txt"]
+    assert (out / "same.txt").read_text() == "new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # nothing left beside it
+    with pytest.raises(FileExistsError, match="is not empty"):  # replace needs force
         with files.staged_output(out, replace=True) as stage:
             (stage / "x").write_text("")
-    assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+    assert sorted(p.name for p in out.iterdir()) == ["new.txt", "same.txt"]
 
 
 def test_a_failed_staged_folder_leaves_no_parent_folders(tmp_path):
@@ -215,3 +226,76 @@ def test_an_emergency_exit_removes_staging_folders_and_runs_registered_cleanups(
     files.unregister_emergency_cleanup(2)
     files.emergency_cleanup()
     assert released == ["lock"] and list(tmp_path.iterdir()) == []
+
+
+def _unmovable(monkeypatch, folder: Path, code=errno.EBUSY):
+    """Renaming ``folder`` itself, or anything onto it, fails with ``code`` (as for a mount
+    point: EBUSY; or a folder whose parent is read-only: EACCES), and so does creating a
+    file beside it: the folder can be written into, not replaced."""
+    real_replace, real_rename, real_mkstemp = os.replace, os.rename, files.tempfile.mkstemp
+
+    def guard(real):
+        def move(src, dst, *args, **kwargs):
+            if folder in (Path(src).absolute(), Path(dst).absolute()):
+                raise OSError(code, os.strerror(code), str(src))
+            return real(src, dst, *args, **kwargs)
+        return move
+
+    def mkstemp(*args, dir=None, **kwargs):
+        if dir is not None and Path(dir).absolute() == folder.parent:
+            raise OSError(errno.EACCES, os.strerror(errno.EACCES))
+        return real_mkstemp(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(files.os, "replace", guard(real_replace))
+    monkeypatch.setattr(files.os, "rename", guard(real_rename))
+    monkeypatch.setattr(files.tempfile, "mkstemp", mkstemp)
+
+
+@pytest.mark.parametrize("code", [errno.EBUSY, errno.EACCES])
+def test_an_existing_folder_that_cannot_be_replaced_still_takes_the_result(tmp_path, monkeypatch,
+                                                                           code):
+    """A mount point (EBUSY) or an empty folder in a read-only parent (EACCES): the check
+    asks only the folder itself, and the result is staged inside it and its files renamed
+    in (issue #52: the work was lost to the last rename)."""
+    out = tmp_path / "volume"
+    out.mkdir()
+    _unmovable(monkeypatch, out, code)
+    assert files.staging_parent(out) == out
+    assert files.check_output_folder(out, need_bytes=1000) == out
+    with files.staged_output(out) as stage:
+        assert stage.parent == out
+        (stage / "a.txt").write_text("1")
+        (stage / "sub").mkdir()
+        (stage / "sub" / "b.txt").write_text("2")
+    assert sorted(p.name for p in out.iterdir()) == ["a.txt", "sub"]
+    assert (out / "sub" / "b.txt").read_text() == "2"
+    with files.staged_output(out, force=True, replace=True) as stage:  # as reproduce --force
+        (stage / "c.txt").write_text("3")
+    assert sorted(p.name for p in out.iterdir()) == ["c.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["volume"]
+    with pytest.raises(ParameterError, match="not writable"):  # a new folder beside it is not
+        files.check_output_folder(tmp_path / "new")
+
+
+def test_a_killed_runs_staging_folder_inside_the_out_folder_is_not_counted_and_removed(
+        tmp_path, capsys):
+    import socket
+    import subprocess
+    import sys
+
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    out = tmp_path / "out"
+    out.mkdir()
+    left = out / f"{files.STAGING_PREFIX}-out-{socket.gethostname()}-{int(gone.stdout)}-x1"
+    left.mkdir()
+    (left / "retina.npy").write_bytes(b"partial")
+    assert files.folder_contents(out) == []
+    assert files.check_output_folder(out) == out  # empty but for the orphan: no --force
+    with files.staged_output(out) as stage:
+        (stage / "a").write_text("")
+    assert sorted(p.name for p in out.iterdir()) == ["a"]
+    assert "removed 1 folder(s) left by an interrupted run" in capsys.readouterr().err
+    alive = out / f"{files.STAGING_PREFIX}-out-{socket.gethostname()}-{os.getpid()}-x2"
+    alive.mkdir()  # a live run's: counted
+    assert sorted(files.folder_contents(out)) == sorted([out / "a", alive])

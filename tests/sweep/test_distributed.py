@@ -72,3 +72,18 @@ def test_a_start_up_that_times_out_is_told_and_ends_the_process(monkeypatch):
 def test_a_bad_time_out_is_refused():
     with pytest.raises(ParameterError, match="timeout_s must be > 0"):
         distributed.start_distributed(timeout_s=0)
+
+
+@pytest.mark.parametrize("address", ["nonsense", "host:0", "host:65536", ":80", "host:8o",
+                                     "::1:1234", "two words:80"])
+def test_a_malformed_coordinator_is_refused_naming_the_form(address):
+    with pytest.raises(ParameterError, match=r"coordinator_address must be HOST:PORT .* port "
+                                             r"1 \.\.\. 65535") as err:
+        distributed.start_distributed(address, 2, 0, timeout_s=1)
+    assert err.value.naming({"coordinator_address": "--coordinator"}).startswith("--coordinator ")
+
+
+@pytest.mark.parametrize("address", ["host0:12345", "10.0.0.1:1", "[::1]:65535"])
+def test_a_well_formed_coordinator_is_accepted(address):
+    assert distributed.check_coordinator(address) == address
+    assert distributed.check_coordinator(None) is None
