@@ -285,6 +285,25 @@ def test_sweep_report_refuses_a_damaged_store_naming_the_chunk(kind, store3, tmp
     assert "1 corrupt" in capsys.readouterr().out
 
 
+def test_reproduce_refuses_a_damaged_population_store_before_the_study(store3, tmp_path,
+                                                                        capsys, monkeypatch):
+    """``reproduce --population`` reads the store as ``sweep --verify`` would, before the
+    study's minutes (it read its complete chunks unchecked after the study)."""
+    from lfjax.reproduce import run as rep  # where reproduce looks its parts up
+
+    def no_study(*args, **kwargs):
+        raise AssertionError("the study ran before the population store was verified")
+
+    monkeypatch.setattr(rep, "run_study", no_study)
+    damaged = _damage(store3, "replaced", tmp_path / "replaced.zarr")
+    out = tmp_path / "out"
+    code = cli.main(["reproduce", "--quick", "--out", str(out), "--population", str(damaged),
+                     "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--population" in err and "chunk 1" in err, err
+    assert not out.exists()
+
+
 # ----------------------------------------------------------------------------- --coordinator
 
 

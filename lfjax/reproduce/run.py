@@ -32,7 +32,7 @@ from lfjax.studies.display_effects import (
 )
 from lfjax.model.eyes import Eyes
 from lfjax.model.options import ModelOptions
-from lfjax.sweep.store import open_store
+from lfjax.sweep.store import open_verified_store
 from lfjax.sweep.ten_eyes import check_population_store, ten_eye_claims, ten_eye_markdown, ten_eye_table
 from lfjax.reproduce.alternatives import run_alternatives
 from lfjax.reproduce.settling import mark_unsettled, settle
@@ -145,9 +145,24 @@ def check_output_dir(out, force: bool = False, need_bytes: int = 0) -> Path:
 
 
 def check_population(population_store, config: StudyConfig) -> float:
-    """Check a population sweep store for :func:`reproduce` before any work (metadata only):
-    returns the pupil (mm) whose eyes are drawn — the study's pupil when the store has it,
-    else the store's only pupil. Raises ValueError naming the problem."""
+    """Check a population sweep store for :func:`reproduce` before any work: its metadata,
+    then every complete chunk against its checksum as ``lfjax sweep --verify`` does
+    (:func:`~lfjax.sweep.store.open_verified_store`: a damaged store is refused here, not
+    read as complete after the study's minutes; the store is read once more by
+    :func:`population_section`). Returns the pupil (mm) whose eyes are drawn — the study's
+    pupil when the store has it, else the store's only pupil. Raises
+    :class:`~lfjax.base.errors.ParameterError` naming the problem."""
+    pupil = _population_pupil(population_store, config)
+    try:
+        open_verified_store(population_store, complete_only=True)
+    except ValueError as err:
+        raise ParameterError("population_store", "{population_store}: {problem}",
+                             problem=str(err)) from None
+    return pupil
+
+
+def _population_pupil(population_store, config: StudyConfig) -> float:
+    """The pupil (mm) :func:`check_population` returns, from the store's metadata alone."""
     try:
         return check_population_store(population_store, sample_size=config.n_eyes,
                                       prefer_pupil_mm=config.pupil_diameter_mm)
@@ -183,8 +198,12 @@ def population_section(population_store, config: StudyConfig, claims: list[Claim
     Returns (markdown text of the section's body, the per-claim table as a DataFrame,
     the result Dataset)."""
 
-    pupil = check_population(population_store, config)
-    ds = open_store(population_store, complete_only=True)
+    pupil = _population_pupil(population_store, config)  # verified by check_reproduce
+    try:
+        ds = open_verified_store(population_store, complete_only=True)
+    except ValueError as err:  # damaged since check_reproduce read it
+        raise ParameterError("population_store", "{population_store}: {problem}",
+                             problem=str(err)) from None
     result = ten_eye_claims(ds, n_draws=n_draws, sample_size=config.n_eyes, seed=config.seed,
                             pupil_mm=pupil, progress=progress)
     stored = json.loads(ds.attrs["config_json"])
