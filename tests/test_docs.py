@@ -129,6 +129,12 @@ def site_problems(site: Path) -> dict[str, list[str]]:
             loads = tag.startswith("<script") or re.search(r'\brel="[^"]*stylesheet', tag)
             if source and loads:
                 found["offline"].append(f"{where}: loads {source.group(1)}")
+            if tag.startswith("<script") and re.search(r'\bsrc=""', tag):
+                found["offline"].append(f"{where}: a script with an empty source")
+        for script in re.findall(r"<script\b[^>]*>((?:(?!</script>).)*)</script>", raw, re.S):
+            fetched = re.search(r"import\s*\(?\s*[\"'](https?://[^\"']+)", script)
+            if fetched:
+                found["offline"].append(f"{where}: imports {fetched.group(1)}")
         # Only the page's own content is read (not the navigation), without the notebooks'
         # inline images: html.parser is pure Python, and this keeps the check to seconds.
         start, end = raw.find("<article"), raw.rfind("</article>")
@@ -276,6 +282,9 @@ SAMPLE_PAGE = """<html><head>{head}</head><body><article>
     ("offline", dict(head='<script src="https://unpkg.com/mathjax@3/es5/tex-mml-chtml.js">'
                           "</script>")),
     ("offline", dict(text='<span class="arithmatex">\\(x^2\\)</span>')),
+    ("offline", dict(head='<script src=""> </script>')),
+    ("offline", dict(head='<script type="module">const m = (await import("https://cdn.example/m.mjs"));'
+                          "</script>")),
     ("offline", dict(text="$$ \\frac{a}{b} $$")),
     ("empty", dict(text="</p><details><summary>Attributes (lengths in mm)</summary>x</details><p>")),
     ("empty", dict(text='</p><p><span class="doc-section-title">Returns:</span></p><table><thead>'
