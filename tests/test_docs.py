@@ -111,7 +111,10 @@ def site_problems(site: Path) -> dict[str, list[str]]:
       summary row of a member whose own docstring has text; a Returns entry whose prose
       landed in the Type column; a numpydoc section header the parser did not recognise
       (shown as a bare collapsible block);
-    * ``cut``: a summary-table description that stops mid-sentence;
+    * ``cut``: a summary-table description that stops mid-sentence, or any table's
+      description cut in two by a line break inside a sentence ("every view must reach into
+      the⏎calculation pupil"), or starting with a bare ``()``; a default shown with parts
+      missing (``tuple(tolist())``);
     * ``offline``: a script or stylesheet fetched from the network, or an equation left as
       TeX for a script to typeset.
     """
@@ -126,6 +129,12 @@ def site_problems(site: Path) -> dict[str, list[str]]:
             loads = tag.startswith("<script") or re.search(r'\brel="[^"]*stylesheet', tag)
             if source and loads:
                 found["offline"].append(f"{where}: loads {source.group(1)}")
+            if tag.startswith("<script") and re.search(r'\bsrc=""', tag):
+                found["offline"].append(f"{where}: a script with an empty source")
+        for script in re.findall(r"<script\b[^>]*>((?:(?!</script>).)*)</script>", raw, re.S):
+            fetched = re.search(r"import\s*\(?\s*[\"'](https?://[^\"']+)", script)
+            if fetched:
+                found["offline"].append(f"{where}: imports {fetched.group(1)}")
         # Only the page's own content is read (not the navigation), without the notebooks'
         # inline images: html.parser is pure Python, and this keeps the check to seconds.
         start, end = raw.find("<article"), raw.rfind("</article>")
@@ -175,6 +184,14 @@ def _table_problems(ids: dict, documented: dict, table, where: str,
                 found["empty"].append(f"{where}: {owner} {section} prose as the type: {shown[:60]!r}")
         description = row.select_one(".doc-md-description")
         text = description.get_text(" ", strip=True) if description else ""
+        for broken in _broken_sentences(description) if description else []:
+            found["cut"].append(f"{where}: {owner} {section} {name}: {broken}")
+        if text.startswith("()"):
+            found["cut"].append(f"{where}: {owner} {section} {name}: starts with a bare (): {text[:40]!r}")
+        if "Default" in heads:
+            shown = row.find_all("td", recursive=False)[heads.index("Default")].get_text("", strip=True)
+            if LOSSY_DEFAULT.search(shown):
+                found["cut"].append(f"{where}: {owner} {section} {name}: default {shown!r}")
         # A summary row names a member documented on the page, by a link to its heading.
         link = row.find("td").find("a", href=True)
         member = link["href"][1:] if link is not None and link["href"].startswith("#") else None
@@ -192,6 +209,27 @@ def _table_problems(ids: dict, documented: dict, table, where: str,
             line = (first.get_text(" ", strip=True) if first else text)
             if not SENTENCE_END.search(line):
                 found["cut"].append(f"{where}: {owner} {section} {name}: …{line[-60:]!r}")
+
+
+# Text that ends a sentence, or a fragment that may stand before a line break (a type, a
+# unit list), and a default rendered without its receiver: ``tuple(tolist())``.
+BREAK_ENDS = re.compile(r"[.!?:;…\"')\]]\s*$")
+LOSSY_DEFAULT = re.compile(r"\w\(\w+\(\)\)")
+
+
+def _broken_sentences(description) -> list[str]:
+    """Line breaks (``<br>``) inside a description where a sentence goes on: the text before
+    does not end one and the text after starts in lower case."""
+    out = []
+    def text(node) -> str:
+        return node.get_text() if hasattr(node, "get_text") else str(node)
+
+    for br in description.find_all("br"):
+        before = next((t for t in (text(n).strip() for n in br.previous_siblings) if t), "")
+        after = next((t for t in (text(n).strip() for n in br.next_siblings) if t), "")
+        if before and after and not BREAK_ENDS.search(before) and after[0].islower():
+            out.append(f"broken at a line break: …{before[-40:]!r}⏎{after[:30]!r}")
+    return out
 
 
 def _has_own_docstring(target) -> bool:
@@ -238,10 +276,15 @@ SAMPLE_PAGE = """<html><head>{head}</head><body><article>
     ("rest", dict(text="the layers: :mod:`lfjax.base` first")),
     ("rest", dict(text=".. math:: a = b")),
     ("cut", dict(summary="<p>A sentence cut at the</p>")),
+    ("cut", dict(summary="<p>every view must reach into the<br>calculation pupil.</p>")),
+    ("cut", dict(summary="<p>() pixel pitch p of the panel, mm.</p>")),
     ("empty", dict(summary="")),
     ("offline", dict(head='<script src="https://unpkg.com/mathjax@3/es5/tex-mml-chtml.js">'
                           "</script>")),
     ("offline", dict(text='<span class="arithmatex">\\(x^2\\)</span>')),
+    ("offline", dict(head='<script src=""> </script>')),
+    ("offline", dict(head='<script type="module">const m = (await import("https://cdn.example/m.mjs"));'
+                          "</script>")),
     ("offline", dict(text="$$ \\frac{a}{b} $$")),
     ("empty", dict(text="</p><details><summary>Attributes (lengths in mm)</summary>x</details><p>")),
     ("empty", dict(text='</p><p><span class="doc-section-title">Returns:</span></p><table><thead>'
@@ -350,10 +393,17 @@ def test_docstring_house_style_becomes_numpydoc():
            "window_D : float, D, optional\n    Half-width.\nname, source : str\n\n"
            "The closing paragraph, not a parameter.")
     out = normalise(doc).split("\n")
-    assert out[4:6] == ["depths_D", "    (n_depth,) rendered depths, D"]
+    assert out[4:6] == ["depths_D", "    shape `(n_depth,)`: rendered depths, D"]
     assert out[6:9] == ["window_D", "    float, D, optional<br>", "    Half-width."]
     assert out[9:13] == ["name", "    str", "source", "    str"]
     assert out[14:17] == ["Notes", "-----", "The closing paragraph, not a parameter."]
+    # A sentence that goes on below its name line is not cut by a line break; a scalar's
+    # shape is written as one.
+    doc = ("S.\n\nParameters\n----------\nviews : (n,) every view must reach into the\n"
+           "    calculation pupil. More.\npitch_mm : () pixel pitch, mm\n")
+    out = normalise(doc).split("\n")
+    assert out[4:6] == ["views", "    shape `(n,)`: every view must reach into the calculation pupil. More."]
+    assert out[6:8] == ["pitch_mm", "    shape `()`: pixel pitch, mm"]
 
 
 # ------------------------------------------------------------------ pages the package points to
@@ -656,8 +706,75 @@ def test_docstring_sections_math_and_summaries_become_what_the_site_renders():
         "S.\n\nReturns\n-------\nArray of the scene's shape: the\nimage, cd/m².\n"
         "peak : float\nvalue : (n,) the values, D\n").split("\n")
     assert out[4:10] == [":", "    Array of the scene's shape: the image, cd/m².", "peak : float",
-                         "value :", "    (n,) the values, D", ""]
+                         "value :", "    shape `(n,)`: the values, D", ""]
     math = roles.math_to_arithmatex("Text.\n\n.. math:: a = \\frac{b}\n      {c}\n\nAfter, :math:`x`.")
     assert math == "Text.\n\n$$\na = \\frac{b}\n{c}\n$$\n\nAfter, $x$."
     first = roles.first_sentence_first("One sentence, e.g. this, that runs\non. Another one\nhere.\n\nMore.")
     assert first == "One sentence, e.g. this, that runs on.\nAnother one here.\n\nMore."
+
+
+# ------------------------------------------------------------------ figures quoted from results
+# Each time or result the README, the home page and the guides quote, with the results page
+# and row it comes from: (file, pattern of the quote, results page, pattern of the row). Each
+# pattern captures one number; a re-measurement that changes the row fails here until every
+# quote follows it.
+R35 = "benchmarks/results/35-targets-36-today.md"
+R33 = "benchmarks/results/33-verdict-margins.md"
+R34 = "benchmarks/results/34-gpu-check-h200.md"
+COLD_35 = r"\| `lfjax reproduce` cold \| [^|]+\| \*\*([\d.]+) s\*\*"
+WARM_35 = r"\| \*\*warm, median of 3\*\* \| [^|]+\| \*\*([\d.]+) s\*\*"
+QUOTED_FIGURES = [
+    ("README.md", r"takes\s+([\d.]+) s on two idle CPU cores from empty caches", R35, COLD_35),
+    ("README.md", r"from empty caches and ([\d.]+) s warm", R35, WARM_35),
+    ("README.md", r"([\d.]+) s and [\d.]+ s there", R33,
+     r"\| `lfjax reproduce` cold \| [^|]+\| ([\d.]+) s"),
+    ("README.md", r"[\d.]+ s and ([\d.]+) s there", R33,
+     r"\| \*\*warm, median of 3\*\* \| [^|]+\| \*\*([\d.]+) s\*\*"),
+    ("README.md", r"([\d.]+) s cold and [\d.]+–[\d.]+ s warm on one H200", R34,
+     r"\| run 2, cold \| ([\d.]+) s"),
+    ("README.md", r"s cold and ([\d.]+)–[\d.]+ s warm on one H200", R34,
+     r"\| run 2, warm 1 \| \*\*([\d.]+) s\*\*"),
+    ("README.md", r"s cold and [\d.]+–([\d.]+) s warm on one H200", R34,
+     r"\| run 2, warm 2 \| ([\d.]+) s"),
+    ("README.md", r"10,000-eye sweep takes ([\d.]+) s", R34, r"\| sweep \| 10,000 eyes[^|]+\| \*\*([\d.]+) s\*\*"),
+    ("README.md", r"cost ([\d.]+) s per eye on two idle cores", R35, r"\*\*[\d.]+ s: ([\d.]+) s/eye\*\*"),
+    ("README.md", r"about (\d+) min per 1,000 eyes\n\(\[§35\]", R35, r"about \*\*(\d+) min per 1,000 eyes\*\*"),
+    ("docs/index.md", r"\(([\d.]+) s on two idle CPU cores from an empty compilation cache", R35, COLD_35),
+    ("docs/index.md", r"([\d.]+) s\s+warm, the median of three", R35, WARM_35),
+    ("docs/guides/paper-study.md", r"whole job takes ([\d.]+) s on 2 idle CPU cores", R35, COLD_35),
+    ("docs/guides/paper-study.md", r"and ([\d.]+) s warm\s+\(the median of three", R35, WARM_35),
+    ("docs/guides/paper-study.md", r"it takes ([\d.]+)–[\d.]+ s warm", R34, r"\| run 2, warm 1 \| \*\*([\d.]+) s\*\*"),
+    ("docs/guides/paper-study.md", r"and ([\d.]+) s cold, nearly all of it compiling", R34, r"\| run 2, cold \| ([\d.]+) s"),
+    ("docs/guides/population-sweeps.md", r"today's faster VM ([\d.]+) s per eye", R35,
+     r"\*\*[\d.]+ s: ([\d.]+) s/eye\*\*"),
+]
+
+
+def quoted_figure_problems(quotes) -> list[str]:
+    problems = []
+    for name, quote, page, row in quotes:
+        text = (ROOT / name).read_text(encoding="utf-8")
+        source = (ROOT / page).read_text(encoding="utf-8")
+        said, measured = re.search(quote, text), re.search(row, source)
+        if said is None:
+            problems.append(f"{name} no longer quotes {quote!r}: update QUOTED_FIGURES")
+        elif measured is None:
+            problems.append(f"{page} has no row {row!r}")
+        elif float(said.group(1)) != float(measured.group(1)):
+            problems.append(f"{name} quotes {said.group(0)!r}; {page} says {measured.group(1)}")
+        elif Path(page).stem not in text:
+            problems.append(f"{name} quotes {said.group(0)!r} without citing {page}")
+    return problems
+
+
+def test_quoted_figures_are_the_results_pages_rows():
+    problems = quoted_figure_problems(QUOTED_FIGURES)
+    assert not problems, "\n".join(problems)
+
+
+def test_quoted_figure_check_sees_a_stale_quote():
+    """The README's old sweep cost (§25's 1.8 s per eye) against §35's row fails."""
+    stale = [("README.md", r"takes\s+([\d.]+) s on two idle CPU cores", R35,
+              r"\*\*[\d.]+ s: ([\d.]+) s/eye\*\*")]
+    assert quoted_figure_problems(stale)
+    assert quoted_figure_problems([("README.md", r"no such quote (\d)", R35, COLD_35)])

@@ -59,6 +59,36 @@ def _public(path: str) -> bool:
     )
 
 
+
+# A leading array shape, ``()`` or ``(n_depth, n_acc)`` (a comma or nothing inside).
+SHAPE = re.compile(r"^\((?P<shape>(?:[\w…. *+-]+,\s*)+[\w…. *+-]*|)\)(?=\s|$)")
+# Where a name line's text may end without ending a sentence: a type or its qualifier.
+TYPE_TAIL = re.compile(r"(?:\boptional|\bkeyword-only|[\w\]]\s*\|\s*None)$")
+
+
+def _first_line(text: str, body: list[str]) -> list[str]:
+    """The description lines of an entry whose name line carries ``text``.
+
+    A leading shape is written as one (``()`` alone read as stray punctuation). The text reads
+    as the description's first line; a line break keeps it apart from the indented text that
+    follows (``float, D, optional`` above its explanation), unless that text goes on with the
+    same sentence (it starts in lower case and ``text`` ends without a stop), where a break
+    would cut the sentence in two."""
+    text = text.strip()
+    shape = SHAPE.match(text)
+    if shape:
+        rest = text[shape.end():].strip()
+        text = f"shape `({shape.group('shape')})`" + (f": {rest}" if rest else "")
+    if not body:
+        return ["    " + text]
+    nxt = body[0].strip()
+    goes_on = (bool(nxt) and (nxt[0].islower() or nxt[0] in "(`:[0123456789≤≥<>=±−-")
+               and not re.search(r"[.:;!?]$", text) and not TYPE_TAIL.search(text))
+    if goes_on:
+        return ["    " + text + " " + nxt] + body[1:]
+    return ["    " + text + "<br>"] + body
+
+
 def normalise_sections(text: str) -> str:
     """House style → numpydoc (see the module docstring)."""
     lines = text.split("\n")
@@ -120,15 +150,13 @@ def normalise_sections(text: str) -> str:
                         k += 1
                     body, j = lines[j:k], k
                 if text:
-                    body = ["    " + text + ("<br>" if body else "")] + body
+                    body = _first_line(text, body)
                 out += [head] + body
                 i = j
                 continue
             if m and (m.group("rest") or "," in m.group("names")):
                 if m.group("rest"):
-                    # The name line's text reads as the first line of the description; a
-                    # line break keeps it apart from the indented text that follows.
-                    body = ["    " + m.group("rest") + ("<br>" if body else "")] + body
+                    body = _first_line(m.group("rest"), body)
                 # One entry per name: "spectrum, options : ..." documents both.
                 for name in re.split(r"\s*,\s*", m.group("names")):
                     out += [name] + body
@@ -215,3 +243,95 @@ class SphinxRoles(griffe.Extension):
     def on_package(self, *, pkg: griffe.Module, **kwargs) -> None:
         # griffe calls on_object for every object but the package itself.
         self.on_object(obj=pkg, **kwargs)
+        # Dataclasses' __init__ are made by griffe's own extension, on this same event,
+        # before this one: every object is there now.
+        for obj in _walk(pkg):
+            if obj.is_class:
+                _field_help(obj)
+            if obj.is_function:
+                for parameter in obj.parameters:
+                    if _lossy(parameter.default):
+                        parameter.default = str(parameter.default)
+            elif obj.is_attribute:
+                if _lossy(obj.value):
+                    obj.value = str(obj.value)
+                if obj.annotation is None:
+                    obj.annotation = _literal_type(obj.value)
+
+
+def _walk(obj, seen=None):
+    seen = set() if seen is None else seen
+    for member in list(obj.members.values()):
+        if member.is_alias or id(member) in seen:
+            continue
+        seen.add(id(member))
+        yield member
+        if member.is_module or member.is_class:
+            yield from _walk(member, seen)
+
+
+def _lossy(value) -> bool:
+    """An expression the API pages would render with parts missing: an attribute of a call
+    (``tuple(grid(-2, 2, 0.5).tolist())`` showed as ``tuple(tolist())``)."""
+    if not isinstance(value, griffe.Expr):
+        return False
+    return any(isinstance(e, griffe.ExprAttribute) and not isinstance(e.values[0], griffe.ExprName)
+               for e in value.iterate(flat=False) if isinstance(e, griffe.Expr))
+
+
+def _literal_type(value) -> str | None:
+    """The type of a constant written as a literal (``DECIMALS = 9``: ``int``), for a module
+    or class attribute without an annotation; None for anything else."""
+    import ast
+
+    if value is None:
+        return None
+    try:
+        literal = ast.literal_eval(str(value))
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+        return None
+    if isinstance(literal, (tuple, list, set, frozenset)):
+        kinds = sorted({type(v).__name__ for v in literal})
+        inner = kinds[0] if len(kinds) == 1 else " | ".join(kinds)
+        name = type(literal).__name__
+        return f"{name}[{inner}, ...]" if name == "tuple" and kinds else (
+            f"{name}[{inner}]" if kinds else name)
+    if isinstance(literal, dict):
+        return "dict"
+    return type(literal).__name__
+
+
+def _field_help(cls) -> None:
+    """Dataclass fields that declare their help in their metadata (a
+    :class:`lfjax.sweep.config_keys.Key`: the TOML key, its help, unit and rules) get it as
+    their docstring, as a reader of the class's source sees it."""
+    import dataclasses
+    import importlib
+
+    if not any(isinstance(m, griffe.Attribute) and "metadata" in str(m.value)
+               for m in cls.members.values() if not m.is_alias):
+        return
+    try:
+        module = importlib.import_module(cls.module.path)
+        fields = dataclasses.fields(getattr(module, cls.name))
+    except (ImportError, AttributeError, TypeError):
+        return
+    # The module's completed declarations (name and unit filled in from the field), if any.
+    completed = {getattr(k, "field", None): k for k in getattr(module, "KEYS", ())}
+    for f in fields:
+        member = cls.members.get(f.name)
+        if member is None or member.is_alias or member.docstring is not None:
+            continue
+        for declared in f.metadata.values():
+            declared = completed.get(f.name, declared)
+            text = getattr(declared, "help", None)
+            if not isinstance(text, str):
+                continue
+            section, name = getattr(declared, "section", ""), getattr(declared, "name", "")
+            where = f"[{section}] {name or f.name}" if section else None
+            unit = getattr(declared, "unit", "")
+            rules = declared.rules() if callable(getattr(declared, "rules", None)) else ""
+            line = (f"`{where}` in the TOML file: " if where else "") + text
+            line += f"; {rules}" if rules else (f" ({unit})" if unit else "")
+            member.docstring = griffe.Docstring(line.rstrip(".") + ".", parent=member)
+            break
