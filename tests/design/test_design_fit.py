@@ -308,7 +308,8 @@ def test_cli_design_f_number_range_names_the_flag_and_the_end():
                               "in [8, inf], got 1.0")
     assert err.value.naming(cli.flags.FLAGS["design"]) == (
         "--f-number: high end (at least the low end) must be finite and in [8, inf], got 1.0")
-    with pytest.raises(ParameterError, match=r"^min_f_number: low end must be finite and in \(0, inf\]"):
+    with pytest.raises(ParameterError, match=r"^min_f_number: low end \(no lens in air is faster "
+                                             r"than f/0\.5\) must be finite and in \[0\.5, inf\]"):
         DesignConstraints(min_f_number=0.0)
 
 
