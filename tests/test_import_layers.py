@@ -33,7 +33,7 @@ LAYERS = {
     "lfjax.kernel": 3,
     "lfjax.planner": 4,
     "lfjax.vision": 5,
-    "lfjax.layout_opt": 6, "lfjax.sweep": 6,
+    "lfjax.layout_opt": 6, "lfjax.sweep": 6, "lfjax.binocular": 6,
     "lfjax.studies": 7, "lfjax.design": 7,
     "lfjax.reproduce": 8,
     "lfjax.cli": 9,
