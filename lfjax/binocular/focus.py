@@ -218,8 +218,8 @@ def pair_metrics_at(viewer: Viewer, layout: Layout, depths_D, accommodation_D,
     """
     viewer = check_viewer(viewer)
     kw = dict(viewing=viewing, spectrum=spectrum, sampling=sampling, options=options)
-    v_left, _ = metrics_at(viewer.left, layout, depths_D, accommodation_D, **kw)
-    v_right, _ = metrics_at(viewer.right, layout, depths_D, accommodation_D, **kw)
+    both, _ = metrics_at(_stacked(viewer), layout, depths_D, accommodation_D, **kw)
+    v_left, v_right = both[:viewer.n_viewers], both[viewer.n_viewers:]
     if binocular.combination == "mean_vsotf":
         return 0.5 * (v_left + v_right)
     if binocular.combination == "better_eye":
