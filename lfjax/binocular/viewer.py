@@ -79,7 +79,7 @@ class Viewer(eqx.Module):
     >>> Viewer.identical(lfjax.average_eye(3.0), ipd_mm=30.0)
     Traceback (most recent call last):
     ...
-    lfjax.base.errors.ParameterError: Viewer.ipd_mm must lie in [45, 80] mm (the adult range of Dodgson 2004), got [30.0]
+    lfjax.base.errors.ParameterError: Viewer.ipd_mm must lie in [45, 80] mm (the adult range of Dodgson 2004), got 30.0
     """
 
     left: Eyes
