@@ -5,16 +5,16 @@ Modules: :mod:`~lfjax.binocular.viewer` (a viewer is two eyes and an IPD),
 :mod:`~lfjax.binocular.population` (seeded viewers from published statistics),
 :mod:`~lfjax.binocular.geometry` (vergence demand, conventions),
 :mod:`~lfjax.binocular.options` (the binocular modelling choices),
-:mod:`~lfjax.binocular.displays` (natural viewing, stereo, near-eye light field),
+:mod:`~lfjax.binocular.displays` (natural viewing, stereo, near-eye light field, a panel seen by both eyes),
 :mod:`~lfjax.binocular.focus` (both eyes' through-focus and the conflict),
 :mod:`~lfjax.binocular.comfort` (Shibata et al. 2011 and Percival's zones).
 """
 
-from lfjax.binocular.displays import NaturalViewing, NearEyeDisplay, StereoDisplay
+from lfjax.binocular.displays import NaturalViewing, NearEyeDisplay, PanelDisplay, StereoDisplay
 from lfjax.binocular.focus import BinocularFocus, binocular_through_focus, pair_metrics_at
 from lfjax.binocular.options import BinocularOptions
 from lfjax.binocular.population import sample_viewers
 from lfjax.binocular.viewer import Viewer
 
 __all__ = ["Viewer", "sample_viewers", "BinocularOptions", "NaturalViewing", "StereoDisplay",
-           "NearEyeDisplay", "BinocularFocus", "binocular_through_focus", "pair_metrics_at"]
+           "NearEyeDisplay", "PanelDisplay", "BinocularFocus", "binocular_through_focus", "pair_metrics_at"]

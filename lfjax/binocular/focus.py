@@ -139,8 +139,10 @@ def binocular_through_focus(
     ----------
     viewer : :class:`~lfjax.binocular.viewer.Viewer` (n_viewers)
     display : :class:`~lfjax.binocular.displays.NaturalViewing`,
-        :class:`~lfjax.binocular.displays.StereoDisplay` or
-        :class:`~lfjax.binocular.displays.NearEyeDisplay`
+        :class:`~lfjax.binocular.displays.StereoDisplay`,
+        :class:`~lfjax.binocular.displays.NearEyeDisplay` or
+        :class:`~lfjax.binocular.displays.PanelDisplay` (which uses its panel's pupil, CDP
+        and optics instead of ``viewing``'s)
     depths_D : (n_depth,) rendered depths on the midline, D (from the baseline's midpoint)
     viewing : :class:`~lfjax.Viewing` of each eye (pupil, mm; the light-field display's CDP,
         D; its optics)
@@ -167,7 +169,8 @@ def binocular_through_focus(
     display.check_fits(viewer, float(viewing.pupil_diameter_mm))
     depths = np.atleast_1d(np.asarray(depths_D, float))
     n = viewer.n_viewers
-    vsotf, states, allowed = _eye_curves(_stacked(viewer), display.runs(depths, viewing),
+    runs = display.runs(depths, viewing, np.asarray(viewer.ipd_mm, float))
+    vsotf, states, allowed = _eye_curves(_stacked(viewer), runs,
                                          offsets_D, dict(spectrum=spectrum, options=options,
                                                          sampling=sampling, eye_chunk=eye_chunk))
     if states.shape[0] != depths.size:  # one screen for every rendered depth
@@ -192,14 +195,20 @@ def binocular_through_focus(
 
 
 def _eye_curves(eyes: Eyes, runs, offsets_D, kw) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Both eyes' VSOTF over every run's depths, stitched along the depth axis:
-    (2 n_viewers, n_rows, n_acc), the absolute states (n_rows, n_acc) D and ``allowed``."""
-    vsotf, states, allowed = [], [], []
-    for layout, depths, viewing in runs:
-        tf = through_focus(eyes, layout, States.around(depths, offsets_D), viewing, **kw)
-        vsotf.append(np.asarray(tf.vsotf))
-        states.append(np.asarray(tf.accommodation_D, float))
-        allowed.append(np.asarray(tf.allowed, bool))
+    """Both eyes' VSOTF over every run's depths: (2 n_viewers, n_rows, n_acc), the absolute
+    states (n_rows, n_acc) D and ``allowed``. Runs of the same depths fill the rows of their
+    eyes (``eye_rows``, None for all); runs of other depths add rows after them."""
+    blocks: dict[tuple, list] = {}
+    for layout, depths, viewing, rows in runs:
+        sub = eyes if rows is None else eyes[np.asarray(rows)]
+        rows = np.arange(eyes.n_eyes) if rows is None else np.asarray(rows)
+        tf = through_focus(sub, layout, States.around(depths, offsets_D), viewing, **kw)
+        key = tuple(np.asarray(depths, float).tolist())
+        if key not in blocks:
+            blocks[key] = [np.full((eyes.n_eyes,) + tf.vsotf.shape[1:], np.nan),
+                           np.asarray(tf.accommodation_D, float), np.asarray(tf.allowed, bool)]
+        blocks[key][0][rows] = np.asarray(tf.vsotf)
+    vsotf, states, allowed = zip(*blocks.values())
     return (np.concatenate(vsotf, axis=1), np.concatenate(states, axis=0),
             np.concatenate(allowed, axis=0))
 
