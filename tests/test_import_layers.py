@@ -46,7 +46,7 @@ import neither each other nor anything above."""
 LAYER_NAMES = {
     0: "conventions and maths", 1: "the model's data", 2: "the display",
     3: "the optics kernel and the pure pipeline", 4: "the planner",
-    5: "vision entry points", 6: "applications (layout optimiser, sweep)",
+    5: "vision entry points", 6: "applications (layout optimiser, sweep, both eyes)",
     7: "applications built on those (display studies, design)",
     8: "the paper's study", 9: "the command line", 10: "the package's face",
 }

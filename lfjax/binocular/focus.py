@@ -199,11 +199,12 @@ def _eye_curves(eyes: Eyes, runs, offsets_D, kw) -> tuple[np.ndarray, np.ndarray
     states (n_rows, n_acc) D and ``allowed``. Runs of the same depths fill the rows of their
     eyes (``eye_rows``, None for all); runs of other depths add rows after them."""
     blocks: dict[tuple, list] = {}
-    for layout, depths, viewing, rows in runs:
+    for i, (layout, depths, viewing, rows) in enumerate(runs):
+        # a run of every eye is a block of its own; runs of some eyes share their depths' block
+        key = (i,) if rows is None else tuple(np.asarray(depths, float).tolist())
         sub = eyes if rows is None else eyes[np.asarray(rows)]
         rows = np.arange(eyes.n_eyes) if rows is None else np.asarray(rows)
         tf = through_focus(sub, layout, States.around(depths, offsets_D), viewing, **kw)
-        key = tuple(np.asarray(depths, float).tolist())
         if key not in blocks:
             blocks[key] = [np.full((eyes.n_eyes,) + tf.vsotf.shape[1:], np.nan),
                            np.asarray(tf.accommodation_D, float), np.asarray(tf.allowed, bool)]

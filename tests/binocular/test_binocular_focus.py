@@ -77,6 +77,9 @@ def test_stereo_display_accommodates_at_the_screen_and_natural_viewing_at_the_po
     np.testing.assert_array_equal(natural.accommodation_D, [depths])
     np.testing.assert_array_equal(natural.conflict_D, [[0.0, 0.0, 0.0]])
     assert natural.inside.all() and natural.fraction_inside().tolist() == [1.0, 1.0, 1.0]
+    twice = binocular_through_focus(pair, NaturalViewing(), [1.0, 1.0], offsets_D=OFFSETS,
+                                    spectrum=spectrum())  # a repeated depth keeps its row
+    np.testing.assert_array_equal(twice.accommodation_D, [[1.0, 1.0]])
     # the cross-link pulls accommodation towards vergence by CA/C · 100 p
     ipd = float(pair.ipd_mm[0])
     linked = binocular_through_focus(pair, StereoDisplay(1.5), depths, offsets_D=OFFSETS,
