@@ -14,12 +14,12 @@ point at d.
   each eye its own views (``views``, e.g. n×n) of the point at d, the monocular model per
   eye; both displays carry the same layout (a real headset mirrors the right display;
   for layouts symmetric in x, as every grid is, the two agree).
-* :class:`PanelDisplay` — a desktop or phone light-field panel (:class:`~lfjax.Panel`) seen
+* :class:`PanelDisplay` — a desktop or phone light-field panel (:class:`~lfjax.display.panel.Panel`) seen
   by both eyes from their own positions, x = ∓IPD/2 from the midline: the lenslet grid is
   aligned so that an eye on the midline sees the panel's design layout
-  (:meth:`lfjax.Panel.layout`), and an eye at x sees the same views shifted by −x, wrapped
+  (:meth:`lfjax.display.panel.Panel.layout`), and an eye at x sees the same views shifted by −x, wrapped
   into half a view pitch (the paraxial geometry is the same behind every lenslet). Both
-  eyes must lie inside the panel's viewing zone (:meth:`lfjax.Panel.eye_box_mm`, centred on
+  eyes must lie inside the panel's viewing zone (:meth:`lfjax.display.panel.Panel.eye_box_mm`, centred on
   the midline): IPD + pupil ≤ its width, else the viewer is refused.
 
 :meth:`runs` returns ``(layout, depths_D, viewing, eye_rows)`` tuples; ``eye_rows`` says which
@@ -134,10 +134,10 @@ class PanelDisplay(eqx.Module):
 
     Attributes
     ----------
-    panel : :class:`~lfjax.Panel` (its CDP, optics and design pupil; the computation's pupil
+    panel : :class:`~lfjax.display.panel.Panel` (its CDP, optics and design pupil; the computation's pupil
         is the panel's design pupil)
     n_per_side : views per side of each eye's grid, or None (the panel's
-        :meth:`~lfjax.Panel.n_views_per_side`)
+        :meth:`~lfjax.display.panel.Panel.n_views_per_side`)
     """
 
     panel: Panel

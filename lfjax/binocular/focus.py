@@ -147,7 +147,7 @@ def binocular_through_focus(
     viewing : :class:`~lfjax.Viewing` of each eye (pupil, mm; the light-field display's CDP,
         D; its optics)
     offsets_D : accommodation states around each stimulus depth, D (default −1 … +1 D in
-        0.2 D steps, :meth:`lfjax.States.around`); the predicted accommodation is one of
+        0.2 D steps, :meth:`lfjax.vision.prepare.States.around`); the predicted accommodation is one of
         them, so their step is its resolution
     binocular : :class:`~lfjax.binocular.options.BinocularOptions`
     zcsbv_MA : (far, near) limits of the zone of clear single binocular vision, MA,

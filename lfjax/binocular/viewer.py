@@ -5,7 +5,7 @@ of the same batch size (viewer ``i`` is ``left[i]`` with ``right[i]``) and ``ipd
 interpupillary distances. Both eyes' coefficients are in the one frame every lfjax
 computation uses (x to the viewer's right, y up, seen from the eye), so each eye enters the
 monocular pipeline unchanged; a right eye that mirrors its left eye has the left eye's
-coefficients with the modes odd in x negated (:meth:`lfjax.Eyes.mirrored`).
+coefficients with the modes odd in x negated (:meth:`lfjax.model.eyes.Eyes.mirrored`).
 """
 
 from __future__ import annotations
