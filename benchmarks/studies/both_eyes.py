@@ -69,8 +69,8 @@ def run(n_viewers: int, seed: int, out: Path) -> dict:
             timing[f"{group} / {name}"] = round(time.perf_counter() - t, 1)
             entry = {}
             for label, options in COMBINATIONS.items():
-                acc, driver = consensual_accommodation(r.left_vsotf, r.right_vsotf, r.states_D,
-                                                       r.allowed, options)
+                acc, driver, _ = consensual_accommodation(r.left_vsotf, r.right_vsotf,
+                                                          r.states_D, r.allowed, options)
                 entry[label] = summary(acc, ipd)
                 if label == "better eye":
                     entry[label]["right eye drives"] = float(np.mean(driver == 1))
@@ -78,6 +78,8 @@ def run(n_viewers: int, seed: int, out: Path) -> dict:
                                                       binocular_statistics()["ca_c_D_per_prism_D"])
             entry["per viewer: conflict (D) at each depth, mean VSOTF"] = r.conflict_D.round(
                 2).tolist()
+            entry["per viewer: left, right VSOTF at the pair's accommodation, mean VSOTF"] = [
+                r.left_vsotf_at_pair.round(3).tolist(), r.right_vsotf_at_pair.round(3).tolist()]
             results[f"{group} / {name}"] = entry
             print(group, "/", name, timing[f"{group} / {name}"], "s", flush=True)
     out.mkdir(parents=True, exist_ok=True)

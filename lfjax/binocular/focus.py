@@ -56,6 +56,8 @@ class BinocularFocus:
     accommodation_D : (n_viewers, n_depth) after the vergence cross-link (equal to
         ``blur_accommodation_D`` when it is off), D
     driving_eye : (n_viewers, n_depth) int, 0 left, 1 right, −1 both (``"mean_vsotf"``)
+    left_vsotf_at_pair, right_vsotf_at_pair : (n_viewers, n_depth) each eye's VSOTF at the
+        pair's blur-driven accommodation (what each eye sees once the pair has focused)
     conflict_D : (n_viewers, n_depth) V − A, D
     zone_far_MA, zone_near_MA : (n_viewers, n_depth) the comfort zone's boundaries at A, MA
     inside : (n_viewers, n_depth) bool, the pair inside the zone of comfort
@@ -72,6 +74,8 @@ class BinocularFocus:
     blur_accommodation_D: np.ndarray
     accommodation_D: np.ndarray
     driving_eye: np.ndarray
+    left_vsotf_at_pair: np.ndarray
+    right_vsotf_at_pair: np.ndarray
     conflict_D: np.ndarray
     zone_far_MA: np.ndarray
     zone_near_MA: np.ndarray
@@ -99,7 +103,8 @@ def consensual_accommodation(left_vsotf, right_vsotf, states_D, allowed, options
     ``left_vsotf``, ``right_vsotf`` (n_viewers, n_depth, n_acc) (NaN where not allowed),
     ``states_D`` (n_depth, n_acc) absolute states, D, ``allowed`` (n_depth, n_acc) bool.
     Returns (accommodation (n_viewers, n_depth) D, driving eye (n_viewers, n_depth): 0 left,
-    1 right, −1 both). Ties go to the first (lowest) state, as :meth:`ThroughFocus.peak_index`.
+    1 right, −1 both, the index of that state along the last axis). Ties go to the first
+    (lowest) state, as :meth:`lfjax.vision.focus.ThroughFocus.peak_index`.
     """
     mask = np.asarray(allowed, bool)[None]
     left = np.where(mask, np.asarray(left_vsotf), -np.inf)
@@ -115,7 +120,7 @@ def consensual_accommodation(left_vsotf, right_vsotf, states_D, allowed, options
             driver = np.full(i_left.shape, int(options.dominant_eye == "right"))
         index = np.where(driver == 1, i_right, i_left)
     states = np.broadcast_to(np.asarray(states_D, float)[None], left.shape)
-    return np.take_along_axis(states, index[..., None], axis=-1)[..., 0], driver
+    return np.take_along_axis(states, index[..., None], axis=-1)[..., 0], driver, index
 
 
 def binocular_through_focus(
@@ -177,7 +182,9 @@ def binocular_through_focus(
         vsotf = np.repeat(vsotf, depths.size, axis=1)
         states = np.repeat(states, depths.size, axis=0)
         allowed = np.repeat(allowed, depths.size, axis=0)
-    blur, driver = consensual_accommodation(vsotf[:n], vsotf[n:], states, allowed, binocular)
+    blur, driver, index = consensual_accommodation(vsotf[:n], vsotf[n:], states, allowed,
+                                                   binocular)
+    at_pair = np.take_along_axis(vsotf, np.concatenate([index, index])[..., None], axis=-1)[..., 0]
     vergence = np.asarray(vergence_demand_MA(depths), float)
     ipd = np.asarray(viewer.ipd_mm, float)[:, None]
     acc = np.asarray(cross_linked_accommodation_D(
@@ -190,8 +197,8 @@ def binocular_through_focus(
     near = np.broadcast_to(np.asarray(near, float), acc.shape)
     inside = np.asarray(inside_zone(vergence[None], (far, near)))
     return BinocularFocus(display.name, depths, vergence, vsotf[:n], vsotf[n:], states, allowed,
-                          blur, acc, driver, np.asarray(conflict_D(vergence[None], acc)), far,
-                          near, inside, binocular)
+                          blur, acc, driver, at_pair[:n], at_pair[n:],
+                          np.asarray(conflict_D(vergence[None], acc)), far, near, inside, binocular)
 
 
 def _eye_curves(eyes: Eyes, runs, offsets_D, kw) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

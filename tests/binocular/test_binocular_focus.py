@@ -57,9 +57,14 @@ def test_two_identical_eyes_are_one_eye_bit_for_bit():
                                   - mono.predicted_accommodation_D())
     # every combination of two equal curves is the one eye's prediction
     for options in COMBINATIONS:
-        acc, _ = consensual_accommodation(r.left_vsotf, r.right_vsotf, r.states_D, r.allowed,
-                                          options)
+        acc, _, index = consensual_accommodation(r.left_vsotf, r.right_vsotf, r.states_D,
+                                                 r.allowed, options)
         np.testing.assert_array_equal(acc, mono.predicted_accommodation_D())
+        np.testing.assert_array_equal(index, mono.peak_index())
+    # each eye sees its own peak VSOTF once the pair has focused
+    peak = np.nanmax(np.asarray(mono.vsotf), axis=-1)
+    np.testing.assert_array_equal(r.left_vsotf_at_pair, peak)
+    np.testing.assert_array_equal(r.right_vsotf_at_pair, peak)
 
 
 def test_stereo_display_accommodates_at_the_screen_and_natural_viewing_at_the_point():
@@ -128,6 +133,9 @@ def test_an_anisometropic_pair_focuses_with_the_chosen_eye():
         got[(options.combination, options.dominant_eye)] = float(r.accommodation_D[0, 0])
         if options.combination == "better_eye":
             assert int(r.driving_eye[0, 0]) == 0  # the aberration-free left eye
+        if options.combination == "dominant_eye" and options.dominant_eye == "left":
+            # the left eye at its peak, the myopic right eye defocused: it sees less
+            assert float(r.left_vsotf_at_pair[0, 0]) > float(r.right_vsotf_at_pair[0, 0])
     left_peak, right_peak = got[("dominant_eye", "left")], got[("dominant_eye", "right")]
     assert left_peak == 1.0 and abs(right_peak - left_peak) >= 0.2
     assert got[("better_eye", "right")] == left_peak
