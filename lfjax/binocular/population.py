@@ -28,8 +28,9 @@ DEFOCUS_J = ansi_from_nm(2, 0)
 
 def spherical_equivalent_per_um(measured_pupil_mm: float) -> float:
     """Spherical equivalent (D) of 1 µm of Zernike defocus c(2,0) on a pupil of diameter
-    ``measured_pupil_mm``: M = −4√3 c(2,0) / r², r the pupil radius in mm (Thibos, Wheeler &
-    Horner 2004, J Refract Surg 20:S537, power vectors; positive c(2,0) is myopic)."""
+    ``measured_pupil_mm``: M = −4√3 c(2,0) / r², r the pupil radius in mm (the power-vector
+    refraction of Thibos, Hong, Bradley & Applegate 2004, J Vis 4(4):329–351; positive
+    c(2,0) is myopic: such an eye accommodates less for the same point)."""
     radius = 0.5 * float(measured_pupil_mm)
     return -4.0 * math.sqrt(3.0) / radius**2
 

@@ -119,8 +119,10 @@ def test_a_panel_shows_each_eye_the_monocular_model_of_its_own_views():
 
 
 def test_an_anisometropic_pair_focuses_with_the_chosen_eye():
-    """Right eye 0.4 D more myopic: the dominant eye's focus wins; the mean of the two
-    curves lies between; the better (less aberrated) eye drives under "better_eye"."""
+    """Right eye 0.4 D more hyperopic (ΔM = +0.4 D) and with some spherical aberration: the
+    dominant eye's focus wins, the hyperopic eye's needing more accommodation; the mean of
+    the two curves lies between; the better (aberration-free) eye drives under
+    "better_eye"."""
     left = aberration_free_eye(3.0)
     c20 = 0.4 / spherical_equivalent_per_um(3.0)
     right = lfjax.make_eyes(jnp.zeros(15).at[DEFOCUS_J].set(c20)
@@ -134,10 +136,10 @@ def test_an_anisometropic_pair_focuses_with_the_chosen_eye():
         if options.combination == "better_eye":
             assert int(r.driving_eye[0, 0]) == 0  # the aberration-free left eye
         if options.combination == "dominant_eye" and options.dominant_eye == "left":
-            # the left eye at its peak, the myopic right eye defocused: it sees less
+            # the left eye at its peak, the hyperopic right eye defocused: it sees less
             assert float(r.left_vsotf_at_pair[0, 0]) > float(r.right_vsotf_at_pair[0, 0])
     left_peak, right_peak = got[("dominant_eye", "left")], got[("dominant_eye", "right")]
-    assert left_peak == 1.0 and abs(right_peak - left_peak) >= 0.2
+    assert left_peak == 1.0 and right_peak - left_peak >= 0.2  # the sign of M
     assert got[("better_eye", "right")] == left_peak
     assert min(left_peak, right_peak) <= got[("mean_vsotf", "right")] <= max(left_peak,
                                                                              right_peak)
