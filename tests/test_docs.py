@@ -477,7 +477,7 @@ def test_page_reference_check_sees_a_dead_reference():
 # PeakOptions, planning, eyes, layouts, the panel, the option objects).
 EXAMPLE_MODULES = ("lfjax.vision.focus", "lfjax.planner.plan", "lfjax.model.eyes",
                    "lfjax.model.layouts", "lfjax.display.panel", "lfjax.vision.viewing",
-                   "lfjax.vision.peak_options")
+                   "lfjax.vision.peak_options", "lfjax.binocular.viewer")
 MUST_HAVE_EXAMPLES = ("through_focus", "metrics_at", "plan_sampling", "sample_eyes",
                       "average_eye", "grid_layout", "Panel", "Viewing", "PeakOptions")
 

@@ -33,7 +33,7 @@ LAYERS = {
     "lfjax.kernel": 3,
     "lfjax.planner": 4,
     "lfjax.vision": 5,
-    "lfjax.layout_opt": 6, "lfjax.sweep": 6,
+    "lfjax.layout_opt": 6, "lfjax.sweep": 6, "lfjax.binocular": 6,
     "lfjax.studies": 7, "lfjax.design": 7,
     "lfjax.reproduce": 8,
     "lfjax.cli": 9,
@@ -46,7 +46,7 @@ import neither each other nor anything above."""
 LAYER_NAMES = {
     0: "conventions and maths", 1: "the model's data", 2: "the display",
     3: "the optics kernel and the pure pipeline", 4: "the planner",
-    5: "vision entry points", 6: "applications (layout optimiser, sweep)",
+    5: "vision entry points", 6: "applications (layout optimiser, sweep, both eyes)",
     7: "applications built on those (display studies, design)",
     8: "the paper's study", 9: "the command line", 10: "the package's face",
 }
