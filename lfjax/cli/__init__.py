@@ -32,6 +32,11 @@ SUBCOMMANDS = {module.COMMAND: module for module in (reproduce, optimise, sweep,
                                                    retina)}
 """Each subcommand's module: ``add_parser(sub)`` declares its flags, ``run(args)`` runs it."""
 
+GUIDES = {"reproduce": "paper-study.md", "optimise": "layout-optimisation.md",
+          "sweep": "population-sweeps.md", "sweep-report": "population-sweeps.md",
+          "design": "display-design.md", "retina": "scene-blur.md"}
+"""Each subcommand's guide page (``docs/guides/``), named at the end of its ``--help``."""
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = common.OneLineParser(
@@ -42,8 +47,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"lfjax {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND",
                                 parser_class=common.OneLineParser)
-    for module in SUBCOMMANDS.values():
+    for name, module in SUBCOMMANDS.items():
         module.add_parser(sub)
+        sub.choices[name].epilog = (f"Guide: docs/guides/{GUIDES[name]} (also on the "
+                                    "documentation site).")
     return parser
 
 
@@ -72,4 +79,4 @@ def main(argv: list[str] | None = None) -> int:
     return status
 
 
-__all__ = ["main", "build_parser", "enable_compilation_cache", "SUBCOMMANDS"]
+__all__ = ["main", "build_parser", "enable_compilation_cache", "SUBCOMMANDS", "GUIDES"]

@@ -142,8 +142,10 @@ def add_eyes(parser, train_default: int, test_default: int, test_help: str) -> N
 
 def add_depths(parser, default, n_default: int, help: str) -> None:
     """--depths LOW HIGH and --n-depths K of a rendered depth range."""
+    required = default is None
     parser.add_argument("--depths", metavar=("LOW", "HIGH"), nargs=2, type=finite_float,
-                        default=default, required=default is None, help=help)
+                        default=default, required=required,
+                        help=f"required: {help}" if required else help)
     parser.add_argument("--n-depths", metavar="K", type=positive_int, default=n_default,
                         help=f"rendered depths evenly spanning the range, >= 2 (default {n_default})")
 

@@ -59,8 +59,8 @@ def add_parser(sub) -> None:
                      help="how the spectrum is sampled: 'claims' (default) plans each "
                           "layout's wavelengths (a uniform step or a Gauss rule in V(lambda), "
                           "whichever needs fewer) for peaks to 0.01 D and cut-offs to "
-                          "0.25 cpd; 'vsotf' uses 10 nm steps (lfjax 0.3's plan, made for a "
-                          "VSOTF error of 1e-3). --quick: 30 nm steps")
+                          "0.25 cpd; 'vsotf' uses 10 nm steps (the uniform plan made for "
+                          "a VSOTF error of 1e-3). --quick: 30 nm steps")
     rep.add_argument("--settle-verdicts", action="store_true",
                      help="with --accuracy claims: compute again at the reference spectrum "
                           "(--accuracy vsotf's steps) the layouts a verdict turns on when the "

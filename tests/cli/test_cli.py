@@ -198,6 +198,17 @@ def test_help_explains_every_option_with_units(capsys):
         assert unit in out
 
 
+@pytest.mark.parametrize("command", sorted(cli.SUBCOMMANDS))
+def test_every_subcommands_help_names_its_guide_page(capsys, command):
+    """The help ends by naming the guide page (which exists); a required flag says so."""
+    code, out, _ = run_main(capsys, command, "--help")
+    assert code == 0
+    guide = f"docs/guides/{cli.GUIDES[command]}"
+    assert guide in " ".join(out.split()) and (ROOT / guide).is_file()
+    if command == "design":
+        assert "required: rendered depth range" in " ".join(out.split())
+
+
 @pytest.mark.parametrize("args, message", [
     (["reproduce", "--eyes", "0"], "--eyes"),
     (["reproduce", "--eyes", "-3"], "--eyes"),
