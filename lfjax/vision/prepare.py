@@ -372,6 +372,53 @@ def _check_layout(layout: Layout) -> None:
         raise ValueError(f"layout diameters_mm must be > 0 mm, got {d[d <= 0].tolist()}")
 
 
+def moved_layout(layout: Layout, pupil_offset_mm) -> Layout:
+    """``layout`` as a pupil displaced by ``pupil_offset_mm`` = Δ = (x, y) mm sees it.
+
+    The views are the display's: they cross the design pupil plane at fixed places, the
+    layout's centres c_n (pupil coordinates of the design position, +x to the viewer's
+    right, +y up). A pupil moved by Δ in that frame finds view n at c_n − Δ in its own
+    coordinates, so every entry point moves by −Δ; the pipeline's pupil crops each view
+    there (a view partly outside keeps only the light that enters). Each view's angular
+    displacement, (D_depth − D_CDP)·(c_n − Δ), also moves: the views' common part,
+    −(D_depth − D_CDP)·Δ, with the CDP parallax −Δ·D_CDP, is the rendered point's direction
+    from the moved eye, −Δ·D_depth, so what stays is the image relative to that direction:
+    the eye turns (by Δ·D_depth rad, a few mrad) to fixate the point, as the fovea does.
+
+    Subtracting Δ is exact for Δ = 0 (c − 0.0 = c), so the design position reproduces the
+    centred answer bit for bit; a traced Δ is differentiated through."""
+    centres = layout.centres_mm
+    shift = jnp.asarray(pupil_offset_mm, centres.dtype).reshape(2)
+    return Layout(centres - shift, layout.diameters_mm, layout.window_diameter_mm, layout.name)
+
+
+def _check_moved_views(layout: Layout, pupil_diameter_mm, pupil_offset_mm) -> None:
+    """A displaced pupil (concrete ``pupil_offset_mm``, mm) must still hold part of every
+    view of the moved ``layout``: a :class:`~lfjax.base.errors.ParameterError` naming
+    ``pupil_offset_mm`` otherwise (a view wholly outside brings no light; take the views
+    that reach the moved pupil, :func:`lfjax.vision.eye_box.views_reaching`). At the
+    design position :func:`~lfjax.model.layouts.check_views_in_pupil` says it, as before."""
+    if not is_concrete(pupil_offset_mm):
+        return
+    offset = np.asarray(pupil_offset_mm, float).reshape(2)
+    if not np.any(offset):
+        return
+    c = np.asarray(layout.centres_mm, float)
+    gap = np.hypot(c[:, 0], c[:, 1]) - 0.5 * np.asarray(layout.diameters_mm, float) \
+        - 0.5 * float(pupil_diameter_mm)
+    outside = np.nonzero(gap >= 0)[0]
+    if outside.size:
+        raise ParameterError(
+            "pupil_offset_mm", "viewing.{pupil_offset_mm} = ({x:g}, {y:g}) mm moves the "
+            "{pupil:g} mm pupil off {n} of the {total} views of layout {name!r} (view {i} "
+            "lies {gap:.4g} mm outside it): a view wholly outside the pupil brings no light. "
+            "Give the views that reach the moved pupil "
+            "(lfjax.vision.eye_box.views_reaching), or a smaller displacement",
+            x=offset[0], y=offset[1], pupil=float(pupil_diameter_mm), n=int(outside.size),
+            total=int(gap.size), name=layout.name, i=int(outside[0]),
+            gap=float(gap[outside[0]]))
+
+
 @dataclass(frozen=True, eq=False)
 class Prepared:
     """A computation prepared on the host (:func:`prepare`).
@@ -382,7 +429,8 @@ class Prepared:
     states : the :class:`States` computed
     sampling : the :class:`~lfjax.base.sampling.Sampling` used (checked, or planned)
     config : the static :class:`~lfjax.kernel.pipeline.PipelineConfig`
-    layout : the :class:`~lfjax.model.layouts.Layout`
+    layout : the :class:`~lfjax.model.layouts.Layout` as the pupil sees it (moved by
+        ``viewing.pupil_offset_mm``: :func:`moved_layout`)
     spectrum : the :class:`~lfjax.model.spectral.Spectrum` (the default V(λ) one when none
         was given)
     pupil_diameter_mm : the calculation pupil as given (mm; may be traced)
@@ -425,8 +473,10 @@ def prepare(
     states : the (depth, accommodation) pairs, a :class:`States`
     viewing : :class:`~lfjax.vision.viewing.Viewing`: the calculation pupil (mm, ≤
         ``eyes.measured_pupil_mm``; may be traced: the windows are then sized for the
-        measured pupil), the display's central depth plane (D; may be traced) and the
-        display's optics (None: the paper's ideal display)
+        measured pupil), the display's central depth plane (D; may be traced), the
+        display's optics (None: the paper's ideal display) and the pupil's displacement
+        from the design position (mm; the layout is moved by :func:`moved_layout`, and a
+        view wholly outside the moved pupil is refused; ignored when ``layout`` is None)
     spectrum : default V(λ) on 400–700 nm in 10 nm steps with ``options``' LCA and SCE
     options : :class:`~lfjax.model.options.ModelOptions`
     sampling : checked against the field guard when given (``check_aliasing``; concrete
@@ -458,9 +508,12 @@ def prepare(
         layout = (open_pupil(pupil_static) if is_concrete(pupil_diameter_mm) else Layout(
             jnp.zeros((1, 2)), jnp.reshape(jnp.asarray(pupil_diameter_mm, float), (1,)),
             pupil_static, "natural"))
+    else:
+        layout = moved_layout(layout, viewing.pupil_offset_mm)
     check_display_for_layout(display, layout, parameter="viewing", path=".display")
     if is_concrete(layout.centres_mm, layout.diameters_mm, pupil_diameter_mm):
         # a view outside the pupil brings no light: VSOTF would be 0/0 (NaN, or 1)
+        _check_moved_views(layout, pupil_diameter_mm, viewing.pupil_offset_mm)
         check_views_in_pupil(layout.centres_mm, layout.diameters_mm, pupil_diameter_mm,
                              layout.name)
     concrete = states.concrete and is_concrete(pupil_diameter_mm, cdp_D)
@@ -496,6 +549,7 @@ __all__ = [
     "States",
     "Prepared",
     "prepare",
+    "moved_layout",
     "check_eye_chunk",
     "default_sampling",
     "with_aliasing_retry",

@@ -17,6 +17,7 @@ from lfjax.vision.viewing import MAX_PUPIL_MM, Viewing
 def test_defaults_and_fields():
     viewing = Viewing()
     assert (viewing.pupil_diameter_mm, viewing.cdp_D, viewing.display) == (3.0, 2.0, None)
+    assert viewing.pupil_offset_mm == (0.0, 0.0)
     assert Viewing(pupil_diameter_mm=MAX_PUPIL_MM, cdp_D=0.0).pupil_diameter_mm == MAX_PUPIL_MM
     assert Viewing(display=ideal_display()).display is not None
 
@@ -29,6 +30,11 @@ def test_defaults_and_fields():
     ({"pupil_diameter_mm": "wide"}, "pupil_diameter_mm", r"got 'wide'"),
     ({"cdp_D": -1.0}, "cdp_D", r"cdp_D: every CDP must lie in the model's range \[0, 10\] D"),
     ({"cdp_D": 11.0}, "cdp_D", r"range \[0, 10\] D"),
+    ({"pupil_offset_mm": (31.0, 0.0)}, "pupil_offset_mm",
+     r"Viewing.pupil_offset_mm must be \(x, y\) in mm, each in \[-30, 30\] mm, got \(31.0, 0.0\)"),
+    ({"pupil_offset_mm": (0.0, math.nan)}, "pupil_offset_mm", r"each in \[-30, 30\] mm"),
+    ({"pupil_offset_mm": 1.0}, "pupil_offset_mm", r"must be \(x, y\) in mm"),
+    ({"pupil_offset_mm": ("left", 0.0)}, "pupil_offset_mm", r"got \('left', 0.0\)"),
     ({"display": "phone"}, "display", r"Viewing.display must be lfjax.display.lenslets."
                                       r"DisplayOptics or None .*got str"),
 ])
@@ -47,6 +53,12 @@ def test_a_traced_pupil_and_cdp_build_a_viewing():
     assert tuple(map(float, grad)) == (1.5, 4.0)
 
 
+def test_a_traced_pupil_offset_builds_a_viewing():
+    grad = jax.grad(lambda x: Viewing(pupil_offset_mm=(x, 0.0)).pupil_offset_mm[0] * 3.0)(1.0)
+    assert float(grad) == 3.0
+
+
 def test_a_viewing_is_a_pytree_of_its_numbers():
-    leaves = jax.tree_util.tree_leaves(Viewing(pupil_diameter_mm=4.0, cdp_D=1.5))
-    assert leaves == [4.0, 1.5]
+    leaves = jax.tree_util.tree_leaves(Viewing(pupil_diameter_mm=4.0, cdp_D=1.5,
+                                               pupil_offset_mm=(0.5, -1.0)))
+    assert leaves == [4.0, 1.5, 0.5, -1.0]
