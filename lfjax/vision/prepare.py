@@ -387,6 +387,8 @@ def moved_layout(layout: Layout, pupil_offset_mm) -> Layout:
 
     Subtracting Δ is exact for Δ = 0 (c − 0.0 = c), so the design position reproduces the
     centred answer bit for bit; a traced Δ is differentiated through."""
+    if is_concrete(pupil_offset_mm) and not np.any(np.asarray(pupil_offset_mm, float)):
+        return layout  # the design position: no eager subtract program per layout shape
     centres = layout.centres_mm
     shift = jnp.asarray(pupil_offset_mm, centres.dtype).reshape(2)
     return Layout(centres - shift, layout.diameters_mm, layout.window_diameter_mm, layout.name)
