@@ -4,14 +4,23 @@
   gradient checks need it. lfjax follows ``jnp.result_type(float)``, so it computes in
   float64 here; the float32 accuracy statement (kernel/test_optics.py) runs inside
   ``jax.enable_x64(False)``.
-* XLA's CPU backend optimisation level 0: this suite is dominated by compiling many small
+* XLA's CPU backend optimisation level 0 and its older (non-MLIR) fusion emitters
+  (``--xla_cpu_use_fusion_emitters=false``): this suite is dominated by compiling many
   programs (each distinct shape or static option recompiles); level 0 compiles them 2-3x
-  faster and changes no result beyond round-off. Set ``XLA_FLAGS`` yourself to override.
+  faster, the older emitters about a third faster again (tests/vision/test_peaks.py: 294
+  → 192 s of CPU), and neither changes a result beyond round-off. Each is added unless
+  ``XLA_FLAGS`` already names it; the notebooks' kernels and the command-line
+  subprocesses inherit them.
 * Shapes in the types are checked (``LFJAX_SHAPE_CHECKS=1``, before lfjax is imported): the
   public numerical entry points check their jaxtyping annotations with beartype at every
   call (``lfjax.base.types.shape_checked``).
 * Expensive results shared by several test files are session fixtures here (each costs
   one XLA compile); cheap module-level inputs live in ``helpers.py``.
+* The heaviest test files are handed to the pytest-xdist workers first
+  (``HEAVY_FIRST``, with ``--no-loadscope-reorder`` in pyproject's addopts; the others
+  follow, most tests first, as xdist itself orders them): whole files run on one worker
+  (``--dist loadfile``), so a heavy file started last would leave the other worker idle
+  for its whole length.
 * One compilation cache per test session, shared by every process the session starts (the
   pytest-xdist workers, the notebooks' kernels, the command-line subprocesses), and empty
   at its start: a program one of them compiled is read back by the others, and nothing is
@@ -23,10 +32,12 @@ from __future__ import annotations
 
 import os
 
-if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0"
-    ).strip()
+for _flag, _value in (("xla_backend_optimization_level", "0"),
+                      ("xla_cpu_use_fusion_emitters", "false")):
+    if _flag not in os.environ.get("XLA_FLAGS", ""):
+        os.environ["XLA_FLAGS"] = (
+            os.environ.get("XLA_FLAGS", "") + f" --{_flag}={_value}"
+        ).strip()
 
 os.environ.setdefault("LFJAX_SHAPE_CHECKS", "1")
 
@@ -137,6 +148,42 @@ def tf_2x2():
 @pytest.fixture(scope="session")
 def tf_4x4():
     return _physics_tf(4)
+
+
+HEAVY_FIRST = (
+    "vision/test_peaks.py",
+    "layout_opt/test_layout_opt.py",
+    "sweep/test_sweep.py",
+    "design/test_design_fit.py",
+    "model/test_options.py",
+    "cli/test_cli.py",
+    "display/test_lenslets.py",
+    "sweep/test_sweep_report.py",
+    "planner/test_plan.py",
+    "reproduce/test_alternatives.py",
+    "test_docs.py",
+    "kernel/test_streamed_views.py",
+    "test_gpu_check.py",
+)
+"""Test files (relative to tests/) by CPU time, most first, from a whole run's
+``--durations`` (each over about 35 s on two cores)."""
+
+
+def pytest_collection_modifyitems(config, items):
+    """Heaviest files first (``HEAVY_FIRST``), then the others by their number of tests,
+    most first; a file's own tests keep their order (the sort is stable)."""
+    from collections import Counter
+    from pathlib import Path
+
+    tests = Path(__file__).resolve().parent
+
+    def name(item):
+        path = Path(str(item.path))
+        return path.relative_to(tests).as_posix() if path.is_relative_to(tests) else str(path)
+
+    counts = Counter(name(item) for item in items)
+    rank = {file: i for i, file in enumerate(HEAVY_FIRST)}
+    items.sort(key=lambda item: (rank.get(name(item), len(rank)), -counts[name(item)]))
 
 
 def pytest_sessionfinish(session, exitstatus):
