@@ -16,6 +16,11 @@
   call (``lfjax.base.types.shape_checked``).
 * Expensive results shared by several test files are session fixtures here (each costs
   one XLA compile); cheap module-level inputs live in ``helpers.py``.
+* Python's cyclic garbage collector runs less often (first generation every 20,000
+  allocations, not 700) once everything is imported (``gc.freeze``): tracing a program
+  through JAX's transformations allocates millions of short-lived objects, tracing is most
+  of what each compile costs here, and the default thresholds spend about a tenth of it
+  collecting. No result depends on when garbage is collected.
 * The heaviest test files are handed to the pytest-xdist workers first
   (``HEAVY_FIRST``, with ``--no-loadscope-reorder`` in pyproject's addopts; the others
   follow, most tests first, as xdist itself orders them): whole files run on one worker
@@ -73,6 +78,11 @@ from lfjax.vision.focus import through_focus  # noqa: E402
 import helpers as H  # noqa: E402
 from lfjax.vision.prepare import States
 from lfjax.vision.viewing import Viewing
+
+import gc  # noqa: E402
+
+gc.freeze()
+gc.set_threshold(20_000, 50, 100)
 
 @pytest.fixture(scope="session")
 def dl_convergence():
