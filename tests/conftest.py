@@ -4,13 +4,13 @@
   gradient checks need it. lfjax follows ``jnp.result_type(float)``, so it computes in
   float64 here; the float32 accuracy statement (kernel/test_optics.py) runs inside
   ``jax.enable_x64(False)``.
-* XLA's CPU backend optimisation level 0 and its older (non-MLIR) fusion emitters
-  (``--xla_cpu_use_fusion_emitters=false``): this suite is dominated by compiling many
-  programs (each distinct shape or static option recompiles); level 0 compiles them 2-3x
-  faster, the older emitters about a third faster again (tests/vision/test_peaks.py: 294
-  → 192 s of CPU), and neither changes a result beyond round-off. Each is added unless
-  ``XLA_FLAGS`` already names it; the notebooks' kernels and the command-line
-  subprocesses inherit them.
+* XLA's CPU backend optimisation level 0 and, on jaxlib 0.6 or newer, its older
+  (non-MLIR) fusion emitters (``--xla_cpu_use_fusion_emitters=false``): this suite is
+  dominated by compiling many programs (each distinct shape or static option recompiles);
+  level 0 compiles them 2-3x faster, and the older emitters take about a third off the CPU
+  time of the heaviest files again (tests/vision/test_peaks.py: 294 → 192 s); neither
+  changes a result beyond round-off. Each is added unless ``XLA_FLAGS`` already names it;
+  the notebooks' kernels and the command-line subprocesses inherit them.
 * Shapes in the types are checked (``LFJAX_SHAPE_CHECKS=1``, before lfjax is imported): the
   public numerical entry points check their jaxtyping annotations with beartype at every
   call (``lfjax.base.types.shape_checked``).
@@ -37,8 +37,24 @@ from __future__ import annotations
 
 import os
 
-for _flag, _value in (("xla_backend_optimization_level", "0"),
-                      ("xla_cpu_use_fusion_emitters", "false")):
+def _jaxlib_at_least(major: int, minor: int) -> bool:
+    """Whether the installed jaxlib is at least ``major.minor`` (read from its metadata,
+    before jax is imported). XLA aborts the process on a flag it does not know, and
+    ``xla_cpu_use_fusion_emitters`` is newer than the oldest jaxlib lfjax accepts."""
+    import re
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        found = re.match(r"(\d+)\.(\d+)", version("jaxlib"))
+    except PackageNotFoundError:
+        return False
+    return bool(found) and (int(found[1]), int(found[2])) >= (major, minor)
+
+
+_FLAGS = [("xla_backend_optimization_level", "0")]
+if _jaxlib_at_least(0, 6):
+    _FLAGS.append(("xla_cpu_use_fusion_emitters", "false"))
+for _flag, _value in _FLAGS:
     if _flag not in os.environ.get("XLA_FLAGS", ""):
         os.environ["XLA_FLAGS"] = (
             os.environ.get("XLA_FLAGS", "") + f" --{_flag}={_value}"
