@@ -4,14 +4,28 @@
   gradient checks need it. lfjax follows ``jnp.result_type(float)``, so it computes in
   float64 here; the float32 accuracy statement (kernel/test_optics.py) runs inside
   ``jax.enable_x64(False)``.
-* XLA's CPU backend optimisation level 0: this suite is dominated by compiling many small
-  programs (each distinct shape or static option recompiles); level 0 compiles them 2-3x
-  faster and changes no result beyond round-off. Set ``XLA_FLAGS`` yourself to override.
+* XLA's CPU backend optimisation level 0 and, on jaxlib 0.6 or newer, its older
+  (non-MLIR) fusion emitters (``--xla_cpu_use_fusion_emitters=false``): this suite is
+  dominated by compiling many programs (each distinct shape or static option recompiles);
+  level 0 compiles them 2-3x faster, and the older emitters take about a third off the CPU
+  time of the heaviest files again (tests/vision/test_peaks.py: 294 → 192 s); neither
+  changes a result beyond round-off. Each is added unless ``XLA_FLAGS`` already names it;
+  the notebooks' kernels and the command-line subprocesses inherit them.
 * Shapes in the types are checked (``LFJAX_SHAPE_CHECKS=1``, before lfjax is imported): the
   public numerical entry points check their jaxtyping annotations with beartype at every
   call (``lfjax.base.types.shape_checked``).
 * Expensive results shared by several test files are session fixtures here (each costs
   one XLA compile); cheap module-level inputs live in ``helpers.py``.
+* Python's cyclic garbage collector runs less often (first generation every 20,000
+  allocations, not 700) once everything is imported (``gc.freeze``): tracing a program
+  through JAX's transformations allocates millions of short-lived objects, tracing is most
+  of what each compile costs here, and the default thresholds spend about a tenth of it
+  collecting. No result depends on when garbage is collected.
+* The heaviest test files are handed to the pytest-xdist workers first
+  (``HEAVY_FIRST``, with ``--no-loadscope-reorder`` in pyproject's addopts; the others
+  follow, most tests first, as xdist itself orders them): whole files run on one worker
+  (``--dist loadfile``), so a heavy file started last would leave the other worker idle
+  for its whole length.
 * One compilation cache per test session, shared by every process the session starts (the
   pytest-xdist workers, the notebooks' kernels, the command-line subprocesses), and empty
   at its start: a program one of them compiled is read back by the others, and nothing is
@@ -23,10 +37,28 @@ from __future__ import annotations
 
 import os
 
-if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0"
-    ).strip()
+def _jaxlib_at_least(major: int, minor: int) -> bool:
+    """Whether the installed jaxlib is at least ``major.minor`` (read from its metadata,
+    before jax is imported). XLA aborts the process on a flag it does not know, and
+    ``xla_cpu_use_fusion_emitters`` is newer than the oldest jaxlib lfjax accepts."""
+    import re
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        found = re.match(r"(\d+)\.(\d+)", version("jaxlib"))
+    except PackageNotFoundError:
+        return False
+    return bool(found) and (int(found[1]), int(found[2])) >= (major, minor)
+
+
+_FLAGS = [("xla_backend_optimization_level", "0")]
+if _jaxlib_at_least(0, 6):
+    _FLAGS.append(("xla_cpu_use_fusion_emitters", "false"))
+for _flag, _value in _FLAGS:
+    if _flag not in os.environ.get("XLA_FLAGS", ""):
+        os.environ["XLA_FLAGS"] = (
+            os.environ.get("XLA_FLAGS", "") + f" --{_flag}={_value}"
+        ).strip()
 
 os.environ.setdefault("LFJAX_SHAPE_CHECKS", "1")
 
@@ -62,6 +94,11 @@ from lfjax.vision.focus import through_focus  # noqa: E402
 import helpers as H  # noqa: E402
 from lfjax.vision.prepare import States
 from lfjax.vision.viewing import Viewing
+
+import gc  # noqa: E402
+
+gc.freeze()
+gc.set_threshold(20_000, 50, 100)
 
 @pytest.fixture(scope="session")
 def dl_convergence():
@@ -137,6 +174,42 @@ def tf_2x2():
 @pytest.fixture(scope="session")
 def tf_4x4():
     return _physics_tf(4)
+
+
+HEAVY_FIRST = (
+    "vision/test_peaks.py",
+    "layout_opt/test_layout_opt.py",
+    "sweep/test_sweep.py",
+    "design/test_design_fit.py",
+    "model/test_options.py",
+    "cli/test_cli.py",
+    "display/test_lenslets.py",
+    "sweep/test_sweep_report.py",
+    "planner/test_plan.py",
+    "reproduce/test_alternatives.py",
+    "test_docs.py",
+    "kernel/test_streamed_views.py",
+    "test_gpu_check.py",
+)
+"""Test files (relative to tests/) by CPU time, most first, from a whole run's
+``--durations`` (each over about 35 s on two cores)."""
+
+
+def pytest_collection_modifyitems(config, items):
+    """Heaviest files first (``HEAVY_FIRST``), then the others by their number of tests,
+    most first; a file's own tests keep their order (the sort is stable)."""
+    from collections import Counter
+    from pathlib import Path
+
+    tests = Path(__file__).resolve().parent
+
+    def name(item):
+        path = Path(str(item.path))
+        return path.relative_to(tests).as_posix() if path.is_relative_to(tests) else str(path)
+
+    counts = Counter(name(item) for item in items)
+    rank = {file: i for i, file in enumerate(HEAVY_FIRST)}
+    items.sort(key=lambda item: (rank.get(name(item), len(rank)), -counts[name(item)]))
 
 
 def pytest_sessionfinish(session, exitstatus):
