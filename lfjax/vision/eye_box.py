@@ -49,9 +49,10 @@ def _views(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
 
 def views_reaching(layout: Layout, pupil_diameter_mm: float,
                    pupil_offset_mm=(0.0, 0.0)) -> Layout | None:
-    """The views of ``layout`` (design coordinates, mm) that reach into a pupil of
-    ``pupil_diameter_mm`` (mm) displaced by ``pupil_offset_mm`` (x, y) mm: those with
-    |centre − Δ| − diameter/2 < pupil/2. Still in design coordinates (a computation moves
+    """The views of ``layout`` that reach into a displaced pupil.
+
+    ``layout`` in design coordinates (mm); the pupil of ``pupil_diameter_mm`` (mm) displaced
+    by ``pupil_offset_mm`` (x, y) mm; the views with |centre − Δ| − diameter/2 < pupil/2. Still in design coordinates (a computation moves
     them, :func:`~lfjax.vision.prepare.moved_layout`), the window and name kept; None when
     no view reaches it (host)."""
     c, d = _views(layout)

@@ -372,6 +372,22 @@ def _check_layout(layout: Layout) -> None:
         raise ValueError(f"layout diameters_mm must be > 0 mm, got {d[d <= 0].tolist()}")
 
 
+def _without_vanishing_aberration(display):
+    """``display`` without its lenslet aberration when every coefficient is a concrete zero
+    (:class:`~lfjax.display.aberrations.LensletAberration` promises the aberration-free
+    numbers bit for bit then; computing a zero phase costs arithmetic and, with XLA's
+    fusion choices, can move the last bit). A traced aberration (under ``jax.grad``) is
+    kept, so its gradient at zero is still taken."""
+    aberration = None if display is None else display.aberration
+    if aberration is None or not is_concrete(aberration):
+        return display
+    terms = (aberration.spherical_um, aberration.coma_um, aberration.astigmatism_um,
+             aberration.field_curvature_um)
+    if any(np.any(np.asarray(term) != 0) for term in terms):
+        return display
+    return display.with_aberration(None)
+
+
 def moved_layout(layout: Layout, pupil_offset_mm) -> Layout:
     """``layout`` as a pupil displaced by ``pupil_offset_mm`` = Δ = (x, y) mm sees it.
 
@@ -496,7 +512,8 @@ def prepare(
     given sampling's field cannot hold the blur.
     """
     check_viewing(viewing)
-    pupil_diameter_mm, cdp_D, display = viewing.pupil_diameter_mm, viewing.cdp_D, viewing.display
+    pupil_diameter_mm, cdp_D = viewing.pupil_diameter_mm, viewing.cdp_D
+    display = _without_vanishing_aberration(viewing.display)
     eye_chunk = check_eye_chunk(eye_chunk)
     check_eyes(eyes)
     validate_pupil(pupil_diameter_mm, eyes.measured_pupil_mm)

@@ -418,7 +418,8 @@ def _library_inputs():
         "sweep-report": ([sweep_report], {"sample_size", "dpi", "progress"}),
         "retina": ([retinal_scene, LayeredScene.from_depth_map, LayeredScene.from_layers,
                     read_depth_map_scene, read_layers_file, Viewing, check_output_folder],
-                   {"scene", "viewing", "pupil_diameter_mm", "options", "boundary",
+                   {"scene", "viewing", "pupil_diameter_mm", "pupil_offset_mm", "options",
+                    "boundary",
                     "memory_limit_bytes", "need_bytes", "parameter", "progress", "cls",
                     "image_path", "depth_path", "path"}),
         # ReportSettings names its accuracy and counts report_accuracy and report_counts;
